@@ -1,0 +1,16 @@
+// Each subcommand registers its options on the CLI11 app and returns the exit
+// code when run. Errors are thrown as skyfall::Error and reported by main.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace skyfall::cli {
+
+// Called after parsing when the subcommand was chosen; returns the exit code.
+using Runner = std::function<int()>;
+
+void AddIngestCommand(CLI::App& app, Runner* runner);
+void AddRpcCommand(CLI::App& app, Runner* runner);
+
+}  // namespace skyfall::cli

@@ -1,0 +1,34 @@
+// Logging and progress conventions of the CLI (every stage uses them):
+//  - stdout carries only results (numbers, --json documents), so it can be
+//    piped; everything for humans goes to stderr through spdlog.
+//  - `-q` shows warnings and errors only, `-v` adds debug detail.
+//  - Long work reports "[task] done/total item" lines on stderr, at most a
+//    few per second, plus a final line; skipped items are warnings.
+#pragma once
+
+#include <chrono>
+#include <string>
+
+#include "core/stage.h"
+
+namespace skyfall::cli {
+
+// Sets the global spdlog level from the -q / -v flags.
+void SetupLogging(bool quiet, bool verbose);
+
+class ConsoleProgress final : public Progress {
+ public:
+  void Begin(std::string_view task, std::size_t total) override;
+  void Advance(std::size_t done, std::string_view item) override;
+  void Warn(std::string_view message) override;
+  void End() override;
+
+ private:
+  std::string task_;
+  std::size_t total_ = 0;
+  std::size_t done_ = 0;
+  Stopwatch clock_;
+  double last_print_s_ = -1.0;
+};
+
+}  // namespace skyfall::cli

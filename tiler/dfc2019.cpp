@@ -1,0 +1,435 @@
+#include "tiler/dfc2019.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <regex>
+#include <sstream>
+
+#include "catalogs/aoi_catalog.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/format.h"
+#include "tiler/geo.h"
+#include "tiler/raster.h"
+#include "tiler/rpc_io.h"
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kEarthRadiusM = 6371000.0;  // spherical Earth for the off-nadir estimate
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+// What the scan found for one AOI, before anything is read.
+struct AoiFiles {
+  std::map<std::string, std::string> images;  // image stem -> raster path
+  std::string truth_dir;
+  std::string satnerf_dir;  // may not exist
+};
+
+// DFC2019 image names: <AOI>_<NNN>_RGB.tif, e.g. JAX_068_001_RGB.tif.
+const std::regex kImageName(R"(^(.+)_(\d+)_RGB\.tiff?$)", std::regex::icase);
+
+std::vector<fs::path> ImageFolders(const fs::path& root) {
+  // Crops first: when an image is in both layouts, the crop wins (it is what
+  // Sat-NeRF-style pipelines and their truth grids use).
+  std::vector<fs::path> out;
+  if (fs::is_directory(root / "Track3-RGB-crops")) out.push_back(root / "Track3-RGB-crops");
+  for (const auto& entry : fs::directory_iterator(root)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_directory() && name.rfind("Track3-RGB", 0) == 0 && name != "Track3-RGB-crops") {
+      out.push_back(entry.path());
+    }
+  }
+  return out;
+}
+
+std::map<std::string, AoiFiles> ScanRoot(const fs::path& root) {
+  if (!fs::is_directory(root)) throw Error("ingest", root.string(), "is not a folder");
+  const auto folders = ImageFolders(root);
+  if (folders.empty()) {
+    throw Error("ingest", root.string(), "holds no Track3-RGB or Track3-RGB-crops folder");
+  }
+  std::map<std::string, AoiFiles> aois;
+  for (const auto& folder : folders) {
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::recursive_directory_iterator(folder)) {
+      if (entry.is_regular_file()) files.push_back(entry.path());
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& file : files) {
+      std::smatch m;
+      const std::string name = file.filename().string();
+      if (!std::regex_match(name, m, kImageName)) continue;
+      AoiFiles& aoi = aois[m[1].str()];
+      aoi.images.emplace(file.stem().string(), fs::absolute(file).string());  // first wins
+    }
+  }
+  for (auto& [name, files] : aois) {
+    files.truth_dir = (root / "Track3-Truth").string();
+    files.satnerf_dir = (root / "satnerf-rpcs" / name).string();
+  }
+  return aois;
+}
+
+std::vector<std::string> ReadNameList(const fs::path& path) {
+  std::vector<std::string> names;
+  if (!fs::exists(path)) return names;
+  std::istringstream in(ReadTextFile(path.string()));
+  std::string line;
+  while (std::getline(in, line)) {
+    line.erase(std::remove_if(line.begin(), line.end(), ::isspace), line.end());
+    if (line.empty()) continue;
+    names.push_back(fs::path(line).stem().string());  // "x.tif" and "x" both name image x
+  }
+  return names;
+}
+
+// One image's raster facts, RPC, date and sun angles. Throws on bad input.
+ImageRecord ReadImage(const std::string& stem, const std::string& path, const AoiFiles& files,
+                      const IngestOptions& options, std::optional<SatNerfCamera>* satnerf) {
+  const RasterInfo info = ReadRasterInfo(path);
+  if (options.verify_pixels) VerifyRasterPixels(path);
+  ImageRecord im;
+  im.name = stem;
+  im.path = path;
+  im.width_px = info.width_px;
+  im.height_px = info.height_px;
+  im.bands = info.bands;
+  im.dtype = info.dtype;
+
+  const fs::path json_path = fs::path(files.satnerf_dir) / (stem + ".json");
+  if (fs::exists(json_path)) *satnerf = ReadSatNerfCamera(json_path.string());
+
+  if (!info.rpc_metadata.empty()) {
+    try {
+      im.rpc = RpcFromGdalMetadata(info.rpc_metadata);
+    } catch (const Error& e) {
+      throw e.Within(path);
+    }
+    im.rpc_source = "gdal_metadata";
+  } else if (*satnerf) {
+    im.rpc = (*satnerf)->rpc;
+    im.rpc_source = "satnerf_json";
+  } else {
+    throw Error("rpc", path,
+                "no RPC metadata (no GeoTIFF RPC tag, NITF RPC00B, .RPB/_RPC.TXT sidecar, "
+                "or Sat-NeRF JSON)");
+  }
+  const auto idatim = info.metadata.find("NITF_IDATIM");
+  if (idatim != info.metadata.end()) im.acquisition_time = IsoTimeFromCompact(idatim->second);
+  if (*satnerf) {
+    if (im.acquisition_time.empty()) im.acquisition_time = (*satnerf)->acquisition_time;
+    im.sun_elevation_deg = (*satnerf)->sun_elevation_deg;
+    im.sun_azimuth_deg = (*satnerf)->sun_azimuth_deg;
+  }
+  return im;
+}
+
+TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files, const IngestOptions& options) {
+  const fs::path dir(files.truth_dir);
+  TruthGrid t;
+  t.dsm_path = (dir / (aoi + "_DSM.tif")).string();
+  t.dsm_txt_path = (dir / (aoi + "_DSM.txt")).string();
+  const fs::path cls = dir / (aoi + "_CLS.tif");
+  if (fs::exists(cls)) t.cls_path = cls.string();
+  if (!fs::exists(t.dsm_txt_path)) {
+    throw Error("ingest", t.dsm_txt_path, "is missing (the DSM grid cannot be georeferenced)");
+  }
+  const DsmTxt grid = ParseDsmTxt(ReadTextFile(t.dsm_txt_path), t.dsm_txt_path);
+  const FloatBand dsm = ReadFloatBand(t.dsm_path);
+  if (dsm.width_px != grid.size_px || dsm.height_px != grid.size_px) {
+    throw Error("ingest", t.dsm_txt_path + ": size",
+                "is " + std::to_string(grid.size_px) + " but " + t.dsm_path + " is " +
+                    std::to_string(dsm.width_px) + "x" + std::to_string(dsm.height_px) + " px");
+  }
+  if (!t.cls_path.empty()) {
+    const RasterInfo cls_info = ReadRasterInfo(t.cls_path);
+    if (cls_info.width_px != dsm.width_px || cls_info.height_px != dsm.height_px) {
+      throw Error("ingest", t.cls_path,
+                  "is " + std::to_string(cls_info.width_px) + "x" +
+                      std::to_string(cls_info.height_px) + " px, the DSM is " +
+                      std::to_string(dsm.width_px) + "x" + std::to_string(dsm.height_px));
+    }
+  }
+  t.lower_left_easting_m = grid.easting_m;
+  t.lower_left_northing_m = grid.northing_m;
+  t.width_px = t.height_px = grid.size_px;
+  t.gsd_m = grid.gsd_m;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (float v : dsm.values) {
+    if (!std::isfinite(v) || (dsm.has_nodata && v == dsm.nodata)) continue;
+    lo = std::min<double>(lo, v);
+    hi = std::max<double>(hi, v);
+  }
+  if (!(lo <= hi)) throw Error("ingest", t.dsm_path, "holds no finite height");
+  t.min_height_m = lo;
+  t.max_height_m = hi;
+  (void)options;
+  return t;
+}
+
+double WrapDegrees360(double deg) {
+  deg = std::fmod(deg, 360.0);
+  return deg < 0 ? deg + 360.0 : deg;
+}
+
+// Viewing geometry at the image centre: two points of the same pixel's ray at
+// different heights give the ray direction in the local ENU frame.
+void SetViewGeometry(const EnuFrame& frame, double mid_height_m, const IngestOptions& options,
+                     ImageRecord* im) {
+  const double col = 0.5 * (im->width_px - 1), row = 0.5 * (im->height_px - 1);
+  const double h_lo = mid_height_m - 0.5 * options.view_ray_height_step_m;
+  const double h_hi = mid_height_m + 0.5 * options.view_ray_height_step_m;
+  const Eigen::Vector2d lo = Localize(im->rpc, col, row, h_lo);
+  const Eigen::Vector2d hi = Localize(im->rpc, col, row, h_hi);
+  const Eigen::Vector3d ray =
+      (frame.EnuFromGeodetic({hi.x(), hi.y(), h_hi}) - frame.EnuFromGeodetic({lo.x(), lo.y(), h_lo}))
+          .normalized();  // from the ground towards the satellite
+  im->view_zenith_deg = std::acos(std::clamp(ray.z(), -1.0, 1.0)) * kRadToDeg;
+  im->view_azimuth_deg = WrapDegrees360(std::atan2(ray.x(), ray.y()) * kRadToDeg);
+  const double ratio = kEarthRadiusM / (kEarthRadiusM + options.nominal_orbit_height_m);
+  im->off_nadir_deg = std::asin(ratio * std::sin(im->view_zenith_deg / kRadToDeg)) * kRadToDeg;
+}
+
+std::vector<Eigen::Vector2d> ImageFootprint(const ImageRecord& im, double height_m) {
+  // Outer pixel corners, in image order (top-left, top-right, bottom-right, bottom-left).
+  const double w = im.width_px - 0.5, h = im.height_px - 0.5;
+  const Eigen::Vector2d corners[4] = {{-0.5, -0.5}, {w, -0.5}, {w, h}, {-0.5, h}};
+  std::vector<Eigen::Vector2d> out;
+  for (const auto& c : corners) out.push_back(Localize(im.rpc, c.x(), c.y(), height_m));
+  return out;
+}
+
+struct HeightRange {
+  double min_m, max_m;
+  std::string source;
+};
+
+HeightRange ChooseHeightRange(const std::optional<TruthGrid>& truth,
+                              const std::vector<std::optional<SatNerfCamera>>& satnerf,
+                              const std::vector<ImageRecord>& images, const IngestOptions& o) {
+  if (truth) {
+    return {truth->min_height_m - o.height_margin_m, truth->max_height_m + o.height_margin_m,
+            "truth_dsm"};
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& cam : satnerf) {
+    if (cam && cam->min_alt_m && cam->max_alt_m) {
+      lo = std::min(lo, *cam->min_alt_m);
+      hi = std::max(hi, *cam->max_alt_m);
+    }
+  }
+  if (lo <= hi) return {lo - o.height_margin_m, hi + o.height_margin_m, "satnerf_json"};
+  std::vector<double> offsets;
+  double half = o.rpc_height_half_range_m;
+  for (const auto& im : images) {
+    offsets.push_back(im.rpc.height_off);
+    half = std::min(half, std::abs(im.rpc.height_scale));
+  }
+  std::nth_element(offsets.begin(), offsets.begin() + offsets.size() / 2, offsets.end());
+  const double mid = offsets[offsets.size() / 2];
+  return {mid - half, mid + half, "rpc"};
+}
+
+// The lon/lat box common to all image footprints, counter-clockwise.
+std::vector<Eigen::Vector2d> FootprintOverlap(const std::vector<ImageRecord>& images,
+                                              const std::string& aoi) {
+  Eigen::Vector2d lo(-1e9, -1e9), hi(1e9, 1e9);
+  for (const auto& im : images) {
+    Eigen::Vector2d a(1e9, 1e9), b(-1e9, -1e9);
+    for (const auto& p : im.footprint_lonlat) {
+      a = a.cwiseMin(p);
+      b = b.cwiseMax(p);
+    }
+    lo = lo.cwiseMax(a);
+    hi = hi.cwiseMin(b);
+  }
+  if (!(lo.x() < hi.x() && lo.y() < hi.y())) {
+    throw Error("ingest", aoi, "the image footprints have no common area (empty AOI)");
+  }
+  return {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
+}
+
+AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const std::string& root,
+                          const std::string& out_dir, const IngestOptions& options,
+                          Progress& progress) {
+  Stopwatch clock;
+  AoiIngestResult result;
+  result.aoi = aoi;
+  result.report.stage = "ingest";
+  AoiCatalog& c = result.catalog;
+  c.aoi = aoi;
+  c.source_root = fs::absolute(root).string();
+
+  progress.Begin("ingest " + aoi, files.images.size());
+  std::vector<std::optional<SatNerfCamera>> satnerf;
+  std::size_t done = 0;
+  for (const auto& [stem, path] : files.images) {
+    std::optional<SatNerfCamera> cam;
+    try {
+      c.images.push_back(ReadImage(stem, path, files, options, &cam));
+      satnerf.push_back(cam);
+    } catch (const Error& e) {
+      result.skipped_images.push_back({path, e.what()});
+      progress.Warn(std::string("skipping image: ") + e.what());
+    }
+    progress.Advance(++done, stem);
+  }
+  progress.End();
+  if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
+
+  const bool has_truth = fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.tif")) ||
+                         fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.txt"));
+  if (has_truth) c.truth = ReadTruth(aoi, files, options);
+
+  const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
+  c.min_height_m = range.min_m;
+  c.max_height_m = range.max_m;
+  c.height_range_source = range.source;
+  const double mid_height_m = 0.5 * (c.min_height_m + c.max_height_m);
+
+  for (auto& im : c.images) im.footprint_lonlat = ImageFootprint(im, mid_height_m);
+  const std::vector<Eigen::Vector2d> overlap = FootprintOverlap(c.images, aoi);
+  Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
+  UtmZone zone = StandardUtmZone(centre.x(), centre.y());
+  if (c.truth) {
+    // DFC2019 truth is in the standard UTM zone of the AOI.
+    const TruthGrid& t = *c.truth;
+    c.truth->epsg = zone.Epsg();
+    const double e0 = t.lower_left_easting_m, n0 = t.lower_left_northing_m;
+    const double e1 = e0 + t.width_px * t.gsd_m, n1 = n0 + t.height_px * t.gsd_m;
+    c.footprint_lonlat = {GeodeticFromUtm(zone, e0, n0), GeodeticFromUtm(zone, e1, n0),
+                          GeodeticFromUtm(zone, e1, n1), GeodeticFromUtm(zone, e0, n1)};
+    c.footprint_source = "truth_grid";
+    centre = GeodeticFromUtm(zone, 0.5 * (e0 + e1), 0.5 * (n0 + n1));
+  } else {
+    c.footprint_lonlat = overlap;
+    c.footprint_source = "image_overlap";
+  }
+  c.utm_zone = zone.zone;
+  c.utm_north = zone.north;
+  c.epsg = zone.Epsg();
+  c.enu_origin = {centre.x(), centre.y(), mid_height_m};
+
+  const EnuFrame frame(c.enu_origin);
+  for (auto& im : c.images) SetViewGeometry(frame, mid_height_m, options, &im);
+
+  const fs::path split_dir(files.satnerf_dir);
+  c.train_images = ReadNameList(split_dir / "train.txt");
+  c.test_images = ReadNameList(split_dir / "test.txt");
+
+  result.catalog_path = (fs::path(out_dir) / aoi / "aoi.json").string();
+  WriteAoiCatalog(result.catalog_path, c);
+
+  result.report.metrics["images"] = static_cast<double>(c.images.size());
+  result.report.metrics["images_skipped"] = static_cast<double>(result.skipped_images.size());
+  for (const auto& s : result.skipped_images) result.report.warnings.push_back(s.reason);
+  result.report.seconds = clock.Seconds();
+  return result;
+}
+
+double ParseDsmField(const std::string& token, const std::string& path, const char* field) {
+  char* end = nullptr;
+  const double v = std::strtod(token.c_str(), &end);
+  if (token.empty() || *end != '\0' || !std::isfinite(v)) {
+    throw Error("ingest", path + ": " + field, "is not a finite number: '" + token + "'");
+  }
+  return v;
+}
+
+}  // namespace
+
+void IngestOptions::Check() const {
+  auto require = [](bool ok, const char* field, double value, const char* rule) {
+    if (!ok) throw Error("ingest", field, FormatDouble(value) + " is invalid: " + rule);
+  };
+  require(std::isfinite(height_margin_m) && height_margin_m >= 0, "height_margin_m",
+          height_margin_m, "must be >= 0");
+  require(std::isfinite(rpc_height_half_range_m) && rpc_height_half_range_m > 0,
+          "rpc_height_half_range_m", rpc_height_half_range_m, "must be > 0");
+  require(std::isfinite(nominal_orbit_height_m) && nominal_orbit_height_m > 0,
+          "nominal_orbit_height_m", nominal_orbit_height_m, "must be > 0");
+  require(std::isfinite(view_ray_height_step_m) && view_ray_height_step_m > 0,
+          "view_ray_height_step_m", view_ray_height_step_m, "must be > 0");
+}
+
+int IngestResult::NumIngested() const {
+  int n = 0;
+  for (const auto& a : aois) n += a.report.status == StageStatus::kOk;
+  return n;
+}
+
+DsmTxt ParseDsmTxt(const std::string& text, const std::string& path) {
+  std::istringstream in(text);
+  std::vector<std::string> tokens;
+  std::string token;
+  while (in >> token) tokens.push_back(token);
+  static const char* kFields[] = {"easting", "northing", "size", "gsd"};
+  if (tokens.size() != 4) {
+    const std::string missing = tokens.size() < 4 ? kFields[tokens.size()] : "extra value";
+    throw Error("ingest", path,
+                "expected 4 numbers (easting northing size gsd), found " +
+                    std::to_string(tokens.size()) + " (first problem: " + missing + ")");
+  }
+  DsmTxt d;
+  d.easting_m = ParseDsmField(tokens[0], path, "easting");
+  d.northing_m = ParseDsmField(tokens[1], path, "northing");
+  const double size = ParseDsmField(tokens[2], path, "size");
+  d.gsd_m = ParseDsmField(tokens[3], path, "gsd");
+  // UTM: eastings lie within (0, 1e6) m, northings within [0, 1e7] m.
+  if (d.easting_m <= 0 || d.easting_m >= 1e6) {
+    throw Error("ingest", path + ": easting", FormatDouble(d.easting_m) + " is not a UTM easting");
+  }
+  if (d.northing_m < 0 || d.northing_m > 1e7) {
+    throw Error("ingest", path + ": northing",
+                FormatDouble(d.northing_m) + " is not a UTM northing");
+  }
+  if (size < 1 || size != std::floor(size) || size > 1e6) {
+    throw Error("ingest", path + ": size", FormatDouble(size) + " is not a positive pixel count");
+  }
+  d.size_px = static_cast<int>(size);
+  if (d.gsd_m <= 0) throw Error("ingest", path + ": gsd", FormatDouble(d.gsd_m) + " must be > 0");
+  return d;
+}
+
+IngestResult RunIngest(const IngestOptions& options, const std::string& root,
+                       const std::string& out_dir, Progress& progress) {
+  options.Check();
+  std::map<std::string, AoiFiles> found = ScanRoot(root);
+  IngestResult result;
+  for (const std::string& wanted : options.aois) {
+    if (!found.count(wanted)) {
+      AoiIngestResult missing;
+      missing.aoi = wanted;
+      missing.report.stage = "ingest";
+      missing.report.status = StageStatus::kFailed;
+      missing.report.message = "ingest: " + wanted + ": no images of this AOI under " + root;
+      result.aois.push_back(missing);
+    }
+  }
+  for (const auto& [aoi, files] : found) {
+    if (!options.aois.empty() &&
+        std::find(options.aois.begin(), options.aois.end(), aoi) == options.aois.end()) {
+      continue;
+    }
+    try {
+      result.aois.push_back(IngestAoi(aoi, files, root, out_dir, options, progress));
+    } catch (const Error& e) {
+      AoiIngestResult failed;
+      failed.aoi = aoi;
+      failed.report.stage = "ingest";
+      failed.report.status = StageStatus::kFailed;
+      failed.report.message = e.what();
+      progress.Warn(std::string("skipping AOI: ") + e.what());
+      result.aois.push_back(failed);
+    }
+  }
+  return result;
+}
+
+}  // namespace skyfall

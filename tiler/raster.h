@@ -1,0 +1,40 @@
+// Raster access through GDAL. The public interface speaks std types only.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace skyfall {
+
+struct RasterInfo {
+  std::string path;
+  std::string driver;      // GDAL driver short name ("GTiff", "NITF")
+  int width_px = 0;
+  int height_px = 0;
+  int bands = 0;
+  std::string dtype;       // GDAL data type name of band 1 ("Byte", "Float32")
+  std::map<std::string, std::string> metadata;      // default domain
+  std::map<std::string, std::string> rpc_metadata;  // "RPC" domain; empty when none
+};
+
+// Opens the raster and reads its description. Throws Error("raster", path, ...)
+// with GDAL's own message when the file is missing or not a readable raster.
+RasterInfo ReadRasterInfo(const std::string& path);
+
+// Reads every pixel of every band once, so that truncated or corrupt files are
+// caught at ingestion rather than halfway through a tile run. Throws Error
+// naming the band and row where reading failed.
+void VerifyRasterPixels(const std::string& path);
+
+// A single band as float, row-major, with its size.
+struct FloatBand {
+  int width_px = 0;
+  int height_px = 0;
+  std::vector<float> values;
+  bool has_nodata = false;
+  double nodata = 0.0;
+};
+FloatBand ReadFloatBand(const std::string& path, int band = 1);
+
+}  // namespace skyfall
