@@ -130,7 +130,7 @@ ImageRecord ReadImage(const std::string& stem, const std::string& path, const Ao
   return im;
 }
 
-TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files, const IngestOptions& options) {
+TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files) {
   const fs::path dir(files.truth_dir);
   TruthGrid t;
   t.dsm_path = (dir / (aoi + "_DSM.tif")).string();
@@ -169,7 +169,6 @@ TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files, const IngestO
   if (!(lo <= hi)) throw Error("ingest", t.dsm_path, "holds no finite height");
   t.min_height_m = lo;
   t.max_height_m = hi;
-  (void)options;
   return t;
 }
 
@@ -264,7 +263,7 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   result.report.stage = "ingest";
   AoiCatalog& c = result.catalog;
   c.aoi = aoi;
-  c.source_root = fs::absolute(root).string();
+  c.source_root = root;
 
   progress.Begin("ingest " + aoi, files.images.size());
   std::vector<std::optional<SatNerfCamera>> satnerf;
@@ -285,7 +284,7 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
 
   const bool has_truth = fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.tif")) ||
                          fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.txt"));
-  if (has_truth) c.truth = ReadTruth(aoi, files, options);
+  if (has_truth) c.truth = ReadTruth(aoi, files);
 
   const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
   c.min_height_m = range.min_m;
@@ -400,7 +399,10 @@ DsmTxt ParseDsmTxt(const std::string& text, const std::string& path) {
 IngestResult RunIngest(const IngestOptions& options, const std::string& root,
                        const std::string& out_dir, Progress& progress) {
   options.Check();
-  std::map<std::string, AoiFiles> found = ScanRoot(root);
+  // Catalogs hold absolute, normalized paths so they stay valid from any
+  // working directory.
+  const std::string root_abs = fs::weakly_canonical(fs::absolute(root)).string();
+  std::map<std::string, AoiFiles> found = ScanRoot(root_abs);
   IngestResult result;
   for (const std::string& wanted : options.aois) {
     if (!found.count(wanted)) {
@@ -418,7 +420,7 @@ IngestResult RunIngest(const IngestOptions& options, const std::string& root,
       continue;
     }
     try {
-      result.aois.push_back(IngestAoi(aoi, files, root, out_dir, options, progress));
+      result.aois.push_back(IngestAoi(aoi, files, root_abs, out_dir, options, progress));
     } catch (const Error& e) {
       AoiIngestResult failed;
       failed.aoi = aoi;

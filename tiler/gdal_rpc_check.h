@@ -12,7 +12,7 @@ namespace skyfall {
 // GDAL's pixel/line puts the top-left corner of the top-left pixel at (0, 0);
 // the RPC00B convention used here puts its centre there. Measured on the
 // JAX_068 crops (see gdal_rpc_check_test): GDAL pixel = our col + this.
-inline constexpr double kGdalPixelShift = 0.0;
+inline constexpr double kGdalPixelShift = 0.5;
 
 struct RpcAgreementOptions {
   int grid_cols = 21;        // samples across the image width (edges included)
