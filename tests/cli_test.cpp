@@ -1,0 +1,114 @@
+// End-to-end checks of the `skyfall` binary as a user runs it.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "tests/test_support.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+TEST(Cli, VersionAndHelpOnEveryCommand) {
+  const fs::path dir = ScratchDir("cli");
+  const CommandResult v = RunCommand(Skyfall() + " --version", dir);
+  EXPECT_EQ(v.exit_code, 0);
+  EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check"}) {
+    const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
+    EXPECT_EQ(h.exit_code, 0) << cmd;
+    EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
+  }
+  const CommandResult none = RunCommand(Skyfall(), dir);
+  EXPECT_NE(none.exit_code, 0);
+}
+
+TEST(Cli, RpcProjectAndLocalizeRoundTripAtFullPrecision) {
+  SKYFALL_REQUIRE_DFC2019();
+  const fs::path dir = ScratchDir("cli");
+  const std::string image = Jax068Image("010").string();  // the most oblique view (~32 deg)
+  const CommandResult p =
+      RunCommand(Skyfall() + " rpc project " + image + " -81.66377836684407 30.3487524532743 12.5", dir);
+  ASSERT_EQ(p.exit_code, 0) << p.err;
+  double col = 0, row = 0;
+  std::istringstream(p.out) >> col >> row;
+  EXPECT_GT(col, 0);
+  EXPECT_GT(row, 0);
+  // Printed with 17 significant digits, so localizing the printed pixel
+  // gives back the point to ~1e-13 deg (~1e-8 m).
+  EXPECT_GE(p.out.size(), 30u) << p.out;
+  char cmd[512];
+  std::snprintf(cmd, sizeof(cmd), "%s rpc localize %s %.17g %.17g 12.5", Skyfall().c_str(),
+                image.c_str(), col, row);
+  const CommandResult l = RunCommand(cmd, dir);
+  ASSERT_EQ(l.exit_code, 0) << l.err;
+  double lon = 0, lat = 0;
+  std::istringstream(l.out) >> lon >> lat;
+  EXPECT_NEAR(lon, -81.66377836684407, 1e-12);
+  EXPECT_NEAR(lat, 30.3487524532743, 1e-12);
+
+  // The Sat-NeRF JSON of the same image gives the same pixel.
+  const std::string json =
+      (Dfc2019Root() / "satnerf-rpcs" / "JAX_068" / "JAX_068_010_RGB.json").string();
+  const CommandResult pj =
+      RunCommand(Skyfall() + " rpc project " + json + " -81.66377836684407 30.3487524532743 12.5", dir);
+  double col_j = 0, row_j = 0;
+  std::istringstream(pj.out) >> col_j >> row_j;
+  EXPECT_NEAR(col_j, col, 1e-6);
+  EXPECT_NEAR(row_j, row, 1e-6);
+}
+
+TEST(Cli, RpcErrorsNameTheFile) {
+  const fs::path dir = ScratchDir("cli");
+  const std::string missing = (dir / "missing.tif").string();
+  const CommandResult r = RunCommand(Skyfall() + " rpc project " + missing + " 0 0 0", dir);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(missing), std::string::npos) << r.err;
+  EXPECT_TRUE(r.out.empty());  // nothing half-printed on stdout
+}
+
+TEST(Cli, IngestJsonSummaryOnTheSharedSample) {
+  SKYFALL_REQUIRE_DFC2019();
+  const fs::path dir = ScratchDir("cli");
+  const CommandResult r = RunCommand(
+      Skyfall() + " ingest " + Dfc2019Root().string() + " --out " + (dir / "out").string() +
+          " --aoi JAX_068 --json", dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["ingested"], 1);
+  EXPECT_EQ(summary["failed"], 0);
+  EXPECT_EQ(summary["aois"][0]["aoi"], "JAX_068");
+  EXPECT_EQ(summary["aois"][0]["images"], 19);
+  EXPECT_TRUE(fs::exists(dir / "out" / "JAX_068" / "aoi.json"));
+  EXPECT_NE(r.err.find("[ingest JAX_068] done: 19/19"), std::string::npos) << r.err;  // progress
+}
+
+TEST(Cli, IngestExitsNonZeroOnlyWhenNothingWasIngested) {
+  const fs::path dir = ScratchDir("cli");
+  const fs::path root = dir / "root";
+  fs::create_directories(root / "Track3-RGB-crops" / "BAD_001");
+  std::ofstream(root / "Track3-RGB-crops" / "BAD_001" / "BAD_001_001_RGB.tif") << "garbage";
+  const CommandResult r = RunCommand(
+      Skyfall() + " ingest " + root.string() + " --out " + (dir / "out").string() + " --json", dir);
+  EXPECT_EQ(r.exit_code, 1);
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["ingested"], 0);
+  EXPECT_EQ(summary["aois"][0]["status"], "failed");
+  EXPECT_NE(r.err.find("BAD_001_001_RGB.tif"), std::string::npos) << r.err;
+
+  if (!fs::exists(Dfc2019Root() / "Track3-Truth")) return;
+  // One good AOI next to the bad one: success, and the bad one is listed.
+  fs::create_directories(root / "Track3-RGB-crops" / "JAX_068");
+  fs::create_symlink(Jax068Image("001"), root / "Track3-RGB-crops" / "JAX_068" / "JAX_068_001_RGB.tif");
+  const CommandResult mixed = RunCommand(
+      Skyfall() + " ingest " + root.string() + " --out " + (dir / "out").string() + " --json", dir);
+  EXPECT_EQ(mixed.exit_code, 0) << mixed.err;
+  EXPECT_EQ(nlohmann::json::parse(mixed.out)["failed"], 1);
+}
+
+}  // namespace
+}  // namespace skyfall

@@ -31,10 +31,13 @@ inline fs::path Jax068Image(const std::string& nnn) {
                    << ::skyfall::testing::Dfc2019Root();                                \
   } while (0)
 
-// A fresh, empty scratch folder for one test.
+// A fresh, empty scratch folder, unique to the running test so that tests
+// can run in parallel (ctest -j).
 inline fs::path ScratchDir(const std::string& name) {
   const char* base = std::getenv("SKYFALL_TEST_TMP");
-  const fs::path dir = fs::path(base ? base : fs::temp_directory_path().string()) / name;
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::string test = info ? std::string(info->test_suite_name()) + "." + info->name() : "global";
+  const fs::path dir = fs::path(base ? base : fs::temp_directory_path().string()) / test / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

@@ -66,7 +66,7 @@ std::map<std::string, AoiFiles> ScanRoot(const fs::path& root) {
       const std::string name = file.filename().string();
       if (!std::regex_match(name, m, kImageName)) continue;
       AoiFiles& aoi = aois[m[1].str()];
-      aoi.images.emplace(file.stem().string(), fs::absolute(file).string());  // first wins
+      aoi.images.emplace(file.stem().string(), file.string());  // first wins
     }
   }
   for (auto& [name, files] : aois) {
