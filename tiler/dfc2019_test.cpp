@@ -242,6 +242,19 @@ TEST_F(IngestBadInput, RootWithoutImageFoldersIsAnError) {
             std::string::npos);
 }
 
+TEST_F(IngestBadInput, ReadsTheFlatTrack3RgbLayout) {
+  // The original DFC2019 release keeps every AOI's images in one folder.
+  const fs::path flat = root_ / "Track3-RGB-1";
+  fs::create_directories(flat);
+  fs::create_symlink(Jax068Image("001"), flat / "FLAT_001_001_RGB.tif");
+  fs::create_symlink(Jax068Image("002"), flat / "FLAT_001_002_RGB.tif");
+  fs::create_symlink(Jax068Image("003"), flat / "OTHER_002_001_RGB.tif");
+  const IngestResult r = Run();
+  EXPECT_EQ(r.NumIngested(), 2);
+  EXPECT_EQ(Find(r, "FLAT_001").catalog.images.size(), 2u);
+  EXPECT_EQ(Find(r, "OTHER_002").catalog.images.size(), 1u);
+}
+
 TEST_F(IngestBadInput, RerunReplacesTheCatalogAtomically) {
   LinkImage("RE_001", "001", "001");
   const IngestResult first = Run();
