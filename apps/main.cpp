@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   skyfall::cli::Runner runner;
   skyfall::cli::AddIngestCommand(app, &runner);
   skyfall::cli::AddRpcCommand(app, &runner);
+  skyfall::cli::AddSynthCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

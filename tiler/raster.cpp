@@ -1,5 +1,6 @@
 #include "tiler/raster.h"
 
+#include <filesystem>
 #include <vector>
 
 #include "core/error.h"
@@ -63,6 +64,53 @@ FloatBand ReadFloatBand(const std::string& path, int band_index) {
     throw Error("raster", path, "pixel data unreadable (truncated or corrupt): " + quiet.LastMessage());
   }
   return out;
+}
+
+namespace {
+
+void WriteTiff(const std::string& path, int width_px, int height_px, int bands, GDALDataType type,
+               const void* pixels, const RasterWriteOptions& options) {
+  gdal::EnsureRegistered();
+  if (width_px < 1 || height_px < 1 || bands < 1) {
+    throw Error("raster", path, "refusing to write an empty raster");
+  }
+  const std::string tmp = path + ".tmp.tif";
+  std::error_code ec;
+  const auto parent = std::filesystem::path(path).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  gdal::QuietErrors quiet;
+  const bool tiled = width_px > 512 || height_px > 512;
+  const char* create_options[] = {"COMPRESS=DEFLATE", tiled ? "TILED=YES" : "TILED=NO",
+                                  bands > 1 ? "INTERLEAVE=PIXEL" : "INTERLEAVE=BAND", nullptr};
+  GDALDatasetH ds = GDALCreate(GDALGetDriverByName("GTiff"), tmp.c_str(), width_px, height_px, bands,
+                               type, const_cast<char**>(create_options));
+  if (!ds) throw Error("raster", path, "cannot create: " + quiet.LastMessage());
+  for (const auto& [k, v] : options.metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), nullptr);
+  for (const auto& [k, v] : options.rpc_metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), "RPC");
+  const int type_bytes = GDALGetDataTypeSizeBytes(type);
+  const CPLErr err = GDALDatasetRasterIO(
+      ds, GF_Write, 0, 0, width_px, height_px, const_cast<void*>(pixels), width_px, height_px, type,
+      bands, nullptr, static_cast<GSpacing>(type_bytes) * bands,
+      static_cast<GSpacing>(type_bytes) * bands * width_px, type_bytes);
+  GDALClose(ds);
+  if (err != CE_None || CPLGetLastErrorType() == CE_Failure) {
+    std::filesystem::remove(tmp, ec);
+    throw Error("raster", path, "write failed: " + quiet.LastMessage());
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw Error("raster", path, "rename failed: " + ec.message());
+}
+
+}  // namespace
+
+void WriteByteTiff(const std::string& path, int width_px, int height_px, int bands,
+                   const std::uint8_t* pixels, const RasterWriteOptions& options) {
+  WriteTiff(path, width_px, height_px, bands, GDT_Byte, pixels, options);
+}
+
+void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
+                    const RasterWriteOptions& options) {
+  WriteTiff(path, width_px, height_px, 1, GDT_Float32, pixels, options);
 }
 
 }  // namespace skyfall

@@ -1,6 +1,7 @@
 // Raster access through GDAL. The public interface speaks std types only.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -36,5 +37,17 @@ struct FloatBand {
   double nodata = 0.0;
 };
 FloatBand ReadFloatBand(const std::string& path, int band = 1);
+
+// Writing GeoTIFFs (DEFLATE, tiled when large). The file appears atomically:
+// GDAL writes a temporary file beside `path`, which is renamed when complete.
+struct RasterWriteOptions {
+  std::map<std::string, std::string> metadata;      // default-domain items (e.g. NITF_IDATIM)
+  std::map<std::string, std::string> rpc_metadata;  // RPC domain (GDAL keys), written as the GeoTIFF RPC tag
+};
+// `pixels` is band-interleaved by pixel: bands values per pixel, row-major.
+void WriteByteTiff(const std::string& path, int width_px, int height_px, int bands,
+                   const std::uint8_t* pixels, const RasterWriteOptions& options = {});
+void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
+                    const RasterWriteOptions& options = {});
 
 }  // namespace skyfall

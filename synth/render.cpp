@@ -1,0 +1,256 @@
+#include "synth/render.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace skyfall::synth {
+namespace {
+
+// Which face of a column a ray hit.
+enum class Face { kTop, kWall };
+
+struct Hit {
+  bool found = false;
+  Eigen::Vector3d point;
+  int i = 0, j = 0;
+  Face face = Face::kTop;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+};
+
+// Grid traversal state for a ray in the xy plane (Amanatides & Woo).
+struct Traversal {
+  int i, j, step_i, step_j;
+  double t_max_x, t_max_y, t_delta_x, t_delta_y;
+
+  Traversal(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+    const double cell = city.options.cell_m;
+    const Eigen::Vector2i c = city.CellOf(o.x(), o.y());
+    i = c.x();
+    j = c.y();
+    const double inf = std::numeric_limits<double>::infinity();
+    step_i = d.x() > 0 ? 1 : -1;
+    step_j = d.y() > 0 ? 1 : -1;
+    const double x0 = city.origin_m.x() + (i + (d.x() > 0 ? 1 : 0)) * cell;
+    const double y0 = city.origin_m.y() + (j + (d.y() > 0 ? 1 : 0)) * cell;
+    t_max_x = d.x() != 0 ? (x0 - o.x()) / d.x() : inf;
+    t_max_y = d.y() != 0 ? (y0 - o.y()) / d.y() : inf;
+    t_delta_x = d.x() != 0 ? cell / std::abs(d.x()) : inf;
+    t_delta_y = d.y() != 0 ? cell / std::abs(d.y()) : inf;
+  }
+  // Moves to the next cell; returns the t at which it was entered and
+  // whether the crossed boundary was an x (east/west) face.
+  double Step(bool* crossed_x) {
+    if (t_max_x < t_max_y) {
+      i += step_i;
+      *crossed_x = true;
+      const double t = t_max_x;
+      t_max_x += t_delta_x;
+      return t;
+    }
+    j += step_j;
+    *crossed_x = false;
+    const double t = t_max_y;
+    t_max_y += t_delta_y;
+    return t;
+  }
+  double NextBoundary() const { return std::min(t_max_x, t_max_y); }
+};
+
+// First surface hit by a descending ray starting above every column.
+Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  Hit hit;
+  Traversal tr(city, o, d);
+  double t_enter = 0.0;
+  bool crossed_x = false;
+  for (int guard = 0; guard < 4 * (city.nx + city.ny); ++guard) {
+    if (!city.Inside(tr.i, tr.j)) return hit;
+    const double h = city.height_m[city.Index(tr.i, tr.j)];
+    const double z_enter = o.z() + t_enter * d.z();
+    if (z_enter <= h && t_enter > 0) {  // the ray meets this column's wall
+      hit.found = true;
+      hit.point = o + t_enter * d;
+      hit.face = Face::kWall;
+      hit.normal = crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0);
+      hit.i = tr.i;
+      hit.j = tr.j;
+      return hit;
+    }
+    const double t_exit = tr.NextBoundary();
+    if (o.z() + t_exit * d.z() <= h) {  // the ray comes down on the top
+      hit.found = true;
+      hit.point = o + ((h - o.z()) / d.z()) * d;
+      hit.face = Face::kTop;
+      hit.i = tr.i;
+      hit.j = tr.j;
+      return hit;
+    }
+    if (o.z() + t_exit * d.z() < city.min_height_m - 1.0) return hit;
+    t_enter = tr.Step(&crossed_x);
+  }
+  return hit;
+}
+
+// Whether the way from `p` towards the sun is blocked by a column.
+bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d& sun) {
+  if (sun.z() <= 0) return true;
+  Traversal tr(city, p, sun);
+  double t_enter = 0.0;
+  bool crossed_x = false;
+  for (int guard = 0; guard < 4 * (city.nx + city.ny); ++guard) {
+    if (!city.Inside(tr.i, tr.j)) return false;
+    const double z_enter = p.z() + t_enter * sun.z();
+    if (z_enter > city.max_height_m) return false;
+    // Ascending: the lowest point of the ray in a cell is where it enters.
+    if (t_enter > 0 && z_enter < city.height_m[city.Index(tr.i, tr.j)] - 1e-4) return true;
+    t_enter = tr.Step(&crossed_x);
+  }
+  return false;
+}
+
+float Hash01(std::uint64_t a, std::uint64_t b) {
+  std::uint64_t x = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull);
+  x = (x ^ (x >> 31)) * 0xBF58476D1CE4E5B9ull;
+  x ^= x >> 29;
+  return static_cast<float>((x >> 40) * (1.0 / 16777216.0));
+}
+
+const Eigen::Vector3f kCarPalette[8] = {{0.85f, 0.85f, 0.85f}, {0.1f, 0.1f, 0.1f},
+                                        {0.7f, 0.1f, 0.1f},    {0.15f, 0.25f, 0.6f},
+                                        {0.6f, 0.6f, 0.62f},   {0.9f, 0.8f, 0.2f},
+                                        {0.2f, 0.45f, 0.25f},  {0.5f, 0.5f, 0.55f}};
+
+// Distance to the nearest street centre line along one axis.
+double StreetOffset(double coord_m, double block_m) {
+  return coord_m - block_m * std::round(coord_m / block_m);
+}
+
+Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
+  const std::size_t k = city.Index(hit.i, hit.j);
+  const Material m = city.material[k];
+  const double x = hit.point.x(), y = hit.point.y(), z = hit.point.z();
+  const std::uint64_t seed = city.options.seed;
+  const int obj = city.object[k];
+  const bool wall = hit.face == Face::kWall;
+  if ((m == Material::kFlatRoof || m == Material::kGableRoof) && wall) {
+    // Facades: floors of 3.2 m with a row of windows each.
+    const Building& b = city.buildings[obj];
+    const double u = std::abs(hit.normal.x()) > 0 ? y : x;
+    const double v = z - b.base_m;
+    const bool window = std::fmod(v, 3.2) > 1.0 && std::fmod(v, 3.2) < 2.3 &&
+                        std::fmod(std::abs(u), 2.6) > 0.6 && std::fmod(std::abs(u), 2.6) < 2.0 &&
+                        z < b.eave_m - 0.5;
+    if (window) return {0.16f, 0.20f, 0.27f};
+    return b.facade_rgb * (0.9f + 0.2f * ValueNoise(u, z, 1.3, seed + obj));
+  }
+  switch (m) {
+    case Material::kGrass: {
+      const float a = ValueNoise(x, y, 9.0, seed + 11);
+      const Eigen::Vector3f green(0.30f, 0.38f, 0.18f), soil(0.45f, 0.40f, 0.28f);
+      return (green + (soil - green) * a) * (0.8f + 0.4f * ValueNoise(x, y, 1.1, seed + 12));
+    }
+    case Material::kRoad: {
+      const double ox = StreetOffset(x, city.options.block_m), oy = StreetOffset(y, city.options.block_m);
+      const bool ns = std::abs(ox) <= 0.5 * city.options.street_width_m;
+      const double across = ns ? ox : oy, along = ns ? y : x;
+      if (std::abs(across) < 0.15 && std::fmod(std::abs(along), 6.0) < 3.0) return {0.85f, 0.85f, 0.8f};
+      return Eigen::Vector3f::Constant(0.27f * (0.85f + 0.3f * ValueNoise(x, y, 0.8, seed + 13)));
+    }
+    case Material::kWater:
+      return Eigen::Vector3f(0.07f, 0.14f, 0.20f) * (0.9f + 0.2f * ValueNoise(x, y, 3.0, seed + 14));
+    case Material::kTree:
+      return Eigen::Vector3f(0.12f, 0.30f, 0.10f) * (0.6f + 0.8f * ValueNoise(x, y, 0.9, seed + 15));
+    case Material::kFlatRoof: {
+      const Building& b = city.buildings[obj];
+      const float spots = ValueNoise(x, y, 2.5, seed + 16 + obj) > 0.78f ? 0.65f : 1.0f;
+      return b.roof_rgb * spots * (0.85f + 0.3f * ValueNoise(x, y, 1.2, seed + 17 + obj));
+    }
+    case Material::kGableRoof: {
+      const Building& b = city.buildings[obj];
+      const double across = b.ridge_along_x ? y : x;
+      const float rows = std::fmod(std::abs(across), 0.6) < 0.12 ? 0.75f : 1.0f;  // tile courses
+      return b.roof_rgb * rows * (0.9f + 0.2f * ValueNoise(x, y, 2.0, seed + 18 + obj));
+    }
+    case Material::kBridge:
+      return Eigen::Vector3f(0.55f, 0.55f, 0.52f) * (0.9f + 0.2f * ValueNoise(x, y, 1.0, seed + 19));
+    case Material::kCar:
+      return kCarPalette[(-obj - 2) & 7];
+  }
+  return {0.5f, 0.5f, 0.5f};
+}
+
+Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
+  if (hit.face == Face::kWall) return hit.normal;
+  const std::size_t k = city.Index(hit.i, hit.j);
+  if (city.material[k] != Material::kGableRoof) return Eigen::Vector3d::UnitZ();
+  const Building& b = city.buildings[city.object[k]];
+  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
+  const double slope = (b.ridge_m - b.eave_m) / half;
+  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
+  const double side = ((b.ridge_along_x ? hit.point.y() : hit.point.x()) > mid) ? 1.0 : -1.0;
+  const Eigen::Vector3d n = b.ridge_along_x ? Eigen::Vector3d(0, side * slope, 1)
+                                            : Eigen::Vector3d(side * slope, 0, 1);
+  return n.normalized();
+}
+
+}  // namespace
+
+Eigen::Vector2d SatelliteCamera::Project(const Eigen::Vector3d& enu_m) const {
+  const Eigen::Vector3d p = cam_from_enu * (enu_m - centre_enu_m);
+  return {focal_px * p.x() / p.z() + principal_px.x(), focal_px * p.y() / p.z() + principal_px.y()};
+}
+
+Eigen::Vector3d SatelliteCamera::RayDirectionEnu(double col, double row) const {
+  const Eigen::Vector3d cam((col - principal_px.x()) / focal_px, (row - principal_px.y()) / focal_px, 1.0);
+  return (cam_from_enu.transpose() * cam).normalized();
+}
+
+RenderedView RenderView(const City& city, const SatelliteCamera& camera,
+                        const SceneFromEnu& scene_from_enu, const Lighting& lighting) {
+  RenderedView view;
+  view.width_px = camera.width_px;
+  view.height_px = camera.height_px;
+  const std::size_t n = static_cast<std::size_t>(camera.width_px) * camera.height_px;
+  view.rgb.assign(3 * n, 0);
+  view.hit_scene.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  view.hit_object.assign(n, -1);
+  const Eigen::Vector3d sun = lighting.sun_scene.normalized();
+  // Scene-frame z and ENU up differ by millimetres here: start the ray where
+  // its ENU height is just above the tallest column.
+  const double start_z = city.max_height_m + 1.0;
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height_px), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r < rows.end(); ++r) {
+      for (int c = 0; c < camera.width_px; ++c) {
+        const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
+        const Eigen::Vector3d d_enu = camera.RayDirectionEnu(c, r);
+        const double t_start = (start_z - camera.centre_enu_m.z()) / d_enu.z();
+        const Eigen::Vector3d o_scene = scene_from_enu.Apply(camera.centre_enu_m + t_start * d_enu);
+        const Eigen::Vector3d d_scene = (scene_from_enu.linear * d_enu).normalized();
+        const Hit hit = CastDown(city, o_scene, d_scene);
+        Eigen::Vector3f colour(0.5f, 0.5f, 0.5f);
+        if (hit.found) {
+          const Eigen::Vector3d normal = SurfaceNormal(city, hit);
+          const double lambert = std::max(0.0, normal.dot(sun));
+          const bool lit = lambert > 0 && !(lighting.cast_shadows && InShadow(city, hit.point + 1e-3 * normal, sun));
+          const float light = lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f;
+          colour = Albedo(city, hit) * light;
+          view.hit_scene[p] = hit.point.cast<float>();
+          const std::int32_t obj = city.object[city.Index(hit.i, hit.j)];
+          view.hit_object[p] = obj >= 0 ? obj : -1;
+        }
+        for (int ch = 0; ch < 3; ++ch) {
+          const float noise = (Hash01(lighting.noise_seed + ch, p) - 0.5f) * 2.0f;  // +-1 DN
+          const float v = colour[ch] * lighting.tint[ch] * lighting.gain * 255.0f + noise;
+          view.rgb[3 * p + ch] = static_cast<std::uint8_t>(std::min(255.0f, std::max(0.0f, v) + 0.5f));
+        }
+      }
+    }
+  });
+  return view;
+}
+
+}  // namespace skyfall::synth

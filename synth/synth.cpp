@@ -1,0 +1,418 @@
+#include "synth/synth.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/format.h"
+#include "core/rpc_fit.h"
+#include "tiler/geo.h"
+#include "tiler/raster.h"
+
+namespace skyfall::synth {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr double kDegToRad = M_PI / 180.0;
+constexpr double kEarthRadiusM = 6371000.0;  // spherical Earth for the orbit geometry
+constexpr double kRpcHeightPadM = 5.0;       // RPC fit domain beyond the scene's height range
+
+// Low-discrepancy sequence value in [0, 1) for view parameters.
+double Frac(double x) { return x - std::floor(x); }
+
+// Days since 1970-01-01 -> civil date (Howard Hinnant's algorithm).
+void CivilFromDays(long z, int* y, int* m, int* d) {
+  z += 719468;
+  const long era = (z >= 0 ? z : z - 146096) / 146097;
+  const long doe = z - era * 146097;
+  const long yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const long doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+  const long mp = (5 * doy + 2) / 153;
+  *d = static_cast<int>(doy - (153 * mp + 2) / 5 + 1);
+  *m = static_cast<int>(mp < 10 ? mp + 3 : mp - 9);
+  *y = static_cast<int>(yoe + era * 400 + (*m <= 2));
+}
+
+struct Acquisition {
+  std::string compact;  // YYYYMMDDhhmmss (NITF IDATIM)
+  std::string iso;
+  int day_of_year = 1;
+  double utc_hours = 16.0;
+};
+
+Acquisition MakeAcquisition(int date_index, int shot_in_pass) {
+  const long days_2015_01_15 = 16450;  // 2015-01-15
+  const long day = days_2015_01_15 + 41L * date_index;
+  int y, m, d;
+  CivilFromDays(day, &y, &m, &d);
+  const int minute = 55 + (date_index * 7) % 30;
+  const int second = 11 * shot_in_pass;
+  const int hh = 15 + minute / 60, mm = minute % 60;
+  char compact[64], iso[64];
+  std::snprintf(compact, sizeof(compact), "%04d%02d%02d%02d%02d%02d", y, m, d, hh, mm, second);
+  std::snprintf(iso, sizeof(iso), "%04d-%02d-%02dT%02d:%02d:%02dZ", y, m, d, hh, mm, second);
+  Acquisition a;
+  a.compact = compact;
+  a.iso = iso;
+  a.day_of_year = static_cast<int>((day - 16436) % 365) + 1;  // 16436 = 2015-01-01; leap days ignored
+  a.utc_hours = hh + mm / 60.0 + second / 3600.0;
+  return a;
+}
+
+// Approximate solar position (declination + hour angle; no equation of
+// time): good to a degree or two, plenty for plausible shadows.
+void SunPosition(double lat_deg, double lon_deg, const Acquisition& a, double* elevation_deg,
+                 double* azimuth_deg) {
+  const double decl = -23.44 * kDegToRad * std::cos(2 * M_PI / 365.0 * (a.day_of_year + 10));
+  const double solar_hours = a.utc_hours + lon_deg / 15.0;
+  const double hour_angle = 15.0 * (solar_hours - 12.0) * kDegToRad;
+  const double lat = lat_deg * kDegToRad;
+  const double sin_el = std::sin(lat) * std::sin(decl) + std::cos(lat) * std::cos(decl) * std::cos(hour_angle);
+  *elevation_deg = std::asin(sin_el) / kDegToRad;
+  double az = std::atan2(-std::sin(hour_angle),
+                         std::tan(decl) * std::cos(lat) - std::sin(lat) * std::cos(hour_angle));
+  az = az / kDegToRad;
+  *azimuth_deg = az < 0 ? az + 360 : az;
+}
+
+Eigen::Vector3d UnitFromAngles(double zenith_rad, double azimuth_rad) {
+  return {std::sin(zenith_rad) * std::sin(azimuth_rad), std::sin(zenith_rad) * std::cos(azimuth_rad),
+          std::cos(zenith_rad)};
+}
+
+// Everything that maps between the scene frame, geodetic and ENU.
+struct Georef {
+  UtmZone zone;
+  double e0 = 0, n0 = 0;  // UTM of the scene-frame origin
+  EnuFrame frame{GeodeticPoint{}};
+
+  GeodeticPoint GeodeticFromScene(const Eigen::Vector3d& s) const {
+    const Eigen::Vector2d ll = GeodeticFromUtm(zone, e0 + s.x(), n0 + s.y());
+    return {ll.x(), ll.y(), s.z()};
+  }
+  Eigen::Vector3d EnuFromScene(const Eigen::Vector3d& s) const {
+    return frame.EnuFromGeodetic(GeodeticFromScene(s));
+  }
+};
+
+SceneFromEnu FitSceneFromEnu(const Georef& g, const City& city) {
+  // Least squares over a grid spanning the city, margin and height range.
+  std::vector<Eigen::Vector3d> scene, enu;
+  const double x0 = city.origin_m.x(), y0 = city.origin_m.y();
+  const double x1 = x0 + city.nx * city.options.cell_m, y1 = y0 + city.ny * city.options.cell_m;
+  for (int k = 0; k < 3; ++k)
+    for (int j = 0; j < 5; ++j)
+      for (int i = 0; i < 5; ++i) {
+        const Eigen::Vector3d s(x0 + (x1 - x0) * i / 4.0, y0 + (y1 - y0) * j / 4.0,
+                                city.min_height_m + (city.max_height_m - city.min_height_m) * k / 2.0);
+        scene.push_back(s);
+        enu.push_back(g.EnuFromScene(s));
+      }
+  Eigen::MatrixXd A(scene.size(), 4);
+  Eigen::MatrixXd B(scene.size(), 3);
+  for (size_t r = 0; r < scene.size(); ++r) {
+    A.row(r) << enu[r].x(), enu[r].y(), enu[r].z(), 1.0;
+    B.row(r) = scene[r].transpose();
+  }
+  const Eigen::MatrixXd X = A.colPivHouseholderQr().solve(B);  // 4x3
+  SceneFromEnu m;
+  m.linear = X.topRows(3).transpose();
+  m.offset_m = X.row(3).transpose();
+  for (size_t r = 0; r < scene.size(); ++r)
+    m.max_error_m = std::max(m.max_error_m, (m.Apply(enu[r]) - scene[r]).norm());
+  return m;
+}
+
+struct ViewGeometry {
+  SatelliteCamera camera;
+  double off_nadir_deg, zenith_deg, azimuth_deg, range_m;
+};
+
+ViewGeometry MakeCamera(const SynthOptions& o, const Georef& g, const City& city, double ax0,
+                        double ay0, int v) {
+  ViewGeometry vg;
+  const double seed_turn = static_cast<double>(o.seed % 360);
+  vg.off_nadir_deg = o.min_off_nadir_deg + (o.max_off_nadir_deg - o.min_off_nadir_deg) * Frac(0.5 + v * 0.618034);
+  vg.azimuth_deg = std::fmod(v * 137.508 + 23.0 + seed_turn, 360.0);
+  const double roll = (-25.0 + 50.0 * Frac(0.3 + v * 0.754877)) * kDegToRad;
+  const double alpha = vg.off_nadir_deg * kDegToRad;
+  const double ratio = (kEarthRadiusM + o.orbit_height_m) / kEarthRadiusM;
+  const double zenith = std::asin(std::min(1.0, ratio * std::sin(alpha)));
+  vg.zenith_deg = zenith / kDegToRad;
+  // Triangle Earth centre - ground - satellite (law of sines).
+  vg.range_m = alpha > 1e-9 ? kEarthRadiusM * std::sin(zenith - alpha) / std::sin(alpha) : o.orbit_height_m;
+  const double base = city.options.base_height_m;
+  const Eigen::Vector3d target = g.EnuFromScene({ax0 + 0.5 * o.size_m, ay0 + 0.5 * o.size_m, base});
+  SatelliteCamera& cam = vg.camera;
+  cam.centre_enu_m = target + vg.range_m * UnitFromAngles(zenith, vg.azimuth_deg * kDegToRad);
+  cam.focal_px = vg.range_m / o.gsd_m;
+  const Eigen::Vector3d forward = (target - cam.centre_enu_m).normalized();
+  const Eigen::Vector3d right0 = forward.cross(Eigen::Vector3d::UnitY()).normalized();
+  const Eigen::Vector3d down0 = forward.cross(right0);
+  const Eigen::Vector3d right = std::cos(roll) * right0 + std::sin(roll) * down0;
+  const Eigen::Vector3d down = -std::sin(roll) * right0 + std::cos(roll) * down0;
+  cam.cam_from_enu.row(0) = right.transpose();
+  cam.cam_from_enu.row(1) = down.transpose();
+  cam.cam_from_enu.row(2) = forward.transpose();
+  // Crop window: the AOI's box over the scene's height range, plus a margin.
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (double z : {static_cast<double>(city.min_height_m), static_cast<double>(city.max_height_m)})
+    for (double dx : {0.0, o.size_m})
+      for (double dy : {0.0, o.size_m}) {
+        const Eigen::Vector2d p = cam.Project(g.EnuFromScene({ax0 + dx, ay0 + dy, z}));
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+      }
+  cam.principal_px = -lo + Eigen::Vector2d::Constant(o.image_margin_px);
+  cam.width_px = static_cast<int>(std::ceil(hi.x() - lo.x())) + 2 * o.image_margin_px;
+  cam.height_px = static_cast<int>(std::ceil(hi.y() - lo.y())) + 2 * o.image_margin_px;
+  return vg;
+}
+
+RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city) {
+  const double z0 = city.min_height_m - kRpcHeightPadM, z1 = city.max_height_m + kRpcHeightPadM;
+  RpcFitDomain d{1e9, -1e9, 1e9, -1e9, z0, z1};
+  // The ground under the image corners at both ends of the height range.
+  for (double col : {-0.5, cam.width_px - 0.5})
+    for (double row : {-0.5, cam.height_px - 0.5}) {
+      const Eigen::Vector3d dir = cam.RayDirectionEnu(col, row);
+      for (double z : {z0, z1}) {
+        const Eigen::Vector3d p = cam.centre_enu_m + ((z - cam.centre_enu_m.z()) / dir.z()) * dir;
+        const GeodeticPoint q = g.frame.GeodeticFromEnu(p);
+        d.min_lon_deg = std::min(d.min_lon_deg, q.lon_deg);
+        d.max_lon_deg = std::max(d.max_lon_deg, q.lon_deg);
+        d.min_lat_deg = std::min(d.min_lat_deg, q.lat_deg);
+        d.max_lat_deg = std::max(d.max_lat_deg, q.lat_deg);
+      }
+    }
+  return FitRpc(
+      [&](double lon, double lat, double h) {
+        return cam.Project(g.frame.EnuFromGeodetic({lon, lat, h}));
+      },
+      d);
+}
+
+json SatNerfJson(const SynthView& v, const RpcModel& rpc, const std::vector<Eigen::Vector2d>& footprint,
+                 const Acquisition& acq, const City& city) {
+  auto list = [](const std::array<double, 20>& c) { return std::vector<double>(c.begin(), c.end()); };
+  json ring = json::array();
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& p : footprint) {
+    ring.push_back({p.x(), p.y()});
+    centre += p / static_cast<double>(footprint.size());
+  }
+  return {{"img", v.name + ".tif"},
+          {"width", v.camera.width_px},
+          {"height", v.camera.height_px},
+          {"sun_elevation", v.sun_elevation_deg},
+          {"sun_azimuth", v.sun_azimuth_deg},
+          {"acquisition_date", acq.compact},
+          {"geojson", {{"type", "Polygon"}, {"coordinates", {ring}}, {"center", {centre.x(), centre.y()}}}},
+          {"min_alt", std::floor(city.min_height_m)},
+          {"max_alt", std::ceil(city.max_height_m)},
+          {"rpc",
+           {{"row_offset", rpc.line_off}, {"col_offset", rpc.samp_off}, {"lat_offset", rpc.lat_off},
+            {"lon_offset", rpc.lon_off}, {"alt_offset", rpc.height_off}, {"row_scale", rpc.line_scale},
+            {"col_scale", rpc.samp_scale}, {"lat_scale", rpc.lat_scale}, {"lon_scale", rpc.lon_scale},
+            {"alt_scale", rpc.height_scale}, {"row_num", list(rpc.line_num)},
+            {"row_den", list(rpc.line_den)}, {"col_num", list(rpc.samp_num)},
+            {"col_den", list(rpc.samp_den)}}}};
+}
+
+// Truth rasters of one AOI in the DFC2019 layout: row 0 is the north edge,
+// _DSM.txt gives the lower-left corner.
+void WriteTruth(const SynthResult& r, const SynthAoi& aoi, const SynthOptions& o, const fs::path& root) {
+  const int n = static_cast<int>(std::lround(o.size_m / o.gsd_m));
+  std::vector<float> dsm(static_cast<size_t>(n) * n);
+  std::vector<std::uint8_t> cls(dsm.size());
+  for (int row = 0; row < n; ++row)
+    for (int col = 0; col < n; ++col) {
+      const double x = aoi.x0_m + (col + 0.5) * o.gsd_m;
+      const double y = aoi.y0_m + o.size_m - (row + 0.5) * o.gsd_m;
+      const Eigen::Vector2i c = r.city.CellOf(x, y);
+      const size_t k = r.city.Index(c.x(), c.y());
+      dsm[static_cast<size_t>(row) * n + col] = r.city.height_m[k];
+      cls[static_cast<size_t>(row) * n + col] = static_cast<std::uint8_t>(r.city.cls[k]);
+    }
+  const fs::path truth = root / "Track3-Truth";
+  WriteFloatTiff((truth / (aoi.name + "_DSM.tif")).string(), n, n, dsm.data());
+  WriteByteTiff((truth / (aoi.name + "_CLS.tif")).string(), n, n, 1, cls.data());
+  char txt[256];
+  std::snprintf(txt, sizeof(txt), "%f\n%f\n%f\n%f\n", r.utm_easting0_m + aoi.x0_m,
+                r.utm_northing0_m + aoi.y0_m, static_cast<double>(n), o.gsd_m);
+  WriteFileAtomic((truth / (aoi.name + "_DSM.txt")).string(), txt);
+}
+
+}  // namespace
+
+void SynthOptions::Check() const {
+  auto need = [](bool ok, const char* field, const std::string& value, const char* rule) {
+    if (!ok) throw Error("synth", field, value + " is invalid: " + rule);
+  };
+  need(!aoi.empty() && aoi.find('/') == std::string::npos && aoi.find('_') != std::string::npos &&
+           std::isdigit(static_cast<unsigned char>(aoi.back())),
+       "aoi", "'" + aoi + "'", "must look like NAME_NNN (e.g. SYN_001) so images parse as DFC2019");
+  need(size_m >= 32 && size_m <= 4096, "size_m", FormatDouble(size_m), "must be 32..4096 m");
+  need(gsd_m >= 0.1 && gsd_m <= 5, "gsd_m", FormatDouble(gsd_m), "must be 0.1..5 m");
+  need(std::abs(size_m / gsd_m - std::round(size_m / gsd_m)) < 1e-9, "size_m",
+       FormatDouble(size_m), "must be a whole number of gsd_m");
+  need(views >= 2 && views <= 200, "views", std::to_string(views), "must be 2..200");
+  need(views_per_date >= 1, "views_per_date", std::to_string(views_per_date), "must be >= 1");
+  need(std::abs(lat_deg) <= 80, "lat_deg", FormatDouble(lat_deg), "must be within UTM (-80..80)");
+  need(std::abs(lon_deg) <= 180, "lon_deg", FormatDouble(lon_deg), "must be -180..180");
+  need(blocks_x >= 1 && blocks_x <= 16, "blocks_x", std::to_string(blocks_x), "must be 1..16");
+  need(blocks_y >= 1 && blocks_y <= 16, "blocks_y", std::to_string(blocks_y), "must be 1..16");
+  need(min_off_nadir_deg >= 0 && min_off_nadir_deg <= max_off_nadir_deg && max_off_nadir_deg <= 45,
+       "max_off_nadir_deg", FormatDouble(max_off_nadir_deg), "need 0 <= min <= max <= 45 deg");
+  need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
+       FormatDouble(orbit_height_m), "must be 200..2000 km");
+  need(cars_per_block >= 0, "cars_per_block", std::to_string(cars_per_block), "must be >= 0");
+  need(image_margin_px >= 0, "image_margin_px", std::to_string(image_margin_px), "must be >= 0");
+}
+
+SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progress& progress) {
+  o.Check();
+  Stopwatch clock;
+  SynthResult r;
+  r.report.stage = "synth";
+  CityOptions co;
+  co.width_m = o.blocks_x * o.size_m;
+  co.height_m = o.blocks_y * o.size_m;
+  co.cell_m = 0.5 * o.gsd_m;  // two cells per DSM pixel: DSM pixel centres are cell centres
+  // Terrain beyond the AOIs: the corners of rotated, oblique crops look up to
+  // about half an AOI side further out, plus the lean of the tallest buildings.
+  const double margin_m = 0.45 * o.size_m + 64.0;
+  co.margin_m = std::ceil(margin_m / o.gsd_m) * o.gsd_m;
+  co.seed = o.seed;
+  r.city = GenerateCity(co);
+
+  Georef g;
+  g.zone = StandardUtmZone(o.lon_deg, o.lat_deg);
+  const Eigen::Vector2d centre_en = UtmFromGeodetic(g.zone, o.lon_deg, o.lat_deg);
+  g.e0 = std::round(centre_en.x() - 0.5 * co.width_m);
+  g.n0 = std::round(centre_en.y() - 0.5 * co.height_m);
+  const GeodeticPoint centre = g.GeodeticFromScene({0.5 * co.width_m, 0.5 * co.height_m, co.base_height_m});
+  g.frame = EnuFrame(centre);
+  r.enu_origin = centre;
+  r.utm_easting0_m = g.e0;
+  r.utm_northing0_m = g.n0;
+  r.epsg = g.zone.Epsg();
+  r.scene_from_enu = FitSceneFromEnu(g, r.city);
+
+  const fs::path root(root_dir);
+  const int dates = (o.views + o.views_per_date - 1) / o.views_per_date;
+  progress.Begin("synth render", static_cast<size_t>(o.views) * o.blocks_x * o.blocks_y);
+  size_t done = 0;
+  double worst_fit = 0;
+  for (int by = 0; by < o.blocks_y; ++by) {
+    for (int bx = 0; bx < o.blocks_x; ++bx) {
+      SynthAoi aoi;
+      aoi.name = (o.blocks_x * o.blocks_y == 1) ? o.aoi
+                                                : o.aoi + "_X" + std::to_string(bx) + "Y" + std::to_string(by);
+      aoi.x0_m = bx * o.size_m;
+      aoi.y0_m = by * o.size_m;
+      std::map<int, City> with_cars;  // per date: transient objects move between passes
+      const fs::path image_dir = root / "Track3-RGB-crops" / aoi.name;
+      const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
+      for (int v = 0; v < o.views; ++v) {
+        const int date = v / o.views_per_date;
+        if (!with_cars.count(date)) {
+          with_cars.emplace(date, WithCars(r.city, o.cars_per_block * o.blocks_x * o.blocks_y,
+                                           o.seed * 7919 + date));
+        }
+        const ViewGeometry vg = MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v);
+        const Acquisition acq = MakeAcquisition(date, v % o.views_per_date);
+        SynthView view;
+        char name[64];
+        std::snprintf(name, sizeof(name), "%s_%03d_RGB", aoi.name.c_str(), v + 1);
+        view.name = name;
+        view.path = (image_dir / (view.name + ".tif")).string();
+        view.camera = vg.camera;
+        view.off_nadir_deg = vg.off_nadir_deg;
+        view.view_zenith_deg = vg.zenith_deg;
+        view.view_azimuth_deg = vg.azimuth_deg;
+        view.range_km = vg.range_m / 1000.0;
+        view.acquisition_time = acq.iso;
+        SunPosition(o.lat_deg, o.lon_deg, acq, &view.sun_elevation_deg, &view.sun_azimuth_deg);
+        Lighting& light = view.lighting;
+        light.sun_scene = (r.scene_from_enu.linear *
+                           UnitFromAngles((90.0 - view.sun_elevation_deg) * kDegToRad,
+                                          view.sun_azimuth_deg * kDegToRad))
+                              .normalized();
+        light.gain = static_cast<float>(0.88 + 0.24 * Frac(0.17 + date * 0.4142 + o.seed * 0.1));
+        light.ambient = static_cast<float>(0.28 + 0.12 * Frac(0.61 + date * 0.7071));
+        light.tint = Eigen::Vector3f(1.0f + 0.05f * static_cast<float>(Frac(date * 0.31) - 0.5), 1.0f,
+                                     1.0f + 0.08f * static_cast<float>(Frac(date * 0.53) - 0.5));
+        light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
+
+        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city);
+        view.rpc_fit_max_px = fit.max_residual_px;
+        view.rpc_fit_rms_px = fit.rms_residual_px;
+        worst_fit = std::max(worst_fit, fit.max_residual_px);
+
+        const RenderedView img = RenderView(with_cars.at(date), view.camera, r.scene_from_enu, light);
+        RasterWriteOptions wo;
+        wo.metadata["NITF_IDATIM"] = acq.compact;
+        wo.rpc_metadata = RpcToGdalMetadata(fit.rpc);
+        WriteByteTiff(view.path, img.width_px, img.height_px, 3, img.rgb.data(), wo);
+
+        std::vector<Eigen::Vector2d> footprint;
+        for (const auto& c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(img.width_px - 0.5, -0.5),
+                              Eigen::Vector2d(img.width_px - 0.5, img.height_px - 0.5),
+                              Eigen::Vector2d(-0.5, img.height_px - 0.5)}) {
+          footprint.push_back(Localize(fit.rpc, c.x(), c.y(), co.base_height_m));
+        }
+        WriteFileAtomic((json_dir / (view.name + ".json")).string(),
+                        SatNerfJson(view, fit.rpc, footprint, acq, r.city).dump(2) + "\n");
+        aoi.views.push_back(view);
+        progress.Advance(++done, view.name);
+      }
+      // Sat-NeRF-style split: the second image of the first and of the middle pass are held out.
+      std::string train, test;
+      for (int v = 0; v < o.views; ++v) {
+        const bool held_out = o.views >= 4 && (v == 1 || v == (o.views / 2) + 1);
+        (held_out ? test : train) += aoi.views[v].name + "\n";
+      }
+      WriteFileAtomic((json_dir / "train.txt").string(), train);
+      WriteFileAtomic((json_dir / "test.txt").string(), test);
+      WriteTruth(r, aoi, o, root);
+      r.aois.push_back(aoi);
+    }
+  }
+  progress.End();
+
+  json report = {{"seed", o.seed},
+                 {"epsg", r.epsg},
+                 {"utm_origin_m", {r.utm_easting0_m, r.utm_northing0_m}},
+                 {"buildings", r.city.buildings.size()},
+                 {"height_range_m", {r.city.min_height_m, r.city.max_height_m}},
+                 {"scene_from_enu_max_error_m", r.scene_from_enu.max_error_m},
+                 {"rpc_fit_max_residual_px", worst_fit},
+                 {"dates", dates}};
+  json images = json::array();
+  for (const auto& aoi : r.aois)
+    for (const auto& v : aoi.views)
+      images.push_back({{"aoi", aoi.name}, {"name", v.name}, {"acquisition_time", v.acquisition_time},
+                        {"off_nadir_deg", v.off_nadir_deg}, {"view_zenith_deg", v.view_zenith_deg},
+                        {"view_azimuth_deg", v.view_azimuth_deg}, {"range_km", v.range_km},
+                        {"sun_elevation_deg", v.sun_elevation_deg}, {"sun_azimuth_deg", v.sun_azimuth_deg},
+                        {"rpc_fit_max_px", v.rpc_fit_max_px}, {"rpc_fit_rms_px", v.rpc_fit_rms_px},
+                        {"width_px", v.camera.width_px}, {"height_px", v.camera.height_px}});
+  report["images"] = images;
+  r.report.seconds = clock.Seconds();
+  report["seconds"] = r.report.seconds;
+  WriteFileAtomic((root / "synth_report.json").string(), report.dump(2) + "\n");
+  r.report.metrics["rpc_fit_max_residual_px"] = worst_fit;
+  r.report.metrics["images"] = static_cast<double>(done);
+  r.report.metrics["buildings"] = static_cast<double>(r.city.buildings.size());
+  return r;
+}
+
+}  // namespace skyfall::synth

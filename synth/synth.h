@@ -1,0 +1,69 @@
+// `skyfall synth`: writes a DFC2019-style tree of a procedural city that
+// `skyfall ingest` reads exactly like real data: RGB crops with fitted RPCs
+// and NITF dates, the truth DSM (+ _DSM.txt, lower-left convention) and CLS
+// rasters in UTM, and Sat-NeRF-style camera JSONs with sun angles and split.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/aoi.h"
+#include "core/stage.h"
+#include "synth/city.h"
+#include "synth/render.h"
+
+namespace skyfall::synth {
+
+struct SynthOptions {
+  std::string aoi = "SYN_001";   // AOI name; blocks of a city get _X<i>Y<j> appended
+  std::uint64_t seed = 1;
+  double size_m = 256.0;         // AOI (block) side [m]
+  double gsd_m = 0.5;            // truth DSM and nominal image GSD [m]
+  int views = 12;                // images per AOI
+  int views_per_date = 2;        // images taken on one pass (same sun, gain, cars)
+  double lat_deg = 30.3488;      // city centre (default: Jacksonville, UTM 17N like JAX_068)
+  double lon_deg = -81.6637;
+  int blocks_x = 1;              // adjacent AOIs along x (east) and y (north)
+  int blocks_y = 1;
+  double min_off_nadir_deg = 5.0;
+  double max_off_nadir_deg = 35.0;
+  double orbit_height_m = 617000.0;  // WorldView-3
+  int cars_per_block = 40;
+  int image_margin_px = 16;      // image border beyond the AOI's projection [px]
+  void Check() const;            // throws Error("synth", field, ...)
+};
+
+// One image as written, with what a test needs to check it.
+struct SynthView {
+  std::string name;               // NAME_NNN_RGB
+  std::string path;               // written TIFF
+  SatelliteCamera camera;         // the true projection
+  Lighting lighting;
+  std::string acquisition_time;   // ISO 8601 UTC
+  double sun_elevation_deg = 0, sun_azimuth_deg = 0;
+  double off_nadir_deg = 0, view_zenith_deg = 0, view_azimuth_deg = 0, range_km = 0;
+  double rpc_fit_max_px = 0, rpc_fit_rms_px = 0;  // fitted RPC vs true camera
+};
+
+struct SynthAoi {
+  std::string name;
+  double x0_m = 0, y0_m = 0;  // lower-left corner in the scene frame
+  std::vector<SynthView> views;
+};
+
+struct SynthResult {
+  City city;                      // the truth (without transient cars)
+  double utm_easting0_m = 0;      // UTM of the scene frame's origin
+  double utm_northing0_m = 0;
+  int epsg = 0;
+  GeodeticPoint enu_origin;       // origin of the ENU frame the cameras live in
+  SceneFromEnu scene_from_enu;
+  std::vector<SynthAoi> aois;
+  StageReport report;
+};
+
+// Generates the city, renders every view and writes the tree under `root`.
+SynthResult RunSynth(const SynthOptions& options, const std::string& root, Progress& progress);
+
+}  // namespace skyfall::synth

@@ -1,0 +1,335 @@
+#include "synth/synth.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+#include <set>
+
+#include "catalogs/aoi_catalog.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "tests/test_support.h"
+#include "tiler/dfc2019.h"
+#include "tiler/geo.h"
+#include "tiler/raster.h"
+#include "tiler/rpc_io.h"
+
+namespace skyfall::synth {
+namespace {
+
+using namespace skyfall::testing;
+
+// The issue's bound on the RPC written for each image.
+constexpr double kRpcFitTolPx = 0.01;
+// Rendering maps rays into the scene frame with an affine fit of the
+// ENU -> UTM map (reported error ~5 mm at most for these scenes); at 0.5 m
+// GSD that is 0.01 px, plus the RPC fit: 0.03 px leaves margin for both.
+constexpr double kRenderVsRpcTolPx = 0.03;
+
+SynthOptions SmallScene() {
+  SynthOptions o;
+  o.size_m = 128.0;
+  o.views = 4;
+  o.seed = 7;
+  return o;
+}
+
+struct Scene {
+  fs::path root;
+  SynthResult result;
+};
+
+Scene MakeScene(const SynthOptions& o) {
+  Scene s;
+  s.root = ScratchDir("synth");
+  NullProgress progress;
+  s.result = RunSynth(o, s.root.string(), progress);
+  return s;
+}
+
+// Ground-to-image through the RPC written into a TIFF.
+Eigen::Vector2d ProjectScenePoint(const RpcModel& rpc, const SynthResult& r, const Eigen::Vector3d& s) {
+  const UtmZone zone = UtmZoneFromEpsg(r.epsg);
+  const Eigen::Vector2d ll = GeodeticFromUtm(zone, r.utm_easting0_m + s.x(), r.utm_northing0_m + s.y());
+  return rpc.Project(ll.x(), ll.y(), s.z());
+}
+
+// The tallest flat-roofed building inside the AOI [0, aoi_m]^2 (the city
+// also fills the margin around it).
+int TallestFlatBuilding(const City& city, double aoi_m = 128.0) {
+  int best = -1;
+  for (int b = 0; b < static_cast<int>(city.buildings.size()); ++b) {
+    const Building& bld = city.buildings[b];
+    const bool inside = bld.x0_m > 8 && bld.y0_m > 8 && bld.x1_m < aoi_m - 8 && bld.y1_m < aoi_m - 8;
+    if (inside && !bld.gable && (best < 0 || bld.eave_m > city.buildings[best].eave_m)) best = b;
+  }
+  return best;
+}
+
+TEST(Synth, WrittenRpcsReproduceTheTrueCamerasWithinAHundredthOfAPixel) {
+  const Scene s = MakeScene(SynthOptions{});  // the default scene: 256 m, 12 views
+  const EnuFrame frame(s.result.enu_origin);
+  double worst = 0;
+  for (const SynthView& v : s.result.aois.at(0).views) {
+    EXPECT_LE(v.rpc_fit_max_px, kRpcFitTolPx) << v.name;
+    // Independently of the fit's own check grid: read the TIFF's RPC back
+    // and compare with the camera at scene points over the whole AOI.
+    const RpcModel rpc = ReadRpcFromRaster(v.path);
+    for (double fx : {0.03, 0.5, 0.97})
+      for (double fy : {0.1, 0.62})
+        for (double z : {-21.0, 0.0, 45.0}) {
+          const Eigen::Vector3d p(fx * 256.0, fy * 256.0, z);
+          const UtmZone zone = UtmZoneFromEpsg(s.result.epsg);
+          const Eigen::Vector2d ll = GeodeticFromUtm(zone, s.result.utm_easting0_m + p.x(),
+                                                     s.result.utm_northing0_m + p.y());
+          const Eigen::Vector2d truth = v.camera.Project(frame.EnuFromGeodetic({ll.x(), ll.y(), z}));
+          const double e = (rpc.Project(ll.x(), ll.y(), z) - truth).norm();
+          worst = std::max(worst, e);
+          EXPECT_LT(e, kRpcFitTolPx) << v.name;
+        }
+    // Like WorldView-3: 5-35 deg off nadir, hundreds of km away.
+    EXPECT_GE(v.off_nadir_deg, 5.0);
+    EXPECT_LE(v.off_nadir_deg, 35.0);
+    EXPECT_GT(v.range_km, 600.0);
+    EXPECT_LT(v.range_km, 800.0);
+  }
+  std::printf("[figures] default scene: worst RPC-vs-camera error %.3g px over 12 views; affine "
+              "ENU->scene error %.3g m\n", worst, s.result.scene_from_enu.max_error_m);
+  EXPECT_LT(s.result.scene_from_enu.max_error_m, 0.01);
+}
+
+TEST(Synth, RoofCornerProjectsThroughTheRpcToWhereTheRendererDrewIt) {
+  const Scene s = MakeScene(SmallScene());
+  const City& city = s.result.city;
+  const int b = TallestFlatBuilding(city);
+  ASSERT_GE(b, 0);
+  const Building& bld = city.buildings[b];
+  for (const SynthView& v : s.result.aois.at(0).views) {
+    const RpcModel rpc = ReadRpcFromRaster(v.path);
+    // The roof corner as built: the footprint rasterized to whole columns
+    // (cells whose centre lies inside it). The tallest roof is never hidden
+    // by another building.
+    Eigen::Vector2i cell = city.CellOf(bld.x1_m, bld.y1_m);
+    if (city.CellCentre(cell.x(), cell.y()).x() > bld.x1_m) --cell.x();
+    if (city.CellCentre(cell.x(), cell.y()).y() > bld.y1_m) --cell.y();
+    const Eigen::Vector2d corner_xy =
+        city.CellCentre(cell.x(), cell.y()) + Eigen::Vector2d::Constant(0.5 * city.options.cell_m);
+    const Eigen::Vector3d corner(corner_xy.x(), corner_xy.y(), bld.eave_m);
+    const Eigen::Vector2d px = ProjectScenePoint(rpc, s.result, corner);
+    ASSERT_TRUE(px.x() > 3 && px.y() > 3 && px.x() < v.camera.width_px - 4 && px.y() < v.camera.height_px - 4);
+    const RenderedView img = RenderView(city, v.camera, s.result.scene_from_enu, v.lighting);
+    int roof_pixels = 0;
+    const int c0 = static_cast<int>(std::round(px.x())), r0 = static_cast<int>(std::round(px.y()));
+    for (int r = r0 - 3; r <= r0 + 3; ++r)
+      for (int c = c0 - 3; c <= c0 + 3; ++c) {
+        const size_t k = static_cast<size_t>(r) * img.width_px + c;
+        ASSERT_TRUE(img.hit_scene[k].allFinite());
+        // Whatever the renderer drew at this pixel projects back onto it.
+        const Eigen::Vector2d back = ProjectScenePoint(rpc, s.result, img.hit_scene[k].cast<double>());
+        EXPECT_LT((back - Eigen::Vector2d(c, r)).norm(), kRenderVsRpcTolPx) << v.name;
+        if (img.hit_object[k] == b && std::abs(img.hit_scene[k].z() - bld.eave_m) < 1e-3) {
+          ++roof_pixels;
+          // Roof pixels lie inside the footprint: on the corner's inner side.
+          EXPECT_LE(img.hit_scene[k].x(), corner.x() + 1e-3);
+          EXPECT_LE(img.hit_scene[k].y(), corner.y() + 1e-3);
+        }
+      }
+    // Around a corner, roughly a quarter of the window is roof.
+    EXPECT_GT(roof_pixels, 5) << v.name;
+    EXPECT_LT(roof_pixels, 40) << v.name;
+  }
+}
+
+TEST(Synth, BuildingsHideWhatIsBehindThemInObliqueViews) {
+  const Scene s = MakeScene(SmallScene());
+  const City& city = s.result.city;
+  const int b = TallestFlatBuilding(city);
+  const Building& bld = city.buildings[b];
+  // The most oblique view.
+  const SynthView* v = &s.result.aois.at(0).views[0];
+  for (const auto& view : s.result.aois.at(0).views)
+    if (view.off_nadir_deg > v->off_nadir_deg) v = &view;
+  const RpcModel rpc = ReadRpcFromRaster(v->path);
+  const RenderedView img = RenderView(city, v->camera, s.result.scene_from_enu, v->lighting);
+  // A ground point just behind the building, seen from the satellite.
+  const double az = v->view_azimuth_deg * M_PI / 180.0;
+  const Eigen::Vector2d away(-std::sin(az), -std::cos(az));  // from the satellite over the building
+  const Eigen::Vector2d centre(0.5 * (bld.x0_m + bld.x1_m), 0.5 * (bld.y0_m + bld.y1_m));
+  const double half_diag = 0.5 * std::hypot(bld.x1_m - bld.x0_m, bld.y1_m - bld.y0_m);
+  const double lean = (bld.eave_m - bld.base_m) * std::tan(v->view_zenith_deg * M_PI / 180.0);
+  ASSERT_GT(lean, 4.0);  // tall and oblique enough to hide something
+  const Eigen::Vector2d behind = centre + away * (half_diag + 0.5 * lean);
+  const Eigen::Vector3d ground(behind.x(), behind.y(), city.TerrainAt(behind.x(), behind.y()));
+  const Eigen::Vector2d px = ProjectScenePoint(rpc, s.result, ground);
+  ASSERT_TRUE(px.x() >= 0 && px.y() >= 0 && px.x() < img.width_px - 1 && px.y() < img.height_px - 1);
+  const size_t k = static_cast<size_t>(std::lround(px.y())) * img.width_px + std::lround(px.x());
+  EXPECT_EQ(img.hit_object[k], b) << "the ground behind the building is visible in " << v->name;
+  EXPECT_GT(img.hit_scene[k].z(), ground.z() + 2.0);
+}
+
+TEST(Synth, ShadowsDarkenGroundOnTheAntiSunSide) {
+  const Scene s = MakeScene(SmallScene());
+  const City& city = s.result.city;
+  const int b = TallestFlatBuilding(city);
+  const Building& bld = city.buildings[b];
+  // The most nadir view sees the ground around the building best.
+  const SynthView* v = &s.result.aois.at(0).views[0];
+  for (const auto& view : s.result.aois.at(0).views)
+    if (view.off_nadir_deg < v->off_nadir_deg) v = &view;
+  Lighting no_shadows = v->lighting;
+  no_shadows.cast_shadows = false;
+  const RenderedView lit = RenderView(city, v->camera, s.result.scene_from_enu, no_shadows);
+  const RenderedView shaded = RenderView(city, v->camera, s.result.scene_from_enu, v->lighting);
+  // Count pixels whose hit is ground within the building's shadow length on
+  // the anti-sun side, and compare their brightness with and without shadows.
+  const Eigen::Vector2d to_sun = v->lighting.sun_scene.head<2>().normalized();
+  int darker = 0, counted = 0;
+  for (size_t k = 0; k < lit.hit_scene.size(); ++k) {
+    const Eigen::Vector3f h = shaded.hit_scene[k];
+    if (!h.allFinite() || shaded.hit_object[k] >= 0) continue;
+    // Just outside the footprint, opposite the sun, within 3 m.
+    const Eigen::Vector2d centre(0.5 * (bld.x0_m + bld.x1_m), 0.5 * (bld.y0_m + bld.y1_m));
+    const Eigen::Vector2d d = h.head<2>().cast<double>() - centre;
+    const double half_x = 0.5 * (bld.x1_m - bld.x0_m), half_y = 0.5 * (bld.y1_m - bld.y0_m);
+    const bool just_outside = std::abs(d.x()) < half_x + 3 && std::abs(d.y()) < half_y + 3 &&
+                              (std::abs(d.x()) > half_x + 0.5 || std::abs(d.y()) > half_y + 0.5);
+    if (!just_outside || d.dot(to_sun) > 0) continue;
+    ++counted;
+    const int sum_lit = lit.rgb[3 * k] + lit.rgb[3 * k + 1] + lit.rgb[3 * k + 2];
+    const int sum_shaded = shaded.rgb[3 * k] + shaded.rgb[3 * k + 1] + shaded.rgb[3 * k + 2];
+    darker += sum_shaded < sum_lit - 15;
+  }
+  ASSERT_GT(counted, 20);
+  EXPECT_GT(darker, counted * 8 / 10) << darker << " of " << counted;
+}
+
+TEST(Synth, IngestReadsTheSceneLikeRealData) {
+  const Scene s = MakeScene(SmallScene());
+  NullProgress progress;
+  const IngestResult r = RunIngest(IngestOptions{}, s.root.string(), (s.root / "out").string(), progress);
+  ASSERT_EQ(r.NumIngested(), 1);
+  const AoiCatalog& c = r.aois.at(0).catalog;
+  EXPECT_EQ(c.aoi, "SYN_001");
+  ASSERT_EQ(c.images.size(), 4u);
+  EXPECT_EQ(c.epsg, 32617);
+  ASSERT_TRUE(c.truth.has_value());
+  EXPECT_EQ(c.truth->width_px, 256);
+  EXPECT_EQ(c.height_range_source, "truth_dsm");
+  EXPECT_EQ(c.test_images.size(), 2u);
+  EXPECT_EQ(c.train_images.size(), 2u);
+  for (size_t i = 0; i < c.images.size(); ++i) {
+    const ImageRecord& im = c.images[i];
+    const SynthView& v = s.result.aois[0].views[i];
+    EXPECT_EQ(im.rpc_source, "gdal_metadata");
+    EXPECT_EQ(im.acquisition_time, v.acquisition_time);
+    ASSERT_TRUE(im.sun_elevation_deg.has_value());
+    EXPECT_NEAR(*im.sun_elevation_deg, v.sun_elevation_deg, 1e-9);
+    // Ingest derives the viewing geometry from the RPC alone: it agrees
+    // with the camera that made the image.
+    EXPECT_NEAR(im.view_zenith_deg, v.view_zenith_deg, 0.1) << im.name;
+    EXPECT_NEAR(im.off_nadir_deg, v.off_nadir_deg, 0.1) << im.name;
+    const double daz = std::remainder(im.view_azimuth_deg - v.view_azimuth_deg, 360.0);
+    EXPECT_LT(std::abs(daz), 0.5) << im.name;
+  }
+}
+
+TEST(Synth, TruthFilesFollowTheJax068Conventions) {
+  const Scene s = MakeScene(SmallScene());
+  const fs::path ours = s.root / "Track3-Truth", jax = Dfc2019Root() / "Track3-Truth";
+  // _DSM.txt: four numbers printed with six decimals, one per line.
+  const std::regex line(R"(^-?\d+\.\d{6}$)");
+  auto txt_lines = [](const fs::path& p) {
+    std::vector<std::string> lines;
+    std::ifstream in(p);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+    return lines;
+  };
+  const auto ours_txt = txt_lines(ours / "SYN_001_DSM.txt");
+  ASSERT_EQ(ours_txt.size(), 4u);
+  for (const auto& l : ours_txt) EXPECT_TRUE(std::regex_match(l, line)) << l;
+  const std::set<int> dfc_codes = {2, 5, 6, 9, 17, 65};
+  auto check_rasters = [&](const fs::path& dir, const std::string& aoi) {
+    const RasterInfo dsm = ReadRasterInfo((dir / (aoi + "_DSM.tif")).string());
+    const RasterInfo cls = ReadRasterInfo((dir / (aoi + "_CLS.tif")).string());
+    EXPECT_EQ(dsm.dtype, "Float32");
+    EXPECT_EQ(cls.dtype, "Byte");
+    EXPECT_EQ(dsm.bands, 1);
+    EXPECT_EQ(dsm.width_px, dsm.height_px);
+    EXPECT_EQ(cls.width_px, dsm.width_px);
+    const FloatBand codes = ReadFloatBand((dir / (aoi + "_CLS.tif")).string());
+    std::set<int> seen;
+    for (float v : codes.values) seen.insert(static_cast<int>(v));
+    for (int code : seen) EXPECT_TRUE(dfc_codes.count(code)) << aoi << " class " << code;
+    return seen;
+  };
+  const std::set<int> ours_codes = check_rasters(ours, "SYN_001");
+  for (int code : {2, 5, 6, 9, 17}) EXPECT_TRUE(ours_codes.count(code)) << "class " << code << " missing";
+  if (fs::exists(jax)) {
+    check_rasters(jax, "JAX_068");
+    const auto jax_txt = txt_lines(jax / "JAX_068_DSM.txt");
+    ASSERT_EQ(jax_txt.size(), 4u);
+    for (const auto& l : jax_txt) EXPECT_TRUE(std::regex_match(l, line)) << l;
+  }
+  // Lower-left convention: DSM row 0 is the north edge, and the txt holds the
+  // south-west corner. Every DSM pixel equals the scene height there.
+  const DsmTxt grid = ParseDsmTxt(ReadTextFile((ours / "SYN_001_DSM.txt").string()), "txt");
+  const FloatBand dsm = ReadFloatBand((ours / "SYN_001_DSM.tif").string());
+  const double ul_northing = grid.northing_m + grid.size_px * grid.gsd_m;
+  int mismatches = 0;
+  for (int r = 0; r < dsm.height_px; ++r)
+    for (int c = 0; c < dsm.width_px; ++c) {
+      const double e = grid.easting_m + (c + 0.5) * grid.gsd_m, n = ul_northing - (r + 0.5) * grid.gsd_m;
+      mismatches += dsm.values[static_cast<size_t>(r) * dsm.width_px + c] !=
+                    s.result.city.HeightAt(e - s.result.utm_easting0_m, n - s.result.utm_northing0_m);
+    }
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(Synth, SameSeedSameBytesOtherSeedOtherCity) {
+  SynthOptions o = SmallScene();
+  o.views = 2;
+  o.size_m = 64;
+  const Scene a = MakeScene(o);
+  const std::string first = ReadTextFile(a.result.aois[0].views[1].path);
+  const std::string dsm_a = ReadTextFile((a.root / "Track3-Truth" / "SYN_001_DSM.tif").string());
+  const Scene b = MakeScene(o);  // same scratch folder name: rewritten in place
+  EXPECT_EQ(ReadTextFile(b.result.aois[0].views[1].path), first);
+  EXPECT_EQ(ReadTextFile((b.root / "Track3-Truth" / "SYN_001_DSM.tif").string()), dsm_a);
+  o.seed = 8;
+  const Scene c = MakeScene(o);
+  EXPECT_NE(ReadTextFile((c.root / "Track3-Truth" / "SYN_001_DSM.tif").string()), dsm_a);
+}
+
+TEST(Synth, AdjacentBlocksShareTheirBoundary) {
+  SynthOptions o = SmallScene();
+  o.size_m = 64;
+  o.views = 2;
+  o.blocks_x = 2;
+  const Scene s = MakeScene(o);
+  ASSERT_EQ(s.result.aois.size(), 2u);
+  EXPECT_EQ(s.result.aois[0].name, "SYN_001_X0Y0");
+  EXPECT_EQ(s.result.aois[1].name, "SYN_001_X1Y0");
+  const fs::path truth = s.root / "Track3-Truth";
+  const DsmTxt west = ParseDsmTxt(ReadTextFile((truth / "SYN_001_X0Y0_DSM.txt").string()), "w");
+  const DsmTxt east = ParseDsmTxt(ReadTextFile((truth / "SYN_001_X1Y0_DSM.txt").string()), "e");
+  EXPECT_DOUBLE_EQ(east.easting_m, west.easting_m + 64.0);
+  EXPECT_DOUBLE_EQ(east.northing_m, west.northing_m);
+  NullProgress progress;
+  EXPECT_EQ(RunIngest(IngestOptions{}, s.root.string(), (s.root / "out").string(), progress).NumIngested(), 2);
+}
+
+TEST(Synth, OptionsAreChecked) {
+  SynthOptions o;
+  o.aoi = "no-number";
+  EXPECT_THROW(o.Check(), Error);
+  o = SynthOptions{};
+  o.size_m = 100.25;  // not a whole number of 0.5 m pixels
+  EXPECT_THROW(o.Check(), Error);
+  o = SynthOptions{};
+  o.views = 1;
+  EXPECT_THROW(o.Check(), Error);
+}
+
+}  // namespace
+}  // namespace skyfall::synth
