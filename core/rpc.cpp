@@ -9,18 +9,14 @@
 
 #include "core/error.h"
 #include "core/format.h"
+#include "core/rpc_terms.h"
 
 namespace skyfall {
 namespace {
 
-using Terms = std::array<double, 20>;
-
-// The 20 RPC00B monomials of normalized (L, P, H), in term order.
-Terms Monomials(double L, double P, double H) {
-  return {1.0,       L,         P,         H,         L * P,     L * H,     P * H,
-          L * L,     P * P,     H * H,     P * L * H, L * L * L, L * P * P, L * H * H,
-          L * L * P, P * P * P, P * H * H, L * L * H, P * P * H, H * H * H};
-}
+using rpc_terms::Dot;
+using rpc_terms::Monomials;
+using rpc_terms::Terms;
 
 // Partial derivatives of the monomials with respect to L and P.
 Terms MonomialsDL(double L, double P, double H) {
@@ -30,12 +26,6 @@ Terms MonomialsDL(double L, double P, double H) {
 Terms MonomialsDP(double L, double P, double H) {
   return {0.0, 0.0,   1.0, 0.0,   L,         0.0,       H,     0.0,       2 * P, 0.0,
           L * H, 0.0, 2 * L * P, 0.0, L * L, 3 * P * P, H * H, 0.0, 2 * P * H, 0.0};
-}
-
-double Dot(const Terms& c, const Terms& m) {
-  double s = 0.0;
-  for (int i = 0; i < 20; ++i) s += c[i] * m[i];
-  return s;
 }
 
 // A denominator this small (relative to the usual ~1) means a pole: the model

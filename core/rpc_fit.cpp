@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/format.h"
+#include "core/rpc_terms.h"
 
 namespace skyfall {
 namespace {
@@ -15,17 +16,7 @@ struct Sample {
   double col_n, row_n; // normalized image coordinates
 };
 
-std::array<double, 20> Terms(double L, double P, double H) {
-  return {1.0,       L,         P,         H,         L * P,     L * H,     P * H,
-          L * L,     P * P,     H * H,     P * L * H, L * L * L, L * P * P, L * H * H,
-          L * L * P, P * P * P, P * H * H, L * L * H, P * P * H, H * H * H};
-}
-
-double Dot(const std::array<double, 20>& c, const std::array<double, 20>& m) {
-  double s = 0;
-  for (int i = 0; i < 20; ++i) s += c[i] * m[i];
-  return s;
-}
+using rpc_terms::Dot;
 
 // Solves one image coordinate: value ~= num(m) / den(m), den[0] = 1.
 // With `rational` false the denominator stays 1 (a cubic polynomial).
@@ -38,7 +29,7 @@ void SolveCoordinate(const std::vector<Sample>& samples, bool row, bool rational
   Eigen::VectorXd b = Eigen::VectorXd::Zero(A.rows());
   for (int s = 0; s < n; ++s) {
     const Sample& x = samples[s];
-    const auto m = Terms(x.L, x.P, x.H);
+    const auto m = rpc_terms::Monomials(x.L, x.P, x.H);
     const double v = row ? x.row_n : x.col_n;
     // Weighting by the previous denominator turns the linearized residual
     // (num - v*den) back into the true residual (num/den - v).

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <regex>
 #include <set>
@@ -65,6 +66,14 @@ int TallestFlatBuilding(const City& city, double aoi_m = 128.0) {
     if (inside && !bld.gable && (best < 0 || bld.eave_m > city.buildings[best].eave_m)) best = b;
   }
   return best;
+}
+
+// The view with the largest (or smallest) off-nadir angle.
+const SynthView& ExtremeView(const SynthResult& r, bool most_oblique) {
+  const auto& views = r.aois.at(0).views;
+  return *std::max_element(views.begin(), views.end(), [&](const SynthView& a, const SynthView& b) {
+    return most_oblique ? a.off_nadir_deg < b.off_nadir_deg : a.off_nadir_deg > b.off_nadir_deg;
+  });
 }
 
 TEST(Synth, WrittenRpcsReproduceTheTrueCamerasWithinAHundredthOfAPixel) {
@@ -146,10 +155,7 @@ TEST(Synth, BuildingsHideWhatIsBehindThemInObliqueViews) {
   const City& city = s.result.city;
   const int b = TallestFlatBuilding(city);
   const Building& bld = city.buildings[b];
-  // The most oblique view.
-  const SynthView* v = &s.result.aois.at(0).views[0];
-  for (const auto& view : s.result.aois.at(0).views)
-    if (view.off_nadir_deg > v->off_nadir_deg) v = &view;
+  const SynthView* v = &ExtremeView(s.result, /*most_oblique=*/true);
   const RpcModel rpc = ReadRpcFromRaster(v->path);
   const RenderedView img = RenderView(city, v->camera, s.result.scene_from_enu, v->lighting);
   // A ground point just behind the building, seen from the satellite.
@@ -174,9 +180,7 @@ TEST(Synth, ShadowsDarkenGroundOnTheAntiSunSide) {
   const int b = TallestFlatBuilding(city);
   const Building& bld = city.buildings[b];
   // The most nadir view sees the ground around the building best.
-  const SynthView* v = &s.result.aois.at(0).views[0];
-  for (const auto& view : s.result.aois.at(0).views)
-    if (view.off_nadir_deg < v->off_nadir_deg) v = &view;
+  const SynthView* v = &ExtremeView(s.result, /*most_oblique=*/false);
   Lighting no_shadows = v->lighting;
   no_shadows.cast_shadows = false;
   const RenderedView lit = RenderView(city, v->camera, s.result.scene_from_enu, no_shadows);

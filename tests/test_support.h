@@ -9,8 +9,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
+
+#include "core/error.h"
 
 namespace skyfall::testing {
 
@@ -69,6 +72,16 @@ inline CommandResult RunCommand(const std::string& command, const fs::path& scra
   r.out = slurp(out);
   r.err = slurp(err);
   return r;
+}
+
+// The message of the skyfall::Error that `f` throws, or "<no error>".
+inline std::string ErrorText(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const ::skyfall::Error& e) {
+    return e.what();
+  }
+  return "<no error>";
 }
 
 inline std::string Skyfall() { return SKYFALL_BINARY; }

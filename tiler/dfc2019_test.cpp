@@ -15,15 +15,6 @@ namespace {
 
 using namespace skyfall::testing;
 
-std::string ErrorText(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
-
 TEST(DsmTxt, ParsesTheDfc2019Layout) {
   const DsmTxt d = ParseDsmTxt("436078.995946\n3357495.999923\n512.000000\n0.500000\n", "a_DSM.txt");
   EXPECT_DOUBLE_EQ(d.easting_m, 436078.995946);

@@ -29,15 +29,6 @@ std::vector<fs::path> Jax068Images() {
   return out;
 }
 
-std::string ErrorText(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
-
 TEST(RpcIo, AgreesWithGdalTransformerOnAllJax068Crops) {
   SKYFALL_REQUIRE_DFC2019();
   const auto images = Jax068Images();
