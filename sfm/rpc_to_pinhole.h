@@ -1,0 +1,47 @@
+// Approximating an RPC camera by a pinhole camera in a local ENU frame (as
+// VisSat / SatelliteSfM do): a DLT over a dense 3D grid of RPC
+// correspondences covering the image and the scene's height range, an RQ
+// decomposition into K[R|t], then Levenberg-Marquardt on the reprojection
+// error. The error against the RPC is measured on a separate, offset grid.
+#pragma once
+
+#include <functional>
+
+#include "core/aoi.h"
+#include "core/pinhole.h"
+#include "core/rpc.h"
+
+namespace skyfall {
+
+struct PinholeFitOptions {
+  int grid_cols = 15;     // image-space fit grid (edges included)
+  int grid_rows = 15;
+  int grid_heights = 7;   // heights across the range
+  int check_cols = 24;    // check grid: cell centres of a finer grid
+  int check_rows = 24;
+  int check_heights = 6;
+  // Hartley normalization of both point sets before the DLT. Without it the
+  // DLT system (coordinates ~1e2 m against pixels ~1e3 and a camera 6e5 m
+  // away) loses most of its digits; kept as an option so a test can show it.
+  bool hartley_normalization = true;
+  bool refine = true;         // nonlinear least squares after the DLT
+  bool estimate_skew = true;  // free K(0,1) during refinement
+  void Check() const;         // throws Error("pinhole", field, ...)
+};
+
+struct PinholeFit {
+  PinholeCamera camera;
+  double dlt_max_error_px = 0.0;  // DLT alone, on the check grid
+  double dlt_mean_error_px = 0.0;
+  double max_error_px = 0.0;      // final camera vs the RPC, on the check grid
+  double mean_error_px = 0.0;
+};
+
+// `enu_from_geodetic` maps (lon, lat, height) into the local frame the camera
+// lives in (the AOI's ENU frame). Heights span [min_height_m, max_height_m].
+PinholeFit ApproximateRpcByPinhole(
+    const RpcModel& rpc, int width_px, int height_px, double min_height_m, double max_height_m,
+    const std::function<Eigen::Vector3d(const GeodeticPoint&)>& enu_from_geodetic,
+    const PinholeFitOptions& options = {});
+
+}  // namespace skyfall
