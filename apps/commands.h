@@ -13,5 +13,6 @@ using Runner = std::function<int()>;
 void AddIngestCommand(CLI::App& app, Runner* runner);
 void AddRpcCommand(CLI::App& app, Runner* runner);
 void AddSynthCommand(CLI::App& app, Runner* runner);
+void AddSfmCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddIngestCommand(app, &runner);
   skyfall::cli::AddRpcCommand(app, &runner);
   skyfall::cli::AddSynthCommand(app, &runner);
+  skyfall::cli::AddSfmCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

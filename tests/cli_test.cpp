@@ -18,7 +18,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -108,6 +108,30 @@ TEST(Cli, IngestExitsNonZeroOnlyWhenNothingWasIngested) {
       Skyfall() + " ingest " + root.string() + " --out " + (dir / "out").string() + " --json", dir);
   EXPECT_EQ(mixed.exit_code, 0) << mixed.err;
   EXPECT_EQ(nlohmann::json::parse(mixed.out)["failed"], 1);
+}
+
+TEST(Cli, SynthIngestSfmChain) {
+  const fs::path dir = ScratchDir("cli");
+  const std::string root = (dir / "city").string(), cat = (dir / "catalogs").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 96 --views 3 --seed 5", dir).exit_code, 0);
+  ASSERT_EQ(RunCommand(Skyfall() + " ingest " + root + " --out " + cat, dir).exit_code, 0);
+  const std::string aoi = cat + "/SYN_001/aoi.json";
+  const CommandResult sfm = RunCommand(Skyfall() + " sfm --aoi " + aoi + " --out " + (dir / "sfm").string(), dir);
+  ASSERT_EQ(sfm.exit_code, 0) << sfm.err;
+  for (const char* f : {"cameras.json", "points.ply", "sfm_report.json", "colmap/images.txt"})
+    EXPECT_TRUE(fs::exists(dir / "sfm" / f)) << f;
+  const auto report = nlohmann::json::parse(std::ifstream(dir / "sfm" / "sfm_report.json"));
+  EXPECT_EQ(report["status"], "ok");
+  EXPECT_EQ(report["num_images_used"], 3);
+
+  // One image only: a degenerate status with its own exit code, and a report.
+  auto catalog = nlohmann::json::parse(std::ifstream(aoi));
+  catalog["images"] = nlohmann::json::array({catalog["images"][0]});
+  std::ofstream(dir / "one.json") << catalog.dump();
+  const CommandResult one = RunCommand(
+      Skyfall() + " sfm --aoi " + (dir / "one.json").string() + " --out " + (dir / "sfm1").string(), dir);
+  EXPECT_EQ(one.exit_code, 4) << one.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "sfm1" / "sfm_report.json"))["status"], "degenerate");
 }
 
 }  // namespace

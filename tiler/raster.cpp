@@ -66,6 +66,23 @@ FloatBand ReadFloatBand(const std::string& path, int band_index) {
   return out;
 }
 
+FloatImage ReadFloatImage(const std::string& path) {
+  gdal::Dataset ds(gdal::OpenOrThrow(path));
+  FloatImage out;
+  out.width_px = GDALGetRasterXSize(ds.handle);
+  out.height_px = GDALGetRasterYSize(ds.handle);
+  out.bands = GDALGetRasterCount(ds.handle);
+  out.values.resize(static_cast<size_t>(out.width_px) * out.height_px * out.bands);
+  gdal::QuietErrors quiet;
+  const GSpacing pixel = static_cast<GSpacing>(sizeof(float)) * out.bands;
+  if (GDALDatasetRasterIO(ds.handle, GF_Read, 0, 0, out.width_px, out.height_px, out.values.data(),
+                          out.width_px, out.height_px, GDT_Float32, out.bands, nullptr, pixel,
+                          pixel * out.width_px, sizeof(float)) != CE_None) {
+    throw Error("raster", path, "pixel data unreadable (truncated or corrupt): " + quiet.LastMessage());
+  }
+  return out;
+}
+
 namespace {
 
 void WriteTiff(const std::string& path, int width_px, int height_px, int bands, GDALDataType type,

@@ -38,6 +38,15 @@ struct FloatBand {
 };
 FloatBand ReadFloatBand(const std::string& path, int band = 1);
 
+// All bands as float, interleaved by pixel (bands values per pixel), row-major.
+struct FloatImage {
+  int width_px = 0;
+  int height_px = 0;
+  int bands = 0;
+  std::vector<float> values;
+};
+FloatImage ReadFloatImage(const std::string& path);
+
 // Writing GeoTIFFs (DEFLATE, tiled when large). The file appears atomically:
 // GDAL writes a temporary file beside `path`, which is renamed when complete.
 struct RasterWriteOptions {

@@ -1,0 +1,49 @@
+// skyfall sfm --aoi DIR/<AOI>/aoi.json --out DIR/<AOI>/sfm
+#include <spdlog/spdlog.h>
+
+#include "apps/commands.h"
+#include "apps/console.h"
+#include "catalogs/aoi_catalog.h"
+#include "sfm/export.h"
+#include "sfm/sfm.h"
+
+namespace skyfall::cli {
+
+// Exit code of a stage that ended degenerate (too little data), distinct from
+// bad input (1) so batch drivers can tell them apart.
+constexpr int kExitDegenerate = 4;
+
+void AddSfmCommand(CLI::App& app, Runner* runner) {
+  auto aoi = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto opts = std::make_shared<SfmOptions>();
+  auto no_images = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "sfm", "RPC -> pinhole cameras, SIFT tie points, bundle adjustment; writes cameras.json, points.ply, "
+             "sfm_report.json and a COLMAP text model");
+  cmd->add_option("--aoi", *aoi, "AOI catalog written by `skyfall ingest`")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--out", *out, "Output folder")->required();
+  cmd->add_option("--max-features", opts->features.max_features, "SIFT keypoints per image")->capture_default_str();
+  cmd->add_flag("--no-colmap-images", *no_images, "Write the COLMAP model without the de-skewed images");
+  cmd->callback([runner, aoi, out, opts, no_images] {
+    *runner = [aoi, out, opts, no_images] {
+      const AoiCatalog catalog = ReadAoiCatalog(*aoi);
+      ConsoleProgress progress;
+      const SfmResult r = RunSfm(*opts, catalog, progress);
+      WriteSfmOutputs(r, catalog, *out, !*no_images);
+      const auto& m = r.report.metrics;
+      for (const auto& w : r.report.warnings) spdlog::warn("{}", w);
+      if (r.report.status != StageStatus::kOk) {
+        spdlog::warn("{}", r.report.message);
+        return kExitDegenerate;
+      }
+      spdlog::info("sfm {}: {} images, {} points; pinhole max {:.4f} px; reprojection median {:.3f} -> {:.3f} px; "
+                   "{:.1f} s -> {}",
+                   catalog.aoi, m.at("num_images_used"), m.at("num_points"), m.at("dlt_max_error_px"),
+                   r.before.median_px, r.after.median_px, r.report.seconds, *out);
+      return 0;
+    };
+  });
+}
+
+}  // namespace skyfall::cli

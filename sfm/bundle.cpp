@@ -1,0 +1,91 @@
+#include "sfm/bundle.h"
+
+#include <ceres/ceres.h>
+
+#include "core/error.h"
+#include "core/format.h"
+
+namespace skyfall {
+namespace {
+
+struct ProjectionCost {
+  const PinholeCamera* camera;
+  Eigen::Vector2d pixel;
+  template <typename T>
+  bool operator()(const T* offset, const T* point, T* residual) const {
+    const Eigen::Matrix3d& R = camera->cam_from_world_rotation;
+    const Eigen::Vector3d& t = camera->cam_from_world_translation;
+    T c[3];
+    for (int r = 0; r < 3; ++r) c[r] = T(R(r, 0)) * point[0] + T(R(r, 1)) * point[1] + T(R(r, 2)) * point[2] + T(t(r));
+    const T xn = c[0] / c[2], yn = c[1] / c[2];
+    residual[0] = T(camera->fx) * xn + T(camera->skew) * yn + T(camera->cx) + offset[0] - T(pixel.x());
+    residual[1] = T(camera->fy) * yn + T(camera->cy) + offset[1] - T(pixel.y());
+    return true;
+  }
+};
+
+struct OffsetPrior {
+  double inverse_sigma;
+  template <typename T>
+  bool operator()(const T* offset, T* residual) const {
+    residual[0] = offset[0] * T(inverse_sigma);
+    residual[1] = offset[1] * T(inverse_sigma);
+    return true;
+  }
+};
+
+}  // namespace
+
+void BundleOptions::Check() const {
+  if (!(huber_px > 0)) throw Error("bundle", "huber_px", FormatDouble(huber_px) + " must be > 0");
+  if (!(offset_prior_sigma_px > 0)) {
+    throw Error("bundle", "offset_prior_sigma_px", FormatDouble(offset_prior_sigma_px) + " must be > 0");
+  }
+  if (max_iterations < 1) throw Error("bundle", "max_iterations", "must be >= 1");
+}
+
+BundleSummary RunBundleAdjustment(BundleProblem* bp, const BundleOptions& options) {
+  options.Check();
+  ceres::Problem problem;
+  for (size_t t = 0; t < bp->tracks.size(); ++t) {
+    for (const Observation& o : bp->tracks[t]) {
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ProjectionCost, 2, 2, 3>(
+                                   new ProjectionCost{&bp->cameras[o.image], o.pixel}),
+                               new ceres::HuberLoss(options.huber_px), bp->offsets_px[o.image].data(),
+                               bp->points[t].data());
+    }
+  }
+  for (size_t i = 0; i < bp->offsets_px.size(); ++i) {
+    if (!bp->image_used[i] || !problem.HasParameterBlock(bp->offsets_px[i].data())) continue;
+    // Cauchy: an image with a large pointing error (tens of px happen) does
+    // not drag the others' offsets; the majority fixes the gauge.
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetPrior, 2, 2>(
+                                 new OffsetPrior{1.0 / options.offset_prior_sigma_px}),
+                             new ceres::CauchyLoss(1.0), bp->offsets_px[i].data());
+  }
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_SCHUR;
+  solver.max_num_iterations = options.max_iterations;
+  solver.num_threads = 1;  // one thread keeps the sums in one order: identical reruns
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+  BundleSummary out;
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.initial_cost = summary.initial_cost;
+  out.final_cost = summary.final_cost;
+  out.converged = summary.termination_type == ceres::CONVERGENCE;
+  return out;
+}
+
+std::vector<double> ReprojectionErrors(const BundleProblem& bp) {
+  std::vector<double> errors;
+  for (size_t t = 0; t < bp.tracks.size(); ++t) {
+    for (const Observation& o : bp.tracks[t]) {
+      const Eigen::Vector2d p = bp.cameras[o.image].Project(bp.points[t]) + bp.offsets_px[o.image];
+      errors.push_back((p - o.pixel).norm());
+    }
+  }
+  return errors;
+}
+
+}  // namespace skyfall

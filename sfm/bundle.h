@@ -1,0 +1,44 @@
+// Bundle adjustment with Ceres for satellite views. The pinhole cameras from
+// the RPCs are right up to a pointing bias, which over a crop of a few
+// hundred metres is an image-space shift (the RPC bias-compensation model of
+// Grodecki & Dial). So each image gets a 2D pixel offset, the points move
+// freely, and a weak prior keeps the offsets near zero on average (the
+// absolute position stays that of the RPCs).
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "core/pinhole.h"
+#include "sfm/geometry.h"
+
+namespace skyfall {
+
+struct BundleOptions {
+  double huber_px = 1.0;              // robust loss scale [px]
+  double offset_prior_sigma_px = 10;  // prior on each image offset [px]
+  int max_iterations = 100;
+  void Check() const;
+};
+
+struct BundleProblem {
+  std::vector<PinholeCamera> cameras;       // held fixed
+  std::vector<Eigen::Vector2d> offsets_px;  // refined: added to every projection of the image
+  std::vector<Eigen::Vector3d> points;      // refined, one per track
+  std::vector<std::vector<Observation>> tracks;
+  std::vector<bool> image_used;             // images left out keep offset 0 and are ignored
+};
+
+struct BundleSummary {
+  int iterations = 0;
+  double initial_cost = 0;
+  double final_cost = 0;
+  bool converged = false;
+};
+
+BundleSummary RunBundleAdjustment(BundleProblem* problem, const BundleOptions& options);
+
+// Reprojection error of every observation [px], in track order.
+std::vector<double> ReprojectionErrors(const BundleProblem& problem);
+
+}  // namespace skyfall

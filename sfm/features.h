@@ -1,0 +1,35 @@
+// Tie points: SIFT on contrast-normalized images, ratio-test matching.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace skyfall {
+
+struct FeatureOptions {
+  int max_features = 4000;          // strongest SIFT keypoints kept per image
+  double contrast_threshold = 0.02; // SIFT contrast threshold (OpenCV default 0.04; satellite crops are low contrast)
+  double ratio = 0.8;               // Lowe's ratio test
+  double clahe_clip = 2.0;          // CLAHE clip limit after the percentile stretch
+  double stretch_low = 0.01;        // percentile mapped to 0 before CLAHE
+  double stretch_high = 0.99;       // percentile mapped to 255
+  void Check() const;               // throws Error("features", field, ...)
+};
+
+struct ImageFeatures {
+  std::vector<Eigen::Vector2d> keypoints;           // pixel centres at integers (RPC convention)
+  std::vector<float> descriptors;                   // 128 per keypoint, row-major
+  std::vector<std::array<std::uint8_t, 3>> colours; // RGB at each keypoint
+};
+
+// `pixels`: `bands` floats per pixel, row-major (any radiometric range).
+ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width_px, int height_px, int bands,
+                             const FeatureOptions& options);
+
+// Matches (index in a, index in b) that pass the ratio test both ways.
+std::vector<std::pair<int, int>> MatchFeatures(const ImageFeatures& a, const ImageFeatures& b, double ratio);
+
+}  // namespace skyfall

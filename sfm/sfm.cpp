@@ -1,0 +1,263 @@
+#include "sfm/sfm.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <numeric>
+
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/format.h"
+#include "tiler/geo.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+struct Loaded {
+  std::vector<ImageFeatures> features;
+  std::vector<PinholeCamera> cameras;
+};
+
+// Tracks triangulated with the current cameras and kept if they pass the
+// reprojection and angle filters; `errors_px` receives their residuals.
+void TriangulateTracks(const std::vector<std::vector<Observation>>& tracks, const std::vector<PinholeCamera>& cameras,
+                       const SfmOptions& o, BundleProblem* bp) {
+  bp->tracks.clear();
+  bp->points.clear();
+  for (const auto& track : tracks) {
+    const Eigen::Vector3d X = Triangulate(cameras, track);
+    if (!X.allFinite()) continue;
+    bool ok = true;
+    for (const auto& obs : track) {
+      ok = ok && cameras[obs.image].Depth(X) > 0 &&
+           (cameras[obs.image].Project(X) - obs.pixel).norm() <= o.max_reprojection_before_ba_px;
+    }
+    if (!ok || MaxTriangulationAngleDeg(cameras, track, X) < o.min_triangulation_angle_deg) continue;
+    bp->tracks.push_back(track);
+    bp->points.push_back(X);
+  }
+}
+
+// Drops observations of unused images and tracks left with fewer than two.
+void KeepUsedImages(BundleProblem* bp) {
+  std::vector<std::vector<Observation>> tracks;
+  std::vector<Eigen::Vector3d> points;
+  for (size_t t = 0; t < bp->tracks.size(); ++t) {
+    std::vector<Observation> kept;
+    for (const auto& o : bp->tracks[t])
+      if (bp->image_used[o.image]) kept.push_back(o);
+    if (kept.size() >= 2) {
+      tracks.push_back(kept);
+      points.push_back(bp->points[t]);
+    }
+  }
+  bp->tracks = std::move(tracks);
+  bp->points = std::move(points);
+}
+
+// Removes observations whose residual exceeds `max_px`.
+void CutOutliers(BundleProblem* bp, double max_px) {
+  for (size_t t = 0; t < bp->tracks.size(); ++t) {
+    auto& track = bp->tracks[t];
+    track.erase(std::remove_if(track.begin(), track.end(),
+                               [&](const Observation& o) {
+                                 const Eigen::Vector2d p = bp->cameras[o.image].Project(bp->points[t]) + bp->offsets_px[o.image];
+                                 return (p - o.pixel).norm() > max_px;
+                               }),
+                track.end());
+  }
+  KeepUsedImages(bp);
+}
+
+}  // namespace
+
+void SfmOptions::Check() const {
+  pinhole.Check();
+  features.Check();
+  bundle.Check();
+  auto need = [](bool ok, const char* field, double v) {
+    if (!ok) throw Error("sfm", field, FormatDouble(v) + " is out of range");
+  };
+  need(min_matches_per_pair >= 5, "min_matches_per_pair", min_matches_per_pair);
+  need(min_observations_per_image >= 3, "min_observations_per_image", min_observations_per_image);
+  need(max_reprojection_before_ba_px > 0, "max_reprojection_before_ba_px", max_reprojection_before_ba_px);
+  need(max_reprojection_after_ba_px > 0, "max_reprojection_after_ba_px", max_reprojection_after_ba_px);
+  need(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90, "min_triangulation_angle_deg",
+       min_triangulation_angle_deg);
+  need(ba_rounds >= 1, "ba_rounds", ba_rounds);
+}
+
+ReprojectionStats ComputeStats(std::vector<double> e) {
+  ReprojectionStats s;
+  s.count = static_cast<int>(e.size());
+  if (e.empty()) return s;
+  std::sort(e.begin(), e.end());
+  s.median_px = e[e.size() / 2];
+  s.p90_px = e[std::min(e.size() - 1, static_cast<size_t>(0.9 * e.size()))];
+  s.mean_px = std::accumulate(e.begin(), e.end(), 0.0) / static_cast<double>(e.size());
+  return s;
+}
+
+SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress& progress) {
+  options.Check();
+  Stopwatch clock;
+  SfmResult result;
+  result.report.stage = "sfm";
+  const EnuFrame frame(catalog.enu_origin);
+  const auto enu = [&frame](const GeodeticPoint& g) { return frame.EnuFromGeodetic(g); };
+  const int n = static_cast<int>(catalog.images.size());
+
+  // 1. Cameras and features per image.
+  Loaded loaded;
+  progress.Begin("sfm cameras+features " + catalog.aoi, n);
+  for (int i = 0; i < n; ++i) {
+    const ImageRecord& rec = catalog.images[i];
+    SfmImage im;
+    im.name = rec.name;
+    im.path = rec.path;
+    im.acquisition_time = rec.acquisition_time;
+    im.approximation = ApproximateRpcByPinhole(rec.rpc, rec.width_px, rec.height_px, catalog.min_height_m,
+                                               catalog.max_height_m, enu, options.pinhole);
+    im.camera = im.approximation.camera;
+    const FloatImage pixels = ReadFloatImage(rec.path);
+    loaded.features.push_back(
+        DetectFeatures(pixels.values, pixels.width_px, pixels.height_px, pixels.bands, options.features));
+    im.keypoints = static_cast<int>(loaded.features.back().keypoints.size());
+    loaded.cameras.push_back(im.camera);
+    result.images.push_back(im);
+    progress.Advance(i + 1, rec.name);
+  }
+  progress.End();
+
+  // 2. Pairwise matching and verification, pairs in parallel; results are
+  // collected by pair index so the outcome does not depend on scheduling.
+  VerifyOptions verify = options.verify;
+  verify.min_height_m = catalog.min_height_m;
+  verify.max_height_m = catalog.max_height_m;
+  std::vector<std::pair<int, int>> all_pairs;
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b) all_pairs.emplace_back(a, b);
+  std::vector<std::vector<std::pair<int, int>>> verified(all_pairs.size());
+  std::vector<int> ratio_counts(all_pairs.size(), 0);
+  progress.Begin("sfm matching " + catalog.aoi, all_pairs.size());
+  std::mutex progress_mutex;
+  std::size_t done = 0;
+  tbb::parallel_for(std::size_t{0}, all_pairs.size(), [&](std::size_t k) {
+    const auto [a, b] = all_pairs[k];
+    const auto raw = MatchFeatures(loaded.features[a], loaded.features[b], options.features.ratio);
+    ratio_counts[k] = static_cast<int>(raw.size());
+    verified[k] = VerifyMatches(loaded.cameras[a], loaded.cameras[b], loaded.features[a].keypoints,
+                                loaded.features[b].keypoints, raw, verify);
+    const std::lock_guard<std::mutex> lock(progress_mutex);
+    progress.Advance(++done, result.images[a].name + " x " + result.images[b].name);
+  });
+  progress.End();
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<std::vector<std::pair<int, int>>> pair_matches;
+  for (std::size_t k = 0; k < all_pairs.size(); ++k) {
+    const auto [a, b] = all_pairs[k];
+    result.pairs.push_back({a, b, ratio_counts[k], static_cast<int>(verified[k].size())});
+    if (static_cast<int>(verified[k].size()) >= options.min_matches_per_pair) {
+      pairs.emplace_back(a, b);
+      pair_matches.push_back(std::move(verified[k]));
+    }
+  }
+  result.verified_pairs = static_cast<int>(pairs.size());
+
+  // 3. Tracks and triangulation with the RPC cameras.
+  std::vector<std::vector<Eigen::Vector2d>> keypoints;
+  for (const auto& f : loaded.features) keypoints.push_back(f.keypoints);
+  const auto tracks = BuildTracks(pairs, pair_matches, keypoints);
+  BundleProblem bp;
+  bp.cameras = loaded.cameras;
+  bp.offsets_px.assign(n, Eigen::Vector2d::Zero());
+  bp.image_used.assign(n, true);
+  TriangulateTracks(tracks, loaded.cameras, options, &bp);
+
+  // 4. Images with too few observations are left out.
+  std::vector<int> observations(n, 0);
+  for (const auto& t : bp.tracks)
+    for (const auto& o : t) ++observations[o.image];
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    bp.image_used[i] = observations[i] >= options.min_observations_per_image;
+    used += bp.image_used[i];
+    if (!bp.image_used[i]) {
+      result.images[i].status = "left out: " + std::to_string(observations[i]) + " observations (minimum " +
+                                std::to_string(options.min_observations_per_image) + ")";
+      result.report.warnings.push_back(result.images[i].name + ": " + result.images[i].status);
+    }
+  }
+  KeepUsedImages(&bp);
+  result.before = ComputeStats(ReprojectionErrors(bp));
+  if (used < 2 || bp.tracks.empty()) {
+    result.report.status = StageStatus::kDegenerate;
+    result.report.message = "sfm: " + catalog.aoi + ": " + std::to_string(used) +
+                            " usable image(s) and " + std::to_string(bp.tracks.size()) +
+                            " tracks; at least 2 images with tie points are needed";
+    result.report.seconds = clock.Seconds();
+    return result;
+  }
+
+  // 5. Bundle adjustment rounds with an outlier cut in between.
+  for (int round = 0; round < options.ba_rounds; ++round) {
+    RunBundleAdjustment(&bp, options.bundle);
+    CutOutliers(&bp, options.max_reprojection_after_ba_px);
+  }
+  RunBundleAdjustment(&bp, options.bundle);
+  result.after = ComputeStats(ReprojectionErrors(bp));
+
+  // 6. Products: offsets folded into the principal points, coloured points.
+  std::fill(observations.begin(), observations.end(), 0);
+  for (size_t t = 0; t < bp.tracks.size(); ++t) {
+    SfmPoint p;
+    p.enu_m = bp.points[t];
+    p.track = bp.tracks[t];
+    Eigen::Vector3d rgb = Eigen::Vector3d::Zero();
+    double err = 0;
+    for (const auto& o : p.track) {
+      ++observations[o.image];
+      const auto& c = loaded.features[o.image].colours[o.keypoint];
+      rgb += Eigen::Vector3d(c[0], c[1], c[2]);
+      err += (bp.cameras[o.image].Project(p.enu_m) + bp.offsets_px[o.image] - o.pixel).norm();
+    }
+    rgb /= static_cast<double>(p.track.size());
+    for (int k = 0; k < 3; ++k) p.rgb[k] = static_cast<std::uint8_t>(std::lround(rgb[k]));
+    p.reprojection_error_px = err / static_cast<double>(p.track.size());
+    result.points.push_back(std::move(p));
+  }
+  for (int i = 0; i < n; ++i) {
+    SfmImage& im = result.images[i];
+    im.observations = observations[i];
+    im.used = bp.image_used[i] && observations[i] > 0;
+    if (!im.used && im.status.empty()) im.status = "left out: no observation survived bundle adjustment";
+    if (im.used) im.status = "ok";
+    im.ba_offset_px = bp.offsets_px[i];
+    im.camera.cx += im.ba_offset_px.x();
+    im.camera.cy += im.ba_offset_px.y();
+  }
+  int images_used = 0;
+  double dlt_max = 0, dlt_mean_sum = 0;
+  for (const auto& im : result.images) {
+    images_used += im.used;
+    dlt_max = std::max(dlt_max, im.approximation.max_error_px);
+    dlt_mean_sum += im.approximation.mean_error_px;
+  }
+  auto& m = result.report.metrics;
+  m["dlt_max_error_px"] = dlt_max;
+  m["dlt_mean_error_px"] = dlt_mean_sum / n;
+  m["ba_median_reproj_px_before"] = result.before.median_px;
+  m["ba_median_reproj_px_after"] = result.after.median_px;
+  m["num_points"] = static_cast<double>(result.points.size());
+  m["num_images_used"] = images_used;
+  if (images_used < 2) {
+    result.report.status = StageStatus::kDegenerate;
+    result.report.message = "sfm: " + catalog.aoi + ": fewer than 2 images kept after bundle adjustment";
+  }
+  result.report.seconds = clock.Seconds();
+  return result;
+}
+
+}  // namespace skyfall

@@ -1,0 +1,77 @@
+// The SfM stage for satellite views: per image an RPC -> pinhole
+// approximation in the AOI's ENU frame, SIFT tie points verified against
+// those cameras, tracks, triangulation and a bundle adjustment of per-image
+// offsets and points.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aoi.h"
+#include "core/pinhole.h"
+#include "core/stage.h"
+#include "sfm/bundle.h"
+#include "sfm/features.h"
+#include "sfm/geometry.h"
+#include "sfm/rpc_to_pinhole.h"
+
+namespace skyfall {
+
+struct SfmOptions {
+  PinholeFitOptions pinhole;
+  FeatureOptions features;
+  VerifyOptions verify;                      // heights are taken from the catalog
+  BundleOptions bundle;
+  int min_matches_per_pair = 20;             // verified matches for a pair to count
+  int min_observations_per_image = 30;       // below this an image is left out
+  double max_reprojection_before_ba_px = 50; // initial filter (RPC biases reach tens of px)
+  double max_reprojection_after_ba_px = 2.0; // outlier cut between BA rounds
+  double min_triangulation_angle_deg = 2.0;
+  int ba_rounds = 2;
+  void Check() const;  // throws Error("sfm", field, ...)
+};
+
+struct ReprojectionStats {
+  double median_px = 0, mean_px = 0, p90_px = 0;
+  int count = 0;
+};
+ReprojectionStats ComputeStats(std::vector<double> errors_px);
+
+struct SfmImage {
+  std::string name;
+  std::string path;
+  std::string acquisition_time;
+  PinholeFit approximation;                   // RPC -> pinhole, before BA
+  PinholeCamera camera;                       // final: the BA offset folded into cx, cy
+  Eigen::Vector2d ba_offset_px = Eigen::Vector2d::Zero();
+  int keypoints = 0;
+  int observations = 0;
+  bool used = false;
+  std::string status;                         // "ok" or why it was left out
+};
+
+struct SfmPoint {
+  Eigen::Vector3d enu_m;
+  std::array<std::uint8_t, 3> rgb{};
+  std::vector<Observation> track;
+  double reprojection_error_px = 0;  // mean over the track after BA
+};
+
+struct PairStats {
+  int a = 0, b = 0;    // image indices
+  int ratio_matches = 0;
+  int verified = 0;
+};
+
+struct SfmResult {
+  std::vector<SfmImage> images;
+  std::vector<PairStats> pairs;  // every image pair tried
+  std::vector<SfmPoint> points;
+  ReprojectionStats before, after;
+  int verified_pairs = 0;
+  StageReport report;
+};
+
+SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress& progress);
+
+}  // namespace skyfall
