@@ -19,3 +19,15 @@ echo "synth default scene: min $(echo "$sorted" | head -1) s, median $(echo "$so
 start=$EPOCHREALTIME
 ./build/bin/skyfall -q ingest "$tmp/synth_1" --out "$tmp/catalogs" >/dev/null
 echo "ingest of the default scene: $(awk -v a="$start" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.2f", b - a }') s"
+
+# SfM on the real JAX_068 sample (19 crops), target < 2 min.
+JAX=../shared/data/dfc2019
+if [ -d "$JAX" ]; then
+  ./build/bin/skyfall -q ingest "$JAX" --out "$tmp/jax" --aoi JAX_068 >/dev/null
+  start=$EPOCHREALTIME
+  ./build/bin/skyfall -q sfm --aoi "$tmp/jax/JAX_068/aoi.json" --out "$tmp/jax/sfm" --no-colmap-images || true
+  echo "sfm JAX_068 (19 images): $(awk -v a="$start" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }') s (target < 120 s)"
+  grep -E '"(ba_median_reproj_px_(before|after)|dlt_max_error_px|num_points|num_images_used)"' "$tmp/jax/sfm/sfm_report.json" | sed 's/^ */  /'
+else
+  echo "sfm JAX_068: skipped, no $JAX"
+fi
