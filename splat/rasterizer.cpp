@@ -1,0 +1,388 @@
+#include "splat/rasterizer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "core/error.h"
+#include "core/format.h"
+
+namespace skyfall {
+namespace {
+
+// Expected depth is defined only where enough opacity accumulated.
+constexpr double kMinAlphaForDepth = 1e-4;
+
+Eigen::Matrix3d QuaternionToMatrix(const Eigen::Vector4d& q) {  // normalized (w, x, y, z)
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  Eigen::Matrix3d R;
+  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+      2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  return R;
+}
+
+// Everything about one Gaussian's projection, in double.
+struct Projection {
+  bool visible = false;
+  Eigen::Vector3d cam;          // camera-frame mean
+  Eigen::Matrix<double, 2, 3> J;  // d(u, v)/d(cam)
+  Eigen::Matrix3d rotation;     // from the normalized quaternion
+  Eigen::Vector3d scale;
+  Eigen::Matrix3d sigma;        // 3D covariance (world)
+  Eigen::Matrix2d cov;          // 2D covariance incl. dilation
+  Eigen::Vector2d uv;
+  Eigen::Vector3d view_dir;     // unit, from the camera centre to the mean
+  double view_distance = 0;
+  Eigen::Vector3d rgb;
+  std::uint8_t clamped = 0;
+  double opacity = 0;
+};
+
+template <typename T>
+Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeCamera& cam,
+                   const Eigen::Vector3d& centre, const RasterOptions& o) {
+  Projection p;
+  const Eigen::Vector3d mean = cloud.means[i].template cast<double>();
+  p.cam = cam.cam_from_world_rotation * mean + cam.cam_from_world_translation;
+  const double x = p.cam.x(), y = p.cam.y(), z = p.cam.z();
+  if (!(z > o.near_m)) return p;
+  p.J << cam.fx / z, cam.skew / z, -(cam.fx * x + cam.skew * y) / (z * z), 0.0, cam.fy / z, -cam.fy * y / (z * z);
+  p.uv = Eigen::Vector2d(cam.fx * x / z + cam.skew * y / z + cam.cx, cam.fy * y / z + cam.cy);
+  const Eigen::Vector4d q = cloud.rotations[i].template cast<double>();
+  const double qn = q.norm();
+  if (!(qn > 0) || !std::isfinite(qn)) return p;
+  p.rotation = QuaternionToMatrix(q / qn);
+  p.scale = cloud.log_scales[i].template cast<double>().array().exp();
+  const Eigen::Matrix3d M = p.rotation * p.scale.asDiagonal();
+  p.sigma = M * M.transpose();
+  const Eigen::Matrix<double, 2, 3> Tm = p.J * cam.cam_from_world_rotation;
+  p.cov = Tm * p.sigma * Tm.transpose();
+  p.cov(0, 0) += o.dilation_px2;
+  p.cov(1, 1) += o.dilation_px2;
+  if (!(p.cov.determinant() > 0) || !p.uv.allFinite()) return p;
+  const Eigen::Vector3d d = mean - centre;
+  p.view_distance = d.norm();
+  p.view_dir = d / p.view_distance;
+  const auto& sh = cloud.sh[i];
+  for (int c = 0; c < 3; ++c) {
+    double v = kShC0 * sh[c * 4 + 0] + 0.5;
+    if (o.sh_degree >= 1) {
+      v += kShC1 * (-p.view_dir.y() * sh[c * 4 + 1] + p.view_dir.z() * sh[c * 4 + 2] - p.view_dir.x() * sh[c * 4 + 3]);
+    }
+    if (v < 0) {
+      v = 0;
+      p.clamped |= static_cast<std::uint8_t>(1u << c);
+    }
+    p.rgb[c] = v;
+  }
+  p.opacity = 1.0 / (1.0 + std::exp(-static_cast<double>(cloud.opacity_logits[i])));
+  p.visible = true;
+  return p;
+}
+
+}  // namespace
+
+void RasterOptions::Check() const {
+  auto need = [](bool ok, const char* field, double v) {
+    if (!ok) throw Error("raster", field, FormatDouble(v) + " is out of range");
+  };
+  need(tile_px >= 4 && tile_px <= 64, "tile_px", tile_px);
+  need(min_alpha >= 0 && min_alpha < max_alpha, "min_alpha", min_alpha);
+  need(max_alpha > 0 && max_alpha < 1, "max_alpha", max_alpha);
+  need(min_transmittance >= 0 && min_transmittance < 1, "min_transmittance", min_transmittance);
+  need(dilation_px2 >= 0, "dilation_px2", dilation_px2);
+  need(near_m > 0, "near_m", near_m);
+  need(sigma_extent > 0, "sigma_extent", sigma_extent);
+  need(sh_degree == 0 || sh_degree == 1, "sh_degree", sh_degree);
+}
+
+template <typename T>
+RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& cam, const RasterOptions& o) {
+  o.Check();
+  const int W = cam.width_px, H = cam.height_px;
+  if (W < 1 || H < 1) throw Error("raster", "camera", "has an empty image size");
+  RenderOutput<T> out;
+  out.width_px = W;
+  out.height_px = H;
+  out.reference_depth_m = cam.cam_from_world_translation.z();
+  RasterState<T>& s = out.state;
+  const std::size_t n = cloud.size();
+  for (auto* v : {&s.u, &s.v, &s.conic_a, &s.conic_b, &s.conic_c, &s.opacity, &s.red, &s.green, &s.blue, &s.depth})
+    v->assign(n, T(0));
+  s.radius_px.assign(n, 0);
+  s.colour_clamped.assign(n, 0);
+  const Eigen::Vector3d centre = cam.Centre();
+  const int tiles_x = (W + o.tile_px - 1) / o.tile_px, tiles_y = (H + o.tile_px - 1) / o.tile_px;
+  std::vector<Eigen::Vector4i> rect(n, Eigen::Vector4i::Zero());  // tile x0, y0, x1, y1 (exclusive)
+
+  // 1. Project every Gaussian (double precision), in parallel.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t i = range.begin(); i < range.end(); ++i) {
+      const Projection p = Project(cloud, i, cam, centre, o);
+      if (!p.visible) continue;
+      const double A = p.cov(0, 0), B = p.cov(0, 1), C = p.cov(1, 1);
+      const double det = A * C - B * B;
+      const double mid = 0.5 * (A + C);
+      const double lambda = mid + std::sqrt(std::max(0.1, mid * mid - det));
+      const int r = static_cast<int>(std::ceil(o.sigma_extent * std::sqrt(lambda)));
+      const int x0 = std::max(0, static_cast<int>(std::floor((p.uv.x() - r) / o.tile_px)));
+      const int y0 = std::max(0, static_cast<int>(std::floor((p.uv.y() - r) / o.tile_px)));
+      const int x1 = std::min(tiles_x, static_cast<int>(std::floor((p.uv.x() + r) / o.tile_px)) + 1);
+      const int y1 = std::min(tiles_y, static_cast<int>(std::floor((p.uv.y() + r) / o.tile_px)) + 1);
+      if (x0 >= x1 || y0 >= y1) continue;
+      rect[i] = Eigen::Vector4i(x0, y0, x1, y1);
+      s.radius_px[i] = r;
+      s.u[i] = T(p.uv.x());
+      s.v[i] = T(p.uv.y());
+      s.conic_a[i] = T(C / det);
+      s.conic_b[i] = T(-B / det);
+      s.conic_c[i] = T(A / det);
+      s.opacity[i] = T(p.opacity);
+      s.red[i] = T(p.rgb[0]);
+      s.green[i] = T(p.rgb[1]);
+      s.blue[i] = T(p.rgb[2]);
+      s.depth[i] = T(p.cam.z() - out.reference_depth_m);
+      s.colour_clamped[i] = p.clamped;
+    }
+  });
+
+  // 2. Bin into tiles (counting sort), then order each tile front to back.
+  const int tiles = tiles_x * tiles_y;
+  std::vector<int> count(tiles + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!s.radius_px[i]) continue;
+    for (int ty = rect[i][1]; ty < rect[i][3]; ++ty)
+      for (int tx = rect[i][0]; tx < rect[i][2]; ++tx) ++count[ty * tiles_x + tx + 1];
+  }
+  std::partial_sum(count.begin(), count.end(), count.begin());
+  s.tile_begin.assign(count.begin(), count.end() - 1);
+  s.tile_end.assign(count.begin() + 1, count.end());
+  s.order.assign(count.back(), 0);
+  std::vector<int> fill(s.tile_begin);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!s.radius_px[i]) continue;
+    for (int ty = rect[i][1]; ty < rect[i][3]; ++ty)
+      for (int tx = rect[i][0]; tx < rect[i][2]; ++tx) s.order[fill[ty * tiles_x + tx]++] = static_cast<int>(i);
+  }
+  tbb::parallel_for(0, tiles, [&](int t) {
+    std::sort(s.order.begin() + s.tile_begin[t], s.order.begin() + s.tile_end[t], [&](int a, int b) {
+      return s.depth[a] < s.depth[b] || (s.depth[a] == s.depth[b] && a < b);
+    });
+  });
+
+  // 3. Blend front to back, tiles in parallel.
+  out.rgb.assign(3 * static_cast<std::size_t>(W) * H, T(0));
+  out.alpha.assign(static_cast<std::size_t>(W) * H, T(0));
+  out.depth.assign(static_cast<std::size_t>(W) * H, T(0));
+  s.final_transmittance.assign(static_cast<std::size_t>(W) * H, T(1));
+  s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
+  const T min_alpha = T(o.min_alpha), max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
+  tbb::parallel_for(0, tiles, [&](int t) {
+    const int tx = t % tiles_x, ty = t / tiles_x;
+    const int begin = s.tile_begin[t], end = s.tile_end[t];
+    for (int py = ty * o.tile_px; py < std::min(H, (ty + 1) * o.tile_px); ++py) {
+      for (int px = tx * o.tile_px; px < std::min(W, (tx + 1) * o.tile_px); ++px) {
+        T trans = T(1), r = T(0), g = T(0), b = T(0), d = T(0);
+        int last = 0;
+        for (int k = begin; k < end; ++k) {
+          const int i = s.order[k];
+          const T dx = s.u[i] - T(px), dy = s.v[i] - T(py);
+          const T power = T(-0.5) * (s.conic_a[i] * dx * dx + s.conic_c[i] * dy * dy) - s.conic_b[i] * dx * dy;
+          if (power > T(0)) continue;
+          const T alpha = std::min(max_alpha, s.opacity[i] * std::exp(power));
+          if (alpha < min_alpha) continue;
+          const T next = trans * (T(1) - alpha);
+          if (next < min_t) break;
+          const T w = alpha * trans;
+          r += w * s.red[i];
+          g += w * s.green[i];
+          b += w * s.blue[i];
+          d += w * s.depth[i];
+          trans = next;
+          last = k - begin + 1;
+        }
+        const std::size_t p = static_cast<std::size_t>(py) * W + px;
+        s.final_transmittance[p] = trans;
+        s.contributors[p] = last;
+        out.rgb[3 * p + 0] = r + trans * T(o.background[0]);
+        out.rgb[3 * p + 1] = g + trans * T(o.background[1]);
+        out.rgb[3 * p + 2] = b + trans * T(o.background[2]);
+        const T a = T(1) - trans;
+        out.alpha[p] = a;
+        out.depth[p] = a >= T(kMinAlphaForDepth) ? d / a : T(0);
+      }
+    }
+  });
+  return out;
+}
+
+template <typename T>
+GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& cam,
+                                       const RasterOptions& o, const RenderOutput<T>& fwd,
+                                       const std::vector<T>& d_rgb, const std::vector<T>& d_alpha,
+                                       const std::vector<T>& d_depth) {
+  const RasterState<T>& s = fwd.state;
+  const int W = fwd.width_px, H = fwd.height_px;
+  const std::size_t n = cloud.size();
+  const int tiles_x = (W + o.tile_px - 1) / o.tile_px, tiles_y = (H + o.tile_px - 1) / o.tile_px;
+  // Per-thread accumulators of screen-space gradients: u, v, conic a, b, c,
+  // opacity, r, g, b, depth. Summed afterwards (no atomics in the hot loop).
+  constexpr int kFields = 10;
+  tbb::enumerable_thread_specific<std::vector<T>> local([&] { return std::vector<T>(kFields * n, T(0)); });
+  const T min_alpha = T(o.min_alpha), max_alpha = T(o.max_alpha);
+  const T bg[3] = {T(o.background[0]), T(o.background[1]), T(o.background[2])};
+
+  tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
+    std::vector<T>& acc = local.local();
+    const int tx = t % tiles_x, ty = t / tiles_x;
+    const int begin = s.tile_begin[t];
+    for (int py = ty * o.tile_px; py < std::min(H, (ty + 1) * o.tile_px); ++py) {
+      for (int px = tx * o.tile_px; px < std::min(W, (tx + 1) * o.tile_px); ++px) {
+        const std::size_t p = static_cast<std::size_t>(py) * W + px;
+        const T dC[3] = {d_rgb.empty() ? T(0) : d_rgb[3 * p], d_rgb.empty() ? T(0) : d_rgb[3 * p + 1],
+                         d_rgb.empty() ? T(0) : d_rgb[3 * p + 2]};
+        const T a_out = fwd.alpha[p];
+        T dD = T(0), dA = d_alpha.empty() ? T(0) : d_alpha[p];
+        if (!d_depth.empty() && a_out >= T(kMinAlphaForDepth)) {
+          // expected depth E = D / A
+          dD = d_depth[p] / a_out;
+          dA -= d_depth[p] * fwd.depth[p] / a_out;
+        }
+        const T t_final = s.final_transmittance[p];
+        T trans = t_final;
+        T rest_c[3] = {bg[0], bg[1], bg[2]};  // colour behind the current Gaussian, normalized
+        T rest_d = T(0);
+        for (int k = begin + s.contributors[p] - 1; k >= begin; --k) {
+          const int i = s.order[k];
+          const T dx = s.u[i] - T(px), dy = s.v[i] - T(py);
+          const T power = T(-0.5) * (s.conic_a[i] * dx * dx + s.conic_c[i] * dy * dy) - s.conic_b[i] * dx * dy;
+          if (power > T(0)) continue;
+          const T gauss = std::exp(power);
+          const T raw_alpha = s.opacity[i] * gauss;
+          const T alpha = std::min(max_alpha, raw_alpha);
+          if (alpha < min_alpha) continue;
+          trans = trans / (T(1) - alpha);  // transmittance in front of i
+          const T w = alpha * trans;
+          const T col[3] = {s.red[i], s.green[i], s.blue[i]};
+          T* g = &acc[kFields * static_cast<std::size_t>(i)];
+          T d_alpha_i = T(0);
+          for (int c = 0; c < 3; ++c) {
+            g[6 + c] += w * dC[c];
+            d_alpha_i += (col[c] - rest_c[c]) * dC[c];
+          }
+          g[9] += w * dD;
+          d_alpha_i = trans * (d_alpha_i + (s.depth[i] - rest_d) * dD) + dA * t_final / (T(1) - alpha);
+          for (int c = 0; c < 3; ++c) rest_c[c] = alpha * col[c] + (T(1) - alpha) * rest_c[c];
+          rest_d = alpha * s.depth[i] + (T(1) - alpha) * rest_d;
+          if (raw_alpha > max_alpha) continue;  // clamped: no gradient to opacity or shape
+          g[5] += gauss * d_alpha_i;
+          const T d_power = raw_alpha * d_alpha_i;
+          g[0] += -d_power * (s.conic_a[i] * dx + s.conic_b[i] * dy);
+          g[1] += -d_power * (s.conic_c[i] * dy + s.conic_b[i] * dx);
+          g[2] += T(-0.5) * d_power * dx * dx;
+          g[3] += -d_power * dx * dy;
+          g[4] += T(-0.5) * d_power * dy * dy;
+        }
+      }
+    }
+  });
+  std::vector<T> screen(kFields * n, T(0));
+  for (const auto& acc : local)
+    for (std::size_t k = 0; k < screen.size(); ++k) screen[k] += acc[k];
+
+  // Back through the projection, per Gaussian, in double.
+  GaussianGradients<T> out;
+  out.d.resize(n);
+  out.mean2d_norm.assign(n, T(0));
+  const Eigen::Vector3d centre = cam.Centre();
+  const Eigen::Matrix3d& Rw = cam.cam_from_world_rotation;
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    out.d.means[i].setZero();
+    out.d.log_scales[i].setZero();
+    out.d.rotations[i].setZero();
+    out.d.opacity_logits[i] = T(0);
+    out.d.sh[i].fill(T(0));
+    if (!s.radius_px[i]) return;
+    const Projection p = Project(cloud, i, cam, centre, o);
+    const T* g = &screen[kFields * i];
+    const Eigen::Vector2d d_uv(g[0], g[1]);
+    out.mean2d_norm[i] = T(d_uv.norm());
+    // Colour -> SH and view direction.
+    Eigen::Vector3d d_dir = Eigen::Vector3d::Zero();
+    const auto& sh = cloud.sh[i];
+    for (int c = 0; c < 3; ++c) {
+      if (p.clamped & (1u << c)) continue;
+      const double gc = g[6 + c];
+      out.d.sh[i][c * 4 + 0] = T(kShC0 * gc);
+      if (o.sh_degree >= 1) {
+        out.d.sh[i][c * 4 + 1] = T(-kShC1 * p.view_dir.y() * gc);
+        out.d.sh[i][c * 4 + 2] = T(kShC1 * p.view_dir.z() * gc);
+        out.d.sh[i][c * 4 + 3] = T(-kShC1 * p.view_dir.x() * gc);
+        d_dir += gc * kShC1 * Eigen::Vector3d(-sh[c * 4 + 3], -sh[c * 4 + 1], sh[c * 4 + 2]);
+      }
+    }
+    Eigen::Vector3d d_mean =
+        (Eigen::Matrix3d::Identity() - p.view_dir * p.view_dir.transpose()) * d_dir / p.view_distance;
+    // Opacity.
+    out.d.opacity_logits[i] = T(g[5] * p.opacity * (1.0 - p.opacity));
+    // Conic -> 2D covariance: dL/dCov = -Q G Q with G the symmetric conic gradient.
+    const Eigen::Matrix2d Q = p.cov.inverse();
+    Eigen::Matrix2d Gq;
+    Gq << g[2], 0.5 * g[3], 0.5 * g[3], g[4];
+    const Eigen::Matrix2d Gcov = -Q * Gq * Q;
+    // Cov = Tm Sigma Tm^T with Tm = J Rw.
+    const Eigen::Matrix<double, 2, 3> Tm = p.J * Rw;
+    const Eigen::Matrix3d Gsigma = Tm.transpose() * Gcov * Tm;
+    const Eigen::Matrix<double, 2, 3> GJ = 2.0 * Gcov * Tm * p.sigma * Rw.transpose();
+    // Camera-frame mean: projection, depth and the Jacobian's own dependence.
+    const double x = p.cam.x(), y = p.cam.y(), z = p.cam.z(), z2 = z * z, z3 = z2 * z;
+    Eigen::Vector3d d_cam = p.J.transpose() * d_uv;
+    d_cam.z() += g[9];
+    d_cam.x() += GJ(0, 2) * (-cam.fx / z2);
+    d_cam.y() += GJ(0, 2) * (-cam.skew / z2) + GJ(1, 2) * (-cam.fy / z2);
+    d_cam.z() += GJ(0, 0) * (-cam.fx / z2) + GJ(0, 1) * (-cam.skew / z2) +
+                 GJ(0, 2) * (2.0 * (cam.fx * x + cam.skew * y) / z3) + GJ(1, 1) * (-cam.fy / z2) +
+                 GJ(1, 2) * (2.0 * cam.fy * y / z3);
+    d_mean += Rw.transpose() * d_cam;
+    out.d.means[i] = d_mean.cast<T>();
+    // Sigma = M M^T, M = R S.
+    const Eigen::Matrix3d M = p.rotation * p.scale.asDiagonal();
+    const Eigen::Matrix3d GM = 2.0 * Gsigma * M;
+    const Eigen::Matrix3d RtGM = p.rotation.transpose() * GM;
+    for (int k = 0; k < 3; ++k) out.d.log_scales[i][k] = T(RtGM(k, k) * p.scale[k]);
+    const Eigen::Matrix3d G = GM * p.scale.asDiagonal();  // dL/dR
+    const Eigen::Vector4d q = cloud.rotations[i].template cast<double>();
+    const double qn = q.norm();
+    const Eigen::Vector4d u = q / qn;
+    const double w = u[0], qx = u[1], qy = u[2], qz = u[3];
+    Eigen::Vector4d dq;
+    dq[0] = 2 * (-qz * G(0, 1) + qy * G(0, 2) + qz * G(1, 0) - qx * G(1, 2) - qy * G(2, 0) + qx * G(2, 1));
+    dq[1] = 2 * (qy * G(0, 1) + qz * G(0, 2) + qy * G(1, 0) - 2 * qx * G(1, 1) - w * G(1, 2) + qz * G(2, 0) +
+                 w * G(2, 1) - 2 * qx * G(2, 2));
+    dq[2] = 2 * (-2 * qy * G(0, 0) + qx * G(0, 1) + w * G(0, 2) + qx * G(1, 0) + qz * G(1, 2) - w * G(2, 0) +
+                 qz * G(2, 1) - 2 * qy * G(2, 2));
+    dq[3] = 2 * (-2 * qz * G(0, 0) - w * G(0, 1) + qx * G(0, 2) + w * G(1, 0) - 2 * qz * G(1, 1) + qy * G(1, 2) +
+                 qx * G(2, 0) + qy * G(2, 1));
+    out.d.rotations[i] = ((dq - u * u.dot(dq)) / qn).cast<T>();
+  });
+  return out;
+}
+
+template RenderOutput<float> RenderGaussians(const GaussianCloudT<float>&, const PinholeCamera&, const RasterOptions&);
+template RenderOutput<double> RenderGaussians(const GaussianCloudT<double>&, const PinholeCamera&, const RasterOptions&);
+template GaussianGradients<float> BackwardGaussians(const GaussianCloudT<float>&, const PinholeCamera&,
+                                                    const RasterOptions&, const RenderOutput<float>&,
+                                                    const std::vector<float>&, const std::vector<float>&,
+                                                    const std::vector<float>&);
+template GaussianGradients<double> BackwardGaussians(const GaussianCloudT<double>&, const PinholeCamera&,
+                                                     const RasterOptions&, const RenderOutput<double>&,
+                                                     const std::vector<double>&, const std::vector<double>&,
+                                                     const std::vector<double>&);
+
+}  // namespace skyfall

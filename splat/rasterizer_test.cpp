@@ -1,0 +1,208 @@
+#include "splat/rasterizer.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <functional>
+#include <random>
+
+namespace skyfall {
+namespace {
+
+using Cloud = GaussianCloudT<double>;
+
+// Options that make the rendered image a smooth function of the parameters,
+// so central differences are meaningful: no alpha cut-off, no early stop, and
+// footprints wide enough that the tile cut-off is below 1e-14.
+RasterOptions SmoothOptions() {
+  RasterOptions o;
+  o.min_alpha = 0.0;
+  o.min_transmittance = 0.0;
+  o.sigma_extent = 8.0;
+  o.background = Eigen::Vector3d(0.2, 0.3, 0.4);
+  return o;
+}
+
+// A camera looking down -z from `height_m` above the origin, like an orbit
+// or pseudo camera (FOV from the focal length and size).
+PinholeCamera LookDownCamera(double focal_px, int w, int h, double height_m, double skew = 0.0) {
+  PinholeCamera cam;
+  cam.fx = focal_px;
+  cam.fy = focal_px * 1.01;
+  cam.skew = skew;
+  cam.cx = 0.5 * (w - 1) + 1.3;
+  cam.cy = 0.5 * (h - 1) - 0.7;
+  cam.width_px = w;
+  cam.height_px = h;
+  // Tilted a little so no axis is special; rows: right, down, forward.
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()) *
+                                Eigen::AngleAxisd(-0.1, Eigen::Vector3d::UnitY()))
+                                   .toRotationMatrix();
+  Eigen::Matrix3d down;
+  down << 1, 0, 0, 0, -1, 0, 0, 0, -1;  // camera x = east, y = south, z = down
+  cam.cam_from_world_rotation = tilt * down;
+  // Aimed at a point near the origin from `height_m` along the optical axis.
+  const Eigen::Vector3d forward = cam.cam_from_world_rotation.row(2).transpose();
+  const Eigen::Vector3d centre = Eigen::Vector3d(0.3, -0.2, 0.0) - height_m * forward;
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * centre;
+  return cam;
+}
+
+Cloud RandomCloud(int n, double spread_m, double scale_m, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Cloud c;
+  c.resize(n);
+  for (int i = 0; i < n; ++i) {
+    c.means[i] = Eigen::Vector3d(spread_m * u(rng), spread_m * u(rng), 0.3 * spread_m * u(rng));
+    c.log_scales[i] = Eigen::Vector3d::Constant(std::log(scale_m)) + 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    c.rotations[i] = Eigen::Vector4d(1 + 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng));
+    c.opacity_logits[i] = 0.8 * u(rng);
+    for (auto& v : c.sh[i]) v = 0.4 * u(rng);
+    c.sh[i][0] += 0.5;
+    c.sh[i][4] -= 0.3;
+  }
+  return c;
+}
+
+struct Weights {
+  std::vector<double> rgb, alpha, depth;
+};
+
+Weights RandomWeights(const PinholeCamera& cam, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const std::size_t n = static_cast<std::size_t>(cam.width_px) * cam.height_px;
+  Weights w;
+  for (std::size_t k = 0; k < 3 * n; ++k) w.rgb.push_back(u(rng));
+  for (std::size_t k = 0; k < n; ++k) w.alpha.push_back(u(rng));
+  for (std::size_t k = 0; k < n; ++k) w.depth.push_back(0.1 * u(rng));
+  return w;
+}
+
+// L = sum of weighted RGB, alpha and expected depth.
+double Loss(const Cloud& c, const PinholeCamera& cam, const RasterOptions& o, const Weights& w) {
+  const RenderOutput<double> r = RenderGaussians(c, cam, o);
+  double l = 0;
+  for (std::size_t k = 0; k < r.rgb.size(); ++k) l += w.rgb[k] * r.rgb[k];
+  for (std::size_t k = 0; k < r.alpha.size(); ++k) l += w.alpha[k] * r.alpha[k] + w.depth[k] * r.depth[k];
+  return l;
+}
+
+// Compares every analytic gradient with a central difference.
+void CheckGradients(const Cloud& cloud, const PinholeCamera& cam, const RasterOptions& o, double step_mean,
+                    double rel_tol, double abs_tol) {
+  const Weights w = RandomWeights(cam, 11);
+  const RenderOutput<double> fwd = RenderGaussians(cloud, cam, o);
+  // Every Gaussian must be on screen, or the check proves nothing.
+  for (std::size_t i = 0; i < cloud.size(); ++i) ASSERT_GT(fwd.state.radius_px[i], 0) << "Gaussian " << i;
+  double coverage = 0;
+  for (double a : fwd.alpha) coverage += a;
+  ASSERT_GT(coverage / fwd.alpha.size(), 0.15) << "the image is mostly empty";
+  const GaussianGradients<double> g = BackwardGaussians(cloud, cam, o, fwd, w.rgb, w.alpha, w.depth);
+  int checked = 0;
+  auto check = [&](double* param, double analytic, double step, const char* what, int i) {
+    const double keep = *param;
+    Cloud& c = const_cast<Cloud&>(cloud);
+    *param = keep + step;
+    const double lp = Loss(c, cam, o, w);
+    *param = keep - step;
+    const double lm = Loss(c, cam, o, w);
+    *param = keep;
+    const double fd = (lp - lm) / (2 * step);
+    EXPECT_NEAR(analytic, fd, abs_tol + rel_tol * std::abs(fd)) << what << " of Gaussian " << i;
+    ++checked;
+  };
+  Cloud& c = const_cast<Cloud&>(cloud);
+  for (int i = 0; i < static_cast<int>(c.size()); ++i) {
+    for (int k = 0; k < 3; ++k) check(&c.means[i][k], g.d.means[i][k], step_mean, "mean", i);
+    for (int k = 0; k < 3; ++k) check(&c.log_scales[i][k], g.d.log_scales[i][k], 1e-6, "log_scale", i);
+    for (int k = 0; k < 4; ++k) check(&c.rotations[i][k], g.d.rotations[i][k], 1e-6, "rotation", i);
+    check(&c.opacity_logits[i], g.d.opacity_logits[i], 1e-6, "opacity", i);
+    for (int k = 0; k < 12; ++k) check(&c.sh[i][k], g.d.sh[i][k], 1e-6, "sh", i);
+  }
+  EXPECT_EQ(checked, static_cast<int>(c.size()) * 23);
+}
+
+TEST(Rasterizer, GradientsMatchFiniteDifferencesForANearCamera) {
+  // 60-degree field of view, 40 m up: an orbit / pseudo camera.
+  const PinholeCamera cam = LookDownCamera(41.6, 48, 40, 20.0, 0.8);
+  const Cloud cloud = RandomCloud(6, 7.0, 3.0, 1);
+  CheckGradients(cloud, cam, SmoothOptions(), 1e-6, 2e-5, 1e-7);
+}
+
+TEST(Rasterizer, GradientsMatchFiniteDifferencesForASatelliteCamera) {
+  // WorldView-3-like: f = 2e6 px, 6e5 m away, 0.3 m pixels, with skew.
+  const PinholeCamera cam = LookDownCamera(2.0e6, 40, 36, 6.0e5, 3.0e4);
+  const Cloud cloud = RandomCloud(5, 3.0, 1.5, 2);
+  // The mean step must move the 6e5 m camera-frame depth by representable
+  // amounts: 1e-5 m leaves ~1e-11 relative, ample in double.
+  CheckGradients(cloud, cam, SmoothOptions(), 1e-5, 1e-4, 1e-7);
+}
+
+TEST(Rasterizer, GradientsAtExtremes) {
+  const PinholeCamera cam = LookDownCamera(41.6, 40, 32, 20.0);
+  Cloud cloud = RandomCloud(6, 6.0, 2.5, 3);
+  cloud.log_scales[0] = Eigen::Vector3d(std::log(3.0), std::log(2e-3), std::log(2.0));  // a thin sheet
+  cloud.log_scales[1] = Eigen::Vector3d::Constant(std::log(40.0));                     // covers the image
+  cloud.opacity_logits[2] = -9.0;                                                       // opacity ~1e-4
+  cloud.opacity_logits[3] = 4.0;                                                        // opacity 0.982
+  // Centre just outside the left image border, footprint inside.
+  const Eigen::Vector3d forward = cam.cam_from_world_rotation.row(2).transpose();
+  const Eigen::Vector3d right = cam.cam_from_world_rotation.row(0).transpose();
+  cloud.means[4] = cam.Centre() + 20.0 * forward - 10.5 * right;
+  ASSERT_LT(cam.Project(cloud.means[4]).x(), 0.0);
+  CheckGradients(cloud, cam, SmoothOptions(), 1e-6, 5e-5, 1e-7);
+}
+
+TEST(Rasterizer, GaussiansBehindTheCameraAreCulledWithZeroGradient) {
+  const PinholeCamera cam = LookDownCamera(41.6, 32, 32, 40.0);
+  Cloud cloud = RandomCloud(3, 5.0, 1.0, 4);
+  const Eigen::Vector3d forward = cam.cam_from_world_rotation.row(2).transpose();
+  cloud.means[1] = cam.Centre() - 5.0 * forward;  // behind the camera
+  cloud.means[2] = cam.Centre() + 0.1 * forward;  // closer than the near plane
+  const Weights w = RandomWeights(cam, 5);
+  const RenderOutput<double> r = RenderGaussians(cloud, cam, SmoothOptions());
+  const GaussianGradients<double> g = BackwardGaussians(cloud, cam, SmoothOptions(), r, w.rgb, w.alpha, w.depth);
+  for (int i : {1, 2}) {
+    EXPECT_EQ(r.state.radius_px[i], 0);
+    EXPECT_EQ(g.d.means[i].norm(), 0.0);
+    EXPECT_EQ(g.d.opacity_logits[i], 0.0);
+  }
+  for (double v : r.rgb) EXPECT_TRUE(std::isfinite(v));
+  EXPECT_GT(g.d.means[0].norm(), 0.0);
+}
+
+TEST(Rasterizer, EmptyCloudRendersTheBackground) {
+  const PinholeCamera cam = LookDownCamera(41.6, 20, 10, 40.0);
+  const RenderOutput<float> r = RenderGaussians(GaussianCloudT<float>{}, cam, SmoothOptions());
+  EXPECT_FLOAT_EQ(r.rgb[0], 0.2f);
+  EXPECT_FLOAT_EQ(r.rgb[2], 0.4f);
+  EXPECT_EQ(r.alpha[0], 0.0f);
+}
+
+TEST(Rasterizer, OpaqueGaussianCoversItsPixelAndGivesItsDepth) {
+  // One flat, wide, opaque Gaussian at height 5 m seen from 40 m: expected
+  // depth 35 m in the middle, alpha ~ its opacity.
+  PinholeCamera cam = LookDownCamera(41.6, 16, 16, 40.0);
+  cam.cam_from_world_rotation << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * Eigen::Vector3d(0, 0, 40);
+  cam.cx = cam.cy = 7.5;
+  GaussianCloudT<double> c;
+  c.resize(1);
+  c.means[0] = Eigen::Vector3d(0, 0, 5);
+  c.log_scales[0] = Eigen::Vector3d(std::log(50.0), std::log(50.0), std::log(0.01));
+  c.rotations[0] = Eigen::Vector4d(1, 0, 0, 0);
+  c.opacity_logits[0] = 3.0;
+  c.sh[0].fill(0.0);
+  c.sh[0][0] = ShDcFromColour(0.8);
+  const RenderOutput<double> r = RenderGaussians(c, cam, RasterOptions{});
+  const std::size_t mid = 8 * 16 + 8;
+  EXPECT_NEAR(r.alpha[mid], 1.0 / (1.0 + std::exp(-3.0)), 1e-3);
+  EXPECT_NEAR(r.depth[mid] + r.reference_depth_m, 35.0, 1e-6);
+  EXPECT_NEAR(r.rgb[3 * mid], 0.8 * r.alpha[mid], 1e-3);
+}
+
+}  // namespace
+}  // namespace skyfall
