@@ -31,3 +31,7 @@ if [ -d "$JAX" ]; then
 else
   echo "sfm JAX_068: skipped, no $JAX"
 fi
+
+# Rasterizer: forward and forward+backward, 100k Gaussians, 512x384 (target fwd+bwd <= 130 ms).
+./build/bin/rasterizer_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true 2>/dev/null \
+  | grep -E "^BM_.*(median|mean)"

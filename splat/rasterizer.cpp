@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "core/error.h"
@@ -86,6 +87,25 @@ Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeC
   return p;
 }
 
+// exp() of the blending loops: glibc's expf (FMA) measured faster here than
+// a hand-written polynomial, so both precisions use the library.
+template <typename T>
+inline T BlendExp(T x) {
+  return std::exp(x);
+}
+
+// The pixels of a tile inside a Gaussian's screen radius (tile-local,
+// half-open). Forward and backward use the same box, so the cut-off is
+// consistent between them.
+struct PixelBox {
+  int x0, y0, x1, y1;
+};
+template <typename T>
+PixelBox FootprintInTile(const RasterState<T>& s, int i, int tx0, int ty0, int tw, int th) {
+  const Eigen::Vector4i& f = s.footprint[i];  // image pixels, half-open
+  return {std::max(0, f[0] - tx0), std::max(0, f[1] - ty0), std::min(tw, f[2] - tx0), std::min(th, f[3] - ty0)};
+}
+
 }  // namespace
 
 void RasterOptions::Check() const {
@@ -116,6 +136,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   for (auto* v : {&s.u, &s.v, &s.conic_a, &s.conic_b, &s.conic_c, &s.opacity, &s.red, &s.green, &s.blue, &s.depth})
     v->assign(n, T(0));
   s.radius_px.assign(n, 0);
+  s.footprint.assign(n, Eigen::Vector4i::Zero());
   s.colour_clamped.assign(n, 0);
   const Eigen::Vector3d centre = cam.Centre();
   const int tiles_x = (W + o.tile_px - 1) / o.tile_px, tiles_y = (H + o.tile_px - 1) / o.tile_px;
@@ -138,6 +159,9 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
       if (x0 >= x1 || y0 >= y1) continue;
       rect[i] = Eigen::Vector4i(x0, y0, x1, y1);
       s.radius_px[i] = r;
+      s.footprint[i] = Eigen::Vector4i(static_cast<int>(std::ceil(p.uv.x() - r)), static_cast<int>(std::ceil(p.uv.y() - r)),
+                                       static_cast<int>(std::floor(p.uv.x() + r)) + 1,
+                                       static_cast<int>(std::floor(p.uv.y() + r)) + 1);
       s.u[i] = T(p.uv.x());
       s.v[i] = T(p.uv.y());
       s.conic_a[i] = T(C / det);
@@ -176,46 +200,71 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
     });
   });
 
-  // 3. Blend front to back, tiles in parallel.
+  // 3. Blend front to back, tiles in parallel. Within a tile the loop runs
+  // over Gaussians (front to back) and, inside, only over the pixels of the
+  // Gaussian's own footprint, with per-pixel compositing state: each
+  // Gaussian costs its footprint, not the whole tile.
   out.rgb.assign(3 * static_cast<std::size_t>(W) * H, T(0));
   out.alpha.assign(static_cast<std::size_t>(W) * H, T(0));
   out.depth.assign(static_cast<std::size_t>(W) * H, T(0));
   s.final_transmittance.assign(static_cast<std::size_t>(W) * H, T(1));
   s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
-  const T min_alpha = T(o.min_alpha), max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
+  s.log_alpha_cut.assign(n, T(0));
+  for (std::size_t i = 0; i < n; ++i) {
+    // alpha < min_alpha  <=>  power < log(min_alpha / opacity)
+    s.log_alpha_cut[i] = o.min_alpha > 0 && s.radius_px[i]
+                             ? T(std::log(o.min_alpha / static_cast<double>(s.opacity[i])))
+                             : -std::numeric_limits<T>::infinity();
+  }
+  const T max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
+  const int tp = o.tile_px;
   tbb::parallel_for(0, tiles, [&](int t) {
-    const int tx = t % tiles_x, ty = t / tiles_x;
+    const int tx0 = (t % tiles_x) * tp, ty0 = (t / tiles_x) * tp;
+    const int tw = std::min(W - tx0, tp), th = std::min(H - ty0, tp);
+    std::vector<T> trans(tp * tp, T(1)), r(tp * tp, T(0)), g(tp * tp, T(0)), b(tp * tp, T(0)), d(tp * tp, T(0));
+    std::vector<int> last(tp * tp, 0);
+    std::vector<std::uint8_t> done(tp * tp, 0);
     const int begin = s.tile_begin[t], end = s.tile_end[t];
-    for (int py = ty * o.tile_px; py < std::min(H, (ty + 1) * o.tile_px); ++py) {
-      for (int px = tx * o.tile_px; px < std::min(W, (tx + 1) * o.tile_px); ++px) {
-        T trans = T(1), r = T(0), g = T(0), b = T(0), d = T(0);
-        int last = 0;
-        for (int k = begin; k < end; ++k) {
-          const int i = s.order[k];
-          const T dx = s.u[i] - T(px), dy = s.v[i] - T(py);
-          const T power = T(-0.5) * (s.conic_a[i] * dx * dx + s.conic_c[i] * dy * dy) - s.conic_b[i] * dx * dy;
-          if (power > T(0)) continue;
-          const T alpha = std::min(max_alpha, s.opacity[i] * std::exp(power));
-          if (alpha < min_alpha) continue;
-          const T next = trans * (T(1) - alpha);
-          if (next < min_t) break;
-          const T w = alpha * trans;
-          r += w * s.red[i];
-          g += w * s.green[i];
-          b += w * s.blue[i];
-          d += w * s.depth[i];
-          trans = next;
-          last = k - begin + 1;
+    for (int k = begin; k < end; ++k) {
+      const int i = s.order[k];
+      const PixelBox box = FootprintInTile(s, i, tx0, ty0, tw, th);
+      const T ca = s.conic_a[i], cb = s.conic_b[i], cc = s.conic_c[i], op = s.opacity[i], cut = s.log_alpha_cut[i];
+      for (int py = box.y0; py < box.y1; ++py) {
+        const T dy = s.v[i] - T(ty0 + py);
+        for (int px = box.x0; px < box.x1; ++px) {
+          const int lp = py * tp + px;
+          if (done[lp]) continue;
+          const T dx = s.u[i] - T(tx0 + px);
+          const T power = T(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy;
+          if (power > T(0) || power < cut) continue;
+          const T alpha = std::min(max_alpha, op * BlendExp(power));
+          const T next = trans[lp] * (T(1) - alpha);
+          if (next < min_t) {
+            done[lp] = 1;
+            continue;
+          }
+          const T w = alpha * trans[lp];
+          r[lp] += w * s.red[i];
+          g[lp] += w * s.green[i];
+          b[lp] += w * s.blue[i];
+          d[lp] += w * s.depth[i];
+          trans[lp] = next;
+          last[lp] = k - begin + 1;
         }
-        const std::size_t p = static_cast<std::size_t>(py) * W + px;
-        s.final_transmittance[p] = trans;
-        s.contributors[p] = last;
-        out.rgb[3 * p + 0] = r + trans * T(o.background[0]);
-        out.rgb[3 * p + 1] = g + trans * T(o.background[1]);
-        out.rgb[3 * p + 2] = b + trans * T(o.background[2]);
-        const T a = T(1) - trans;
+      }
+    }
+    for (int py = 0; py < th; ++py) {
+      for (int px = 0; px < tw; ++px) {
+        const int lp = py * tp + px;
+        const std::size_t p = static_cast<std::size_t>(ty0 + py) * W + (tx0 + px);
+        s.final_transmittance[p] = trans[lp];
+        s.contributors[p] = last[lp];
+        out.rgb[3 * p + 0] = r[lp] + trans[lp] * T(o.background[0]);
+        out.rgb[3 * p + 1] = g[lp] + trans[lp] * T(o.background[1]);
+        out.rgb[3 * p + 2] = b[lp] + trans[lp] * T(o.background[2]);
+        const T a = T(1) - trans[lp];
         out.alpha[p] = a;
-        out.depth[p] = a >= T(kMinAlphaForDepth) ? d / a : T(0);
+        out.depth[p] = a >= T(kMinAlphaForDepth) ? d[lp] / a : T(0);
       }
     }
   });
@@ -235,60 +284,84 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
   // opacity, r, g, b, depth. Summed afterwards (no atomics in the hot loop).
   constexpr int kFields = 10;
   tbb::enumerable_thread_specific<std::vector<T>> local([&] { return std::vector<T>(kFields * n, T(0)); });
-  const T min_alpha = T(o.min_alpha), max_alpha = T(o.max_alpha);
+  const T max_alpha = T(o.max_alpha);
   const T bg[3] = {T(o.background[0]), T(o.background[1]), T(o.background[2])};
 
+  const int tp = o.tile_px;
   tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
     std::vector<T>& acc = local.local();
-    const int tx = t % tiles_x, ty = t / tiles_x;
+    const int tx0 = (t % tiles_x) * tp, ty0 = (t / tiles_x) * tp;
+    const int tw = std::min(W - tx0, tp), th = std::min(H - ty0, tp);
     const int begin = s.tile_begin[t];
-    for (int py = ty * o.tile_px; py < std::min(H, (ty + 1) * o.tile_px); ++py) {
-      for (int px = tx * o.tile_px; px < std::min(W, (tx + 1) * o.tile_px); ++px) {
-        const std::size_t p = static_cast<std::size_t>(py) * W + px;
-        const T dC[3] = {d_rgb.empty() ? T(0) : d_rgb[3 * p], d_rgb.empty() ? T(0) : d_rgb[3 * p + 1],
-                         d_rgb.empty() ? T(0) : d_rgb[3 * p + 2]};
+    // Per-pixel state of the back-to-front pass.
+    std::vector<T> trans(tp * tp, T(1)), t_final(tp * tp, T(1)), dA(tp * tp, T(0)), dD(tp * tp, T(0));
+    std::vector<std::array<T, 3>> dC(tp * tp, {T(0), T(0), T(0)}), rest(tp * tp);
+    std::vector<T> rest_d(tp * tp, T(0));
+    std::vector<int> last(tp * tp, 0);
+    int max_last = 0;
+    for (int py = 0; py < th; ++py) {
+      for (int px = 0; px < tw; ++px) {
+        const int lp = py * tp + px;
+        const std::size_t p = static_cast<std::size_t>(ty0 + py) * W + (tx0 + px);
+        if (!d_rgb.empty()) dC[lp] = {d_rgb[3 * p], d_rgb[3 * p + 1], d_rgb[3 * p + 2]};
         const T a_out = fwd.alpha[p];
-        T dD = T(0), dA = d_alpha.empty() ? T(0) : d_alpha[p];
+        dA[lp] = d_alpha.empty() ? T(0) : d_alpha[p];
         if (!d_depth.empty() && a_out >= T(kMinAlphaForDepth)) {
-          // expected depth E = D / A
-          dD = d_depth[p] / a_out;
-          dA -= d_depth[p] * fwd.depth[p] / a_out;
+          // Expected depth E = D / A.
+          dD[lp] = d_depth[p] / a_out;
+          dA[lp] -= d_depth[p] * fwd.depth[p] / a_out;
         }
-        const T t_final = s.final_transmittance[p];
-        T trans = t_final;
-        T rest_c[3] = {bg[0], bg[1], bg[2]};  // colour behind the current Gaussian, normalized
-        T rest_d = T(0);
-        for (int k = begin + s.contributors[p] - 1; k >= begin; --k) {
-          const int i = s.order[k];
-          const T dx = s.u[i] - T(px), dy = s.v[i] - T(py);
-          const T power = T(-0.5) * (s.conic_a[i] * dx * dx + s.conic_c[i] * dy * dy) - s.conic_b[i] * dx * dy;
-          if (power > T(0)) continue;
-          const T gauss = std::exp(power);
-          const T raw_alpha = s.opacity[i] * gauss;
+        trans[lp] = t_final[lp] = s.final_transmittance[p];
+        rest[lp] = {bg[0], bg[1], bg[2]};  // colour behind the current Gaussian
+        last[lp] = s.contributors[p];
+        max_last = std::max(max_last, last[lp]);
+      }
+    }
+    for (int k = begin + max_last - 1; k >= begin; --k) {
+      const int i = s.order[k];
+      const PixelBox box = FootprintInTile(s, i, tx0, ty0, tw, th);
+      const T ca = s.conic_a[i], cb = s.conic_b[i], cc = s.conic_c[i], op = s.opacity[i], cut = s.log_alpha_cut[i];
+      const T col[3] = {s.red[i], s.green[i], s.blue[i]};
+      T g[10] = {T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0)};
+      bool touched = false;
+      for (int py = box.y0; py < box.y1; ++py) {
+        const T dy = s.v[i] - T(ty0 + py);
+        for (int px = box.x0; px < box.x1; ++px) {
+          const int lp = py * tp + px;
+          if (k - begin >= last[lp]) continue;
+          const T dx = s.u[i] - T(tx0 + px);
+          const T power = T(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy;
+          if (power > T(0) || power < cut) continue;
+          const T gauss = BlendExp(power);
+          const T raw_alpha = op * gauss;
           const T alpha = std::min(max_alpha, raw_alpha);
-          if (alpha < min_alpha) continue;
-          trans = trans / (T(1) - alpha);  // transmittance in front of i
-          const T w = alpha * trans;
-          const T col[3] = {s.red[i], s.green[i], s.blue[i]};
-          T* g = &acc[kFields * static_cast<std::size_t>(i)];
+          const T inv_one_minus = T(1) / (T(1) - alpha);
+          trans[lp] *= inv_one_minus;  // transmittance in front of i
+          const T w = alpha * trans[lp];
           T d_alpha_i = T(0);
           for (int c = 0; c < 3; ++c) {
-            g[6 + c] += w * dC[c];
-            d_alpha_i += (col[c] - rest_c[c]) * dC[c];
+            g[6 + c] += w * dC[lp][c];
+            d_alpha_i += (col[c] - rest[lp][c]) * dC[lp][c];
           }
-          g[9] += w * dD;
-          d_alpha_i = trans * (d_alpha_i + (s.depth[i] - rest_d) * dD) + dA * t_final / (T(1) - alpha);
-          for (int c = 0; c < 3; ++c) rest_c[c] = alpha * col[c] + (T(1) - alpha) * rest_c[c];
-          rest_d = alpha * s.depth[i] + (T(1) - alpha) * rest_d;
+          g[9] += w * dD[lp];
+          d_alpha_i = trans[lp] * (d_alpha_i + (s.depth[i] - rest_d[lp]) * dD[lp]) +
+                      dA[lp] * t_final[lp] * inv_one_minus;
+          for (int c = 0; c < 3; ++c) rest[lp][c] = alpha * col[c] + (T(1) - alpha) * rest[lp][c];
+          rest_d[lp] = alpha * s.depth[i] + (T(1) - alpha) * rest_d[lp];
+          touched = true;
           if (raw_alpha > max_alpha) continue;  // clamped: no gradient to opacity or shape
           g[5] += gauss * d_alpha_i;
           const T d_power = raw_alpha * d_alpha_i;
-          g[0] += -d_power * (s.conic_a[i] * dx + s.conic_b[i] * dy);
-          g[1] += -d_power * (s.conic_c[i] * dy + s.conic_b[i] * dx);
+          g[0] += -d_power * (ca * dx + cb * dy);
+          g[1] += -d_power * (cc * dy + cb * dx);
           g[2] += T(-0.5) * d_power * dx * dx;
           g[3] += -d_power * dx * dy;
           g[4] += T(-0.5) * d_power * dy * dy;
         }
+      }
+      if (touched) {
+        T* dst = &acc[kFields * static_cast<std::size_t>(i)];
+        for (int f = 0; f < kFields; ++f) dst[f] += g[f];
       }
     }
   });

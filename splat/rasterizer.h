@@ -40,11 +40,14 @@ struct RasterState {
   std::vector<T> red, green, blue;
   std::vector<T> depth;                // camera depth minus reference_depth [m]
   std::vector<int> radius_px;
+  std::vector<Eigen::Vector4i> footprint;  // pixel box x0, y0, x1, y1 (half-open) within the radius
+  std::vector<T> log_alpha_cut;        // power below this gives alpha < min_alpha
   std::vector<std::uint8_t> colour_clamped;  // bit c set: channel c clamped at 0
   // Per tile: Gaussian indices sorted front to back, as ranges into `order`.
   std::vector<int> order;
   std::vector<int> tile_begin, tile_end;
-  // Per pixel: final transmittance and how many list entries were blended.
+  // Per pixel: final transmittance and 1 + the tile-list position of the
+  // last Gaussian blended (0 when none).
   std::vector<T> final_transmittance;
   std::vector<int> contributors;
 };
