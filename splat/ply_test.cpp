@@ -1,0 +1,87 @@
+#include "splat/ply.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "tests/test_support.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+GaussianCloud TwoGaussians() {
+  GaussianCloud c;
+  c.resize(2);
+  for (int i = 0; i < 2; ++i) {
+    c.means[i] = Eigen::Vector3f(1.5f + i, -2.25f, 30.125f);
+    c.log_scales[i] = Eigen::Vector3f(-1.0f, -2.0f, -3.0f * (i + 1));
+    c.rotations[i] = Eigen::Vector4f(0.9f, 0.1f, -0.2f, 0.3f * i);
+    c.opacity_logits[i] = 0.7f - i;
+    for (int k = 0; k < 12; ++k) c.sh[i][k] = 0.01f * k - 0.05f * i;
+  }
+  return c;
+}
+
+TEST(Ply, RoundTripsTheInriaLayout) {
+  const fs::path dir = ScratchDir("ply");
+  const GaussianCloud c = TwoGaussians();
+  WriteGaussiansPly((dir / "scene.ply").string(), c);
+  const std::string text = ReadTextFile((dir / "scene.ply").string());
+  // Viewers look for exactly these names.
+  for (const char* p : {"property float f_dc_0", "property float f_rest_8", "property float opacity",
+                        "property float scale_2", "property float rot_3", "element vertex 2"})
+    EXPECT_NE(text.find(p), std::string::npos) << p;
+  const GaussianCloud back = ReadGaussiansPly((dir / "scene.ply").string());
+  ASSERT_EQ(back.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(back.means[i], c.means[i]);
+    EXPECT_EQ(back.log_scales[i], c.log_scales[i]);
+    EXPECT_EQ(back.rotations[i], c.rotations[i]);
+    EXPECT_EQ(back.opacity_logits[i], c.opacity_logits[i]);
+    EXPECT_EQ(back.sh[i], c.sh[i]);
+  }
+}
+
+TEST(Ply, ReadsDegreeThreeFilesAndKeepsDegreeOne) {
+  // A degree-3 file (45 f_rest) as written by the 3DGS reference code, ASCII here.
+  const fs::path dir = ScratchDir("ply3");
+  std::ofstream f(dir / "deg3.ply");
+  f << "ply\nformat ascii 1.0\nelement vertex 1\n";
+  for (const char* n : {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"}) f << "property float " << n << "\n";
+  for (int k = 0; k < 45; ++k) f << "property float f_rest_" << k << "\n";
+  f << "property float opacity\nproperty float scale_0\nproperty float scale_1\nproperty float scale_2\n"
+       "property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float rot_3\nend_header\n";
+  f << "1 2 3 0 0 0 0.1 0.2 0.3";
+  for (int k = 0; k < 45; ++k) f << " " << k;
+  f << " 0.5 -1 -1 -1 1 0 0 0\n";
+  f.close();
+  const GaussianCloud c = ReadGaussiansPly((dir / "deg3.ply").string());
+  ASSERT_EQ(c.size(), 1u);
+  // Channel-major f_rest: red uses 0..14, green 15..29, blue 30..44.
+  EXPECT_EQ(c.sh[0][1], 0.0f);
+  EXPECT_EQ(c.sh[0][3], 2.0f);
+  EXPECT_EQ(c.sh[0][5], 15.0f);
+  EXPECT_EQ(c.sh[0][9], 30.0f);
+  EXPECT_EQ(c.sh[0][8], 0.3f);
+}
+
+TEST(Ply, BadFilesNameTheProblem) {
+  const fs::path dir = ScratchDir("plybad");
+  std::ofstream(dir / "points.ply") << "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                       "property float z\nend_header\n1 2 3\n";
+  std::string msg = ErrorText([&] { ReadGaussiansPly((dir / "points.ply").string()); });
+  EXPECT_NE(msg.find("property 'f_dc_0' is missing"), std::string::npos) << msg;
+  const std::string good = GaussiansToPly(TwoGaussians());
+  std::ofstream(dir / "cut.ply", std::ios::binary) << good.substr(0, good.size() - 10);
+  msg = ErrorText([&] { ReadGaussiansPly((dir / "cut.ply").string()); });
+  EXPECT_NE(msg.find("truncated"), std::string::npos) << msg;
+  std::ofstream(dir / "text.ply") << "hello";
+  EXPECT_NE(ErrorText([&] { ReadGaussiansPly((dir / "text.ply").string()); }).find("not a PLY"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace skyfall
