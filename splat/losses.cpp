@@ -1,0 +1,212 @@
+#include "splat/losses.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace skyfall {
+namespace {
+
+constexpr int kWindow = 11;
+constexpr double kSigma = 1.5;
+constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;
+
+std::array<double, kWindow> GaussianWindow() {
+  std::array<double, kWindow> w{};
+  double sum = 0;
+  for (int i = 0; i < kWindow; ++i) {
+    const double d = i - kWindow / 2;
+    w[i] = std::exp(-d * d / (2 * kSigma * kSigma));
+    sum += w[i];
+  }
+  for (double& v : w) v /= sum;
+  return w;
+}
+
+// Separable 'same' convolution with the (symmetric) window, zero padding.
+// Symmetric and zero-padded, so it is its own adjoint.
+std::vector<double> Blur(const std::vector<double>& in, int w, int h) {
+  static const auto win = GaussianWindow();
+  std::vector<double> tmp(in.size(), 0.0), out(in.size(), 0.0);
+  const int r = kWindow / 2;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      double s = 0;
+      for (int k = -r; k <= r; ++k) {
+        const int xx = x + k;
+        if (xx >= 0 && xx < w) s += win[k + r] * in[static_cast<size_t>(y) * w + xx];
+      }
+      tmp[static_cast<size_t>(y) * w + x] = s;
+    }
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      double s = 0;
+      for (int k = -r; k <= r; ++k) {
+        const int yy = y + k;
+        if (yy >= 0 && yy < h) s += win[k + r] * tmp[static_cast<size_t>(yy) * w + x];
+      }
+      out[static_cast<size_t>(y) * w + x] = s;
+    }
+  return out;
+}
+
+void RequireSameSize(size_t a, size_t b, const char* what) {
+  if (a != b) throw Error("loss", what, "sizes differ (" + std::to_string(a) + " vs " + std::to_string(b) + ")");
+}
+
+// Stable log(1 + exp(x)).
+double Softplus(double x) { return x > 0 ? x + std::log1p(std::exp(-x)) : std::log1p(std::exp(x)); }
+
+}  // namespace
+
+template <typename T>
+double L1Loss(const std::vector<T>& x, const std::vector<T>& target, std::vector<T>* grad) {
+  RequireSameSize(x.size(), target.size(), "l1");
+  double sum = 0;
+  const double inv_n = 1.0 / std::max<size_t>(1, x.size());
+  if (grad) grad->assign(x.size(), T(0));
+  for (size_t k = 0; k < x.size(); ++k) {
+    const double d = static_cast<double>(x[k]) - target[k];
+    sum += std::abs(d);
+    if (grad) (*grad)[k] = T(d > 0 ? inv_n : (d < 0 ? -inv_n : 0.0));
+  }
+  return sum * inv_n;
+}
+
+template <typename T>
+double Ssim(const std::vector<T>& x, const std::vector<T>& target, int w, int h, int channels,
+            std::vector<T>* grad) {
+  RequireSameSize(x.size(), target.size(), "ssim");
+  RequireSameSize(x.size(), static_cast<size_t>(w) * h * channels, "ssim image");
+  const size_t n = static_cast<size_t>(w) * h;
+  if (grad) grad->assign(x.size(), T(0));
+  double total = 0;
+  const double inv = 1.0 / static_cast<double>(n * channels);
+  for (int c = 0; c < channels; ++c) {
+    std::vector<double> a(n), b(n), aa(n), bb(n), ab(n);
+    for (size_t p = 0; p < n; ++p) {
+      a[p] = x[p * channels + c];
+      b[p] = target[p * channels + c];
+      aa[p] = a[p] * a[p];
+      bb[p] = b[p] * b[p];
+      ab[p] = a[p] * b[p];
+    }
+    const auto mu_a = Blur(a, w, h), mu_b = Blur(b, w, h);
+    const auto e_aa = Blur(aa, w, h), e_bb = Blur(bb, w, h), e_ab = Blur(ab, w, h);
+    std::vector<double> dmu(n), dvar(n), dcov(n);
+    for (size_t p = 0; p < n; ++p) {
+      const double va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
+      const double cov = e_ab[p] - mu_a[p] * mu_b[p];
+      const double l_num = 2 * mu_a[p] * mu_b[p] + kC1, l_den = mu_a[p] * mu_a[p] + mu_b[p] * mu_b[p] + kC1;
+      const double c_num = 2 * cov + kC2, c_den = va + vb + kC2;
+      const double s = (l_num * c_num) / (l_den * c_den);
+      total += s;
+      // dS/dmu_a, dS/dvar_a, dS/dcov (var and cov as independent statistics).
+      dmu[p] = inv * s * (2 * mu_b[p] / l_num - 2 * mu_a[p] / l_den);
+      dvar[p] = inv * (-s / c_den);
+      dcov[p] = inv * (2 * s / c_num);
+    }
+    if (!grad) continue;
+    // var_a = E[a^2] - mu_a^2, cov = E[ab] - mu_a mu_b: chain to mu_a and the
+    // blurred moments, then through the (self-adjoint) blur.
+    std::vector<double> g_mu(n);
+    for (size_t p = 0; p < n; ++p) g_mu[p] = dmu[p] - 2 * mu_a[p] * dvar[p] - mu_b[p] * dcov[p];
+    const auto bg_mu = Blur(g_mu, w, h), bg_var = Blur(dvar, w, h), bg_cov = Blur(dcov, w, h);
+    for (size_t p = 0; p < n; ++p) (*grad)[p * channels + c] = T(bg_mu[p] + 2 * a[p] * bg_var[p] + b[p] * bg_cov[p]);
+  }
+  return total * inv;
+}
+
+template <typename T>
+double PhotometricLoss(const std::vector<T>& x, const std::vector<T>& target, int w, int h,
+                       const PhotometricLossOptions& o, std::vector<T>* grad) {
+  std::vector<T> g_l1, g_ssim;
+  const double l1 = L1Loss(x, target, grad ? &g_l1 : nullptr);
+  const double ssim = Ssim(x, target, w, h, 3, grad ? &g_ssim : nullptr);
+  if (grad) {
+    grad->resize(x.size());
+    for (size_t k = 0; k < x.size(); ++k) (*grad)[k] = T((1 - o.lambda_dssim) * g_l1[k] - o.lambda_dssim * g_ssim[k]);
+  }
+  return (1 - o.lambda_dssim) * l1 + o.lambda_dssim * (1 - ssim);
+}
+
+template <typename T>
+double OpacityEntropy(const std::vector<T>& logits, std::vector<T>* grad) {
+  double sum = 0;
+  const double inv_n = 1.0 / std::max<size_t>(1, logits.size());
+  if (grad) grad->assign(logits.size(), T(0));
+  for (size_t k = 0; k < logits.size(); ++k) {
+    const double l = logits[k];
+    const double a = 1.0 / (1.0 + std::exp(-l));
+    // -log a = softplus(-l), -log(1-a) = softplus(l): no log(0) anywhere.
+    sum += a * Softplus(-l) + (1 - a) * Softplus(l);
+    // dE/dl = log((1-a)/a) * a(1-a) = -l * a(1-a)
+    if (grad) (*grad)[k] = T(-l * a * (1 - a) * inv_n);
+  }
+  return sum * inv_n;
+}
+
+template <typename T>
+double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior,
+                        const std::vector<unsigned char>& valid, std::vector<T>* grad) {
+  RequireSameSize(depth.size(), prior.size(), "pearson");
+  RequireSameSize(depth.size(), valid.size(), "pearson mask");
+  if (grad) grad->assign(depth.size(), T(0));
+  double n = 0, ma = 0, mb = 0;
+  for (size_t k = 0; k < depth.size(); ++k)
+    if (valid[k]) {
+      ma += depth[k];
+      mb += prior[k];
+      n += 1;
+    }
+  if (n < 2) return 0.0;
+  ma /= n;
+  mb /= n;
+  double saa = 0, sbb = 0, sab = 0;
+  for (size_t k = 0; k < depth.size(); ++k)
+    if (valid[k]) {
+      const double a = depth[k] - ma, b = prior[k] - mb;
+      saa += a * a;
+      sbb += b * b;
+      sab += a * b;
+    }
+  // Zero variance (a flat render or a flat prior): no correlation to learn.
+  constexpr double kMinVariance = 1e-12;
+  if (saa / n < kMinVariance || sbb / n < kMinVariance) return 0.0;
+  const double na = std::sqrt(saa), nb = std::sqrt(sbb);
+  const double r = sab / (na * nb);
+  if (grad) {
+    for (size_t k = 0; k < depth.size(); ++k)
+      if (valid[k]) {
+        const double a = depth[k] - ma, b = prior[k] - mb;
+        // d(1 - r)/da: the centred expression already sums to zero.
+        (*grad)[k] = T(-(b / (na * nb) - r * a / saa));
+      }
+  }
+  return 1.0 - r;
+}
+
+template <typename T>
+double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
+  RequireSameSize(x.size(), target.size(), "psnr");
+  double mse = 0;
+  for (size_t k = 0; k < x.size(); ++k) mse += (static_cast<double>(x[k]) - target[k]) * (static_cast<double>(x[k]) - target[k]);
+  mse /= std::max<size_t>(1, x.size());
+  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
+}
+
+#define SKYFALL_INSTANTIATE_LOSSES(T)                                                                       \
+  template double L1Loss(const std::vector<T>&, const std::vector<T>&, std::vector<T>*);                   \
+  template double Ssim(const std::vector<T>&, const std::vector<T>&, int, int, int, std::vector<T>*);      \
+  template double PhotometricLoss(const std::vector<T>&, const std::vector<T>&, int, int,                  \
+                                  const PhotometricLossOptions&, std::vector<T>*);                        \
+  template double OpacityEntropy(const std::vector<T>&, std::vector<T>*);                                   \
+  template double PearsonDepthLoss(const std::vector<T>&, const std::vector<T>&,                           \
+                                   const std::vector<unsigned char>&, std::vector<T>*);                     \
+  template double Psnr(const std::vector<T>&, const std::vector<T>&);
+SKYFALL_INSTANTIATE_LOSSES(float)
+SKYFALL_INSTANTIATE_LOSSES(double)
+
+}  // namespace skyfall

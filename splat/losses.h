@@ -1,0 +1,46 @@
+// Training losses with their gradients. Images are planar-interleaved
+// float/double RGB (3 values per pixel, row-major), as the rasterizer outputs.
+#pragma once
+
+#include <vector>
+
+namespace skyfall {
+
+// Mean absolute error over all values; `grad` (same size) receives dL/dx.
+template <typename T>
+double L1Loss(const std::vector<T>& x, const std::vector<T>& target, std::vector<T>* grad);
+
+// Mean SSIM over pixels and channels (11x11 Gaussian window, sigma 1.5,
+// C1 = 0.01^2, C2 = 0.03^2, zero padding as in the 3DGS reference), and its
+// gradient with respect to `x`.
+template <typename T>
+double Ssim(const std::vector<T>& x, const std::vector<T>& target, int width, int height, int channels,
+            std::vector<T>* grad);
+
+// The reconstruction loss of 3DGS / Skyfall-GS: (1 - lambda) L1 + lambda (1 - SSIM).
+struct PhotometricLossOptions {
+  double lambda_dssim = 0.2;
+};
+template <typename T>
+double PhotometricLoss(const std::vector<T>& x, const std::vector<T>& target, int width, int height,
+                       const PhotometricLossOptions& options, std::vector<T>* grad);
+
+// Opacity entropy -a log a - (1 - a) log(1 - a) with a = sigmoid(logit),
+// averaged over Gaussians. Written in the logit, so it is finite and smooth
+// for any logit (a = 0 or 1 exactly is a limit, with value and gradient 0).
+// `grad` receives dL/dlogit.
+template <typename T>
+double OpacityEntropy(const std::vector<T>& logits, std::vector<T>* grad);
+
+// 1 - Pearson correlation between rendered and prior depth over the pixels
+// where `valid` is non-zero. When either depth has (numerically) zero
+// variance the correlation is undefined: the loss is 0 with zero gradient.
+template <typename T>
+double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior,
+                        const std::vector<unsigned char>& valid, std::vector<T>* grad);
+
+// Peak signal-to-noise ratio of images in [0, 1] [dB].
+template <typename T>
+double Psnr(const std::vector<T>& x, const std::vector<T>& target);
+
+}  // namespace skyfall

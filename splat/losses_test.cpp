@@ -1,0 +1,102 @@
+#include "splat/losses.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <random>
+
+namespace skyfall {
+namespace {
+
+std::vector<double> RandomImage(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  std::vector<double> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+// Central differences of `f` at every entry of `x` against `grad`.
+void CheckGradient(std::vector<double> x, const std::function<double(const std::vector<double>&)>& f,
+                   const std::vector<double>& grad, double step, double tol) {
+  ASSERT_EQ(x.size(), grad.size());
+  for (size_t k = 0; k < x.size(); ++k) {
+    const double keep = x[k];
+    x[k] = keep + step;
+    const double fp = f(x);
+    x[k] = keep - step;
+    const double fm = f(x);
+    x[k] = keep;
+    EXPECT_NEAR(grad[k], (fp - fm) / (2 * step), tol * (1 + std::abs(grad[k]))) << "entry " << k;
+  }
+}
+
+TEST(Losses, SsimGradientMatchesFiniteDifferences) {
+  const int w = 14, h = 12;  // larger than the 11x11 window, with borders
+  const auto x = RandomImage(w * h * 3, 1), y = RandomImage(w * h * 3, 2);
+  std::vector<double> grad;
+  Ssim(x, y, w, h, 3, &grad);
+  CheckGradient(x, [&](const std::vector<double>& v) { return Ssim<double>(v, y, w, h, 3, nullptr); }, grad,
+                1e-6, 1e-6);
+  EXPECT_NEAR(Ssim<double>(x, x, w, h, 3, nullptr), 1.0, 1e-12);
+}
+
+TEST(Losses, PhotometricLossGradientAwayFromL1Kinks) {
+  const int w = 12, h = 11;
+  auto x = RandomImage(w * h * 3, 3);
+  const auto y = RandomImage(w * h * 3, 4);
+  for (size_t k = 0; k < x.size(); ++k)
+    if (std::abs(x[k] - y[k]) < 1e-3) x[k] += 2e-3;  // |.| is not differentiable at 0
+  std::vector<double> grad;
+  const PhotometricLossOptions o;
+  PhotometricLoss(x, y, w, h, o, &grad);
+  CheckGradient(x, [&](const std::vector<double>& v) { return PhotometricLoss<double>(v, y, w, h, o, nullptr); },
+                grad, 1e-7, 1e-6);
+}
+
+TEST(Losses, OpacityEntropyIsSafeAtZeroAndOne) {
+  const std::vector<double> logits = {-800.0, -40.0, -3.0, -0.2, 0.0, 0.7, 5.0, 40.0, 800.0};
+  std::vector<double> grad;
+  const double e = OpacityEntropy(logits, &grad);
+  EXPECT_TRUE(std::isfinite(e));
+  for (double g : grad) EXPECT_TRUE(std::isfinite(g));
+  // Saturated opacities carry (almost) no entropy and no gradient.
+  EXPECT_EQ(grad[0], 0.0);
+  EXPECT_EQ(grad[8], 0.0);
+  EXPECT_NEAR(OpacityEntropy<double>({0.0}, nullptr), std::log(2.0), 1e-15);  // maximum, at a = 0.5
+  CheckGradient(logits, [](const std::vector<double>& v) { return OpacityEntropy<double>(v, nullptr); }, grad,
+                1e-6, 1e-7);
+}
+
+TEST(Losses, PearsonDepthGradientAndZeroVariance) {
+  const int n = 40;
+  auto depth = RandomImage(n, 5), prior = RandomImage(n, 6);
+  std::vector<unsigned char> valid(n, 1);
+  valid[3] = valid[17] = 0;
+  std::vector<double> grad;
+  const double l = PearsonDepthLoss(depth, prior, valid, &grad);
+  EXPECT_GT(l, 0.0);
+  EXPECT_LT(l, 2.0);
+  EXPECT_EQ(grad[3], 0.0);
+  CheckGradient(depth, [&](const std::vector<double>& v) { return PearsonDepthLoss<double>(v, prior, valid, nullptr); },
+                grad, 1e-7, 1e-6);
+  // Perfectly correlated up to scale and shift: zero loss.
+  std::vector<double> affine(n);
+  for (int k = 0; k < n; ++k) affine[k] = 3.0 * prior[k] - 7.0;
+  EXPECT_NEAR(PearsonDepthLoss<double>(affine, prior, valid, nullptr), 0.0, 1e-12);
+  // Flat render (zero variance): defined as no supervision.
+  const std::vector<double> flat(n, 12.5);
+  EXPECT_EQ(PearsonDepthLoss(flat, prior, valid, &grad), 0.0);
+  for (double g : grad) EXPECT_EQ(g, 0.0);
+  EXPECT_EQ(PearsonDepthLoss<double>(prior, flat, valid, nullptr), 0.0);
+}
+
+TEST(Losses, PsnrOfKnownError) {
+  const std::vector<float> a(100, 0.5f), b(100, 0.6f);
+  EXPECT_NEAR(Psnr(a, b), 20.0, 1e-4);  // MSE 0.01
+}
+
+}  // namespace
+}  // namespace skyfall
