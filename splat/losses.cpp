@@ -177,15 +177,18 @@ double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior
   if (saa / n < kMinVariance || sbb / n < kMinVariance) return 0.0;
   const double na = std::sqrt(saa), nb = std::sqrt(sbb);
   const double r = sab / (na * nb);
+  // The paper's 1 - |r|: a prior that gives inverse depth (disparity) is
+  // as good as one that gives depth.
+  const double sign = r >= 0 ? 1.0 : -1.0;
   if (grad) {
     for (size_t k = 0; k < depth.size(); ++k)
       if (valid[k]) {
         const double a = depth[k] - ma, b = prior[k] - mb;
-        // d(1 - r)/da: the centred expression already sums to zero.
-        (*grad)[k] = T(-(b / (na * nb) - r * a / saa));
+        // d(1 - |r|)/da; the centred expression already sums to zero.
+        (*grad)[k] = T(-sign * (b / (na * nb) - r * a / saa));
       }
   }
-  return 1.0 - r;
+  return 1.0 - std::abs(r);
 }
 
 template <typename T>

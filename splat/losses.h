@@ -32,8 +32,8 @@ double PhotometricLoss(const std::vector<T>& x, const std::vector<T>& target, in
 template <typename T>
 double OpacityEntropy(const std::vector<T>& logits, std::vector<T>* grad);
 
-// 1 - Pearson correlation between rendered and prior depth over the pixels
-// where `valid` is non-zero. When either depth has (numerically) zero
+// 1 - |Pearson correlation| between rendered and prior depth (Skyfall-GS
+// eq. for L_depth) over the pixels where `valid` is non-zero. When either depth has (numerically) zero
 // variance the correlation is undefined: the loss is 0 with zero gradient.
 template <typename T>
 double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior,

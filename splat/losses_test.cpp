@@ -86,6 +86,15 @@ TEST(Losses, PearsonDepthGradientAndZeroVariance) {
   std::vector<double> affine(n);
   for (int k = 0; k < n; ++k) affine[k] = 3.0 * prior[k] - 7.0;
   EXPECT_NEAR(PearsonDepthLoss<double>(affine, prior, valid, nullptr), 0.0, 1e-12);
+  // Anti-correlated (a disparity-like prior) is as good: |r| = 1.
+  for (int k = 0; k < n; ++k) affine[k] = -0.5 * prior[k] + 2.0;
+  EXPECT_NEAR(PearsonDepthLoss<double>(affine, prior, valid, nullptr), 0.0, 1e-12);
+  // The gradient also holds where r < 0.
+  std::vector<double> anti(n);
+  for (int k = 0; k < n; ++k) anti[k] = -prior[k] + 0.3 * depth[k];
+  PearsonDepthLoss(anti, prior, valid, &grad);
+  CheckGradient(anti, [&](const std::vector<double>& v) { return PearsonDepthLoss<double>(v, prior, valid, nullptr); },
+                grad, 1e-7, 1e-6);
   // Flat render (zero variance): defined as no supervision.
   const std::vector<double> flat(n, 12.5);
   EXPECT_EQ(PearsonDepthLoss(flat, prior, valid, &grad), 0.0);
