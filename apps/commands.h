@@ -14,5 +14,6 @@ void AddIngestCommand(CLI::App& app, Runner* runner);
 void AddRpcCommand(CLI::App& app, Runner* runner);
 void AddSynthCommand(CLI::App& app, Runner* runner);
 void AddSfmCommand(CLI::App& app, Runner* runner);
+void AddSplatCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddRpcCommand(app, &runner);
   skyfall::cli::AddSynthCommand(app, &runner);
   skyfall::cli::AddSfmCommand(app, &runner);
+  skyfall::cli::AddSplatCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

@@ -1,6 +1,7 @@
 #include "sfm/export.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -26,9 +27,11 @@ std::string CamerasJson(const SfmResult& r, const AoiCatalog& c) {
   json images = json::array();
   for (const SfmImage& im : r.images) {
     const PinholeCamera& cam = im.camera;
+    const bool held_out = std::find(c.test_images.begin(), c.test_images.end(), im.name) != c.test_images.end();
     images.push_back({{"name", im.name},
                       {"source_image", im.path},
                       {"used", im.used},
+                      {"split", held_out ? "test" : "train"},
                       {"status", im.status},
                       {"width_px", cam.width_px},
                       {"height_px", cam.height_px},

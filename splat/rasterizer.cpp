@@ -1,7 +1,6 @@
 #include "splat/rasterizer.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Dense>
@@ -280,16 +279,17 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
   const int W = fwd.width_px, H = fwd.height_px;
   const std::size_t n = cloud.size();
   const int tiles_x = (W + o.tile_px - 1) / o.tile_px, tiles_y = (H + o.tile_px - 1) / o.tile_px;
-  // Per-thread accumulators of screen-space gradients: u, v, conic a, b, c,
-  // opacity, r, g, b, depth. Summed afterwards (no atomics in the hot loop).
+  // Screen-space gradients (u, v, conic a, b, c, opacity, r, g, b, depth)
+  // per tile-list entry: each tile writes only its own entries, and the sum
+  // per Gaussian runs in list order afterwards, so results do not depend on
+  // thread scheduling (training reruns and resumes are bit-identical).
   constexpr int kFields = 10;
-  tbb::enumerable_thread_specific<std::vector<T>> local([&] { return std::vector<T>(kFields * n, T(0)); });
+  std::vector<T> contrib(kFields * s.order.size(), T(0));
   const T max_alpha = T(o.max_alpha);
   const T bg[3] = {T(o.background[0]), T(o.background[1]), T(o.background[2])};
 
   const int tp = o.tile_px;
   tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
-    std::vector<T>& acc = local.local();
     const int tx0 = (t % tiles_x) * tp, ty0 = (t / tiles_x) * tp;
     const int tw = std::min(W - tx0, tp), th = std::min(H - ty0, tp);
     const int begin = s.tile_begin[t];
@@ -360,14 +360,17 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
         }
       }
       if (touched) {
-        T* dst = &acc[kFields * static_cast<std::size_t>(i)];
-        for (int f = 0; f < kFields; ++f) dst[f] += g[f];
+        T* dst = &contrib[kFields * static_cast<std::size_t>(k)];
+        for (int f = 0; f < kFields; ++f) dst[f] = g[f];
       }
     }
   });
   std::vector<T> screen(kFields * n, T(0));
-  for (const auto& acc : local)
-    for (std::size_t k = 0; k < screen.size(); ++k) screen[k] += acc[k];
+  for (std::size_t k = 0; k < s.order.size(); ++k) {
+    T* dst = &screen[kFields * static_cast<std::size_t>(s.order[k])];
+    const T* src = &contrib[kFields * k];
+    for (int f = 0; f < kFields; ++f) dst[f] += src[f];
+  }
 
   // Back through the projection, per Gaussian, in double.
   GaussianGradients<T> out;

@@ -125,6 +125,26 @@ void WriteByteTiff(const std::string& path, int width_px, int height_px, int ban
   WriteTiff(path, width_px, height_px, bands, GDT_Byte, pixels, options);
 }
 
+void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels) {
+  gdal::EnsureRegistered();
+  gdal::QuietErrors quiet;
+  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", width_px, height_px, bands, GDT_Byte, nullptr);
+  if (!mem) throw Error("raster", path, "cannot allocate the image: " + quiet.LastMessage());
+  GDALDatasetRasterIO(mem, GF_Write, 0, 0, width_px, height_px, const_cast<std::uint8_t*>(pixels), width_px,
+                      height_px, GDT_Byte, bands, nullptr, bands, static_cast<GSpacing>(bands) * width_px, 1);
+  const std::string tmp = path + ".tmp.png";
+  std::error_code ec;
+  const auto parent = std::filesystem::path(path).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  GDALDatasetH png = GDALCreateCopy(GDALGetDriverByName("PNG"), tmp.c_str(), mem, FALSE, nullptr, nullptr, nullptr);
+  GDALClose(mem);
+  if (!png) throw Error("raster", path, "PNG write failed: " + quiet.LastMessage());
+  GDALClose(png);
+  std::filesystem::remove(tmp + ".aux.xml", ec);
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw Error("raster", path, "rename failed: " + ec.message());
+}
+
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
                     const RasterWriteOptions& options) {
   WriteTiff(path, width_px, height_px, 1, GDT_Float32, pixels, options);

@@ -58,5 +58,7 @@ void WriteByteTiff(const std::string& path, int width_px, int height_px, int ban
                    const std::uint8_t* pixels, const RasterWriteOptions& options = {});
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
                     const RasterWriteOptions& options = {});
+// An 8-bit PNG (1 or 3 bands, interleaved by pixel), written atomically.
+void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels);
 
 }  // namespace skyfall

@@ -1,0 +1,126 @@
+#include "splat/dataset.h"
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+PinholeCamera CameraFromJson(const json& j) {
+  PinholeCamera c;
+  const auto K = j.at("K"), R = j.at("R"), t = j.at("t");
+  c.fx = K[0][0];
+  c.skew = K[0][1];
+  c.cx = K[0][2];
+  c.fy = K[1][1];
+  c.cy = K[1][2];
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 3; ++k) c.cam_from_world_rotation(r, k) = R[r][k];
+    c.cam_from_world_translation[r] = t[r];
+  }
+  c.width_px = j.at("width_px");
+  c.height_px = j.at("height_px");
+  return c;
+}
+
+}  // namespace
+
+PinholeCamera DownscaledCamera(const PinholeCamera& camera, int s) {
+  PinholeCamera c = camera;
+  c.fx /= s;
+  c.fy /= s;
+  c.skew /= s;
+  // Pixel centres at integers: full-resolution x maps to (x + 0.5) / s - 0.5.
+  c.cx = (camera.cx + 0.5) / s - 0.5;
+  c.cy = (camera.cy + 0.5) / s - 0.5;
+  c.width_px = camera.width_px / s;
+  c.height_px = camera.height_px / s;
+  return c;
+}
+
+std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& path) {
+  json doc;
+  try {
+    doc = json::parse(ReadTextFile(path));
+  } catch (const json::exception& e) {
+    throw Error("splat", path, std::string("not valid JSON: ") + e.what());
+  }
+  std::vector<std::pair<std::string, PinholeCamera>> out;
+  try {
+    for (const json& im : doc.at("images")) {
+      if (!im.value("used", true)) continue;
+      out.emplace_back(im.at("name").get<std::string>(), CameraFromJson(im));
+    }
+  } catch (const json::exception& e) {
+    throw Error("splat", path, std::string("bad camera entry: ") + e.what());
+  }
+  return out;
+}
+
+std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale) {
+  if (downscale < 1) throw Error("splat", "resolution", "downscale factor must be >= 1");
+  const std::string path = (fs::path(sfm_dir) / "cameras.json").string();
+  const json doc = json::parse(ReadTextFile(path));
+  std::vector<TrainView> views;
+  for (const json& im : doc.at("images")) {
+    if (!im.value("used", true)) continue;
+    TrainView v;
+    v.name = im.at("name");
+    v.held_out = im.value("split", std::string("train")) == "test";
+    const PinholeCamera full = CameraFromJson(im);
+    v.camera = DownscaledCamera(full, downscale);
+    const FloatImage img = ReadFloatImage(im.at("source_image").get<std::string>());
+    if (img.width_px != full.width_px || img.height_px != full.height_px) {
+      throw Error("splat", im.at("source_image").get<std::string>(), "size differs from cameras.json");
+    }
+    const int w = v.camera.width_px, h = v.camera.height_px;
+    v.rgb.assign(3 * static_cast<size_t>(w) * h, 0.0f);
+    const float norm = 1.0f / (255.0f * downscale * downscale);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) {
+          float s = 0;
+          for (int dy = 0; dy < downscale; ++dy)
+            for (int dx = 0; dx < downscale; ++dx) {
+              const size_t p = static_cast<size_t>(y * downscale + dy) * img.width_px + (x * downscale + dx);
+              s += img.values[p * img.bands + std::min(c, img.bands - 1)];
+            }
+          v.rgb[(static_cast<size_t>(y) * w + x) * 3 + c] = s * norm;
+        }
+    views.push_back(std::move(v));
+  }
+  if (views.empty()) throw Error("splat", path, "lists no used image");
+  return views;
+}
+
+void ReadSfmPoints(const std::string& path, std::vector<Eigen::Vector3f>* points, std::vector<Eigen::Vector3f>* colours) {
+  std::istringstream in(ReadTextFile(path));
+  std::string line;
+  size_t count = 0;
+  bool ascii = false;
+  while (std::getline(in, line) && line != "end_header") {
+    if (line.rfind("element vertex", 0) == 0) count = std::stoul(line.substr(15));
+    if (line == "format ascii 1.0") ascii = true;
+  }
+  if (!ascii) throw Error("splat", path, "expected the ASCII points.ply written by `skyfall sfm`");
+  for (size_t i = 0; i < count; ++i) {
+    double x, y, z;
+    int r, g, b;
+    if (!std::getline(in, line)) throw Error("splat", path, "truncated at point " + std::to_string(i));
+    std::istringstream ls(line);
+    if (!(ls >> x >> y >> z >> r >> g >> b)) throw Error("splat", path, "bad point line " + std::to_string(i));
+    points->emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    colours->emplace_back(r / 255.0f, g / 255.0f, b / 255.0f);
+  }
+}
+
+}  // namespace skyfall

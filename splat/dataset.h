@@ -1,0 +1,28 @@
+// Training data from an SfM folder: cameras.json + the source images, and
+// the coloured tie points of points.ply.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "splat/trainer.h"
+
+namespace skyfall {
+
+// Loads every used image of cameras.json, box-downscaled by `downscale`
+// (1 = full resolution), with the camera scaled to match. Images whose
+// cameras.json "split" is "test" are held out.
+std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale);
+
+// Reads the ASCII points.ply written by `skyfall sfm` (ENU, colour 0-255).
+void ReadSfmPoints(const std::string& path, std::vector<Eigen::Vector3f>* points,
+                   std::vector<Eigen::Vector3f>* colours_01);
+
+// Cameras of cameras.json (used images), by name, for rendering.
+std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& cameras_json);
+
+// A camera for an image `downscale` times smaller (pixel centres at integers).
+PinholeCamera DownscaledCamera(const PinholeCamera& camera, int downscale);
+
+}  // namespace skyfall

@@ -1,0 +1,447 @@
+#include "splat/trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/format.h"
+#include "splat/losses.h"
+
+#include <Eigen/Geometry>
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kAdamBeta1 = 0.9, kAdamBeta2 = 0.999, kAdamEps = 1e-15;
+constexpr char kCheckpointMagic[8] = {'S', 'K', 'Y', 'C', 'K', 'P', 'T', '1'};
+
+double InverseSigmoid(double p) { return std::log(p / (1 - p)); }
+
+// Adam moments in the cloud's own layout.
+struct Adam {
+  GaussianCloud m, v;
+  long step = 0;
+  void Resize(std::size_t n) {
+    for (GaussianCloud* c : {&m, &v}) {
+      const std::size_t old = c->size();
+      c->resize(n);
+      for (std::size_t i = old; i < n; ++i) {
+        c->means[i].setZero();
+        c->log_scales[i].setZero();
+        c->rotations[i].setZero();
+        c->opacity_logits[i] = 0;
+        c->sh[i].fill(0);
+      }
+    }
+  }
+};
+
+template <int N>
+void AdamUpdate(float* p, float* m, float* v, const float* g, double lr, double bc1, double bc2) {
+  for (int k = 0; k < N; ++k) {
+    m[k] = static_cast<float>(kAdamBeta1 * m[k] + (1 - kAdamBeta1) * g[k]);
+    v[k] = static_cast<float>(kAdamBeta2 * v[k] + (1 - kAdamBeta2) * g[k] * g[k]);
+    p[k] -= static_cast<float>(lr * (m[k] / bc1) / (std::sqrt(v[k] / bc2) + kAdamEps));
+  }
+}
+
+
+void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
+  ++adam.step;
+  const double bc1 = 1 - std::pow(kAdamBeta1, adam.step), bc2 = 1 - std::pow(kAdamBeta2, adam.step);
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    AdamUpdate<3>(c.means[i].data(), adam.m.means[i].data(), adam.v.means[i].data(), g.means[i].data(), lr_mean, bc1, bc2);
+    AdamUpdate<3>(c.log_scales[i].data(), adam.m.log_scales[i].data(), adam.v.log_scales[i].data(),
+                  g.log_scales[i].data(), o.lr_scale, bc1, bc2);
+    AdamUpdate<4>(c.rotations[i].data(), adam.m.rotations[i].data(), adam.v.rotations[i].data(),
+                  g.rotations[i].data(), o.lr_rotation, bc1, bc2);
+    AdamUpdate<1>(&c.opacity_logits[i], &adam.m.opacity_logits[i], &adam.v.opacity_logits[i], &g.opacity_logits[i],
+                  o.lr_opacity, bc1, bc2);
+    for (int ch = 0; ch < 3; ++ch) {
+      AdamUpdate<1>(&c.sh[i][ch * 4], &adam.m.sh[i][ch * 4], &adam.v.sh[i][ch * 4], &g.sh[i][ch * 4], o.lr_sh_dc, bc1, bc2);
+      AdamUpdate<3>(&c.sh[i][ch * 4 + 1], &adam.m.sh[i][ch * 4 + 1], &adam.v.sh[i][ch * 4 + 1], &g.sh[i][ch * 4 + 1],
+                    o.lr_sh_rest, bc1, bc2);
+    }
+  }
+}
+
+// Copies Gaussian `i` of `src` (cloud and moments) to the end of `dst`.
+void Append(GaussianCloud& dst, const GaussianCloud& src, std::size_t i) {
+  dst.means.push_back(src.means[i]);
+  dst.log_scales.push_back(src.log_scales[i]);
+  dst.rotations.push_back(src.rotations[i]);
+  dst.opacity_logits.push_back(src.opacity_logits[i]);
+  dst.sh.push_back(src.sh[i]);
+}
+
+Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
+  const Eigen::Vector4f u = q.normalized();
+  return Eigen::Quaternionf(u[0], u[1], u[2], u[3]).toRotationMatrix();
+}
+
+struct DensifyStats {
+  std::vector<float> grad_sum;
+  std::vector<int> seen;
+  void Reset(std::size_t n) {
+    grad_sum.assign(n, 0.0f);
+    seen.assign(n, 0);
+  }
+};
+
+// Clone small and split large Gaussians with large view-space gradients,
+// prune transparent and huge ones. Returns how many were added and removed.
+std::pair<int, int> Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const TrainOptions& o,
+                            double extent_m, bool grow, std::mt19937_64& rng) {
+  GaussianCloud out, m, v;
+  std::normal_distribution<float> normal(0.0f, 1.0f);
+  int added = 0, removed = 0;
+  const float split_scale = static_cast<float>(o.percent_dense * extent_m);
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const float opacity = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
+    const float max_scale = std::exp(c.log_scales[i].maxCoeff());
+    if (opacity < o.min_opacity || max_scale > o.max_scale_m) {
+      ++removed;
+      continue;
+    }
+    const float avg_grad = stats.seen[i] ? stats.grad_sum[i] / stats.seen[i] : 0.0f;
+    const bool hot = grow && avg_grad >= o.densify_grad_threshold &&
+                     c.size() + added < static_cast<std::size_t>(o.max_gaussians);
+    if (hot && max_scale > split_scale) {
+      // Split: two samples from the Gaussian, each 1.6x smaller.
+      const Eigen::Matrix3f R = RotationOf(c.rotations[i]);
+      const Eigen::Vector3f s = c.log_scales[i].array().exp();
+      for (int k = 0; k < 2; ++k) {
+        Append(out, c, i);
+        Append(m, adam.m, i);
+        Append(v, adam.v, i);
+        const Eigen::Vector3f z(normal(rng), normal(rng), normal(rng));
+        out.means.back() += R * (s.cwiseProduct(z));
+        out.log_scales.back() = (s / 1.6f).array().log();
+        m.means.back().setZero();
+        v.means.back().setZero();
+      }
+      ++added;  // two replace one
+      continue;
+    }
+    Append(out, c, i);
+    Append(m, adam.m, i);
+    Append(v, adam.v, i);
+    if (hot) {  // clone
+      Append(out, c, i);
+      Append(m, adam.m, i);
+      Append(v, adam.v, i);
+      ++added;
+    }
+  }
+  c = std::move(out);
+  adam.m = std::move(m);
+  adam.v = std::move(v);
+  return {added, removed};
+}
+
+// --- checkpoints: the cloud, Adam state, RNG and series, in one binary file.
+template <typename V>
+void Put(std::string& s, const V& v) {
+  s.append(reinterpret_cast<const char*>(&v), sizeof(V));
+}
+template <typename V>
+void PutVector(std::string& s, const std::vector<V>& v) {
+  Put(s, static_cast<std::uint64_t>(v.size()));
+  s.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(V));
+}
+void PutCloud(std::string& s, const GaussianCloud& c) {
+  PutVector(s, c.means);
+  PutVector(s, c.log_scales);
+  PutVector(s, c.rotations);
+  PutVector(s, c.opacity_logits);
+  PutVector(s, c.sh);
+}
+
+struct Reader {
+  const std::string& s;
+  std::size_t at = 0;
+  std::string path;
+  template <typename V>
+  V Get() {
+    if (at + sizeof(V) > s.size()) throw Error("train", path, "checkpoint is truncated");
+    V v;
+    std::memcpy(&v, s.data() + at, sizeof(V));
+    at += sizeof(V);
+    return v;
+  }
+  template <typename V>
+  std::vector<V> GetVector() {
+    const auto n = Get<std::uint64_t>();
+    if (at + n * sizeof(V) > s.size()) throw Error("train", path, "checkpoint is truncated");
+    std::vector<V> v(n);
+    std::memcpy(v.data(), s.data() + at, n * sizeof(V));
+    at += n * sizeof(V);
+    return v;
+  }
+  GaussianCloud GetCloud() {
+    GaussianCloud c;
+    c.means = GetVector<Eigen::Vector3f>();
+    c.log_scales = GetVector<Eigen::Vector3f>();
+    c.rotations = GetVector<Eigen::Vector4f>();
+    c.opacity_logits = GetVector<float>();
+    c.sh = GetVector<std::array<float, 12>>();
+    return c;
+  }
+};
+
+struct Checkpoint {
+  int iteration = 0;
+  GaussianCloud cloud;
+  Adam adam;
+  std::string rng_state;
+  std::vector<TrainSample> series;
+  DensifyStats stats;        // gradient statistics since the last densification
+  double loss_sum = 0;       // training loss since the last series sample
+  std::int64_t loss_count = 0;
+};
+
+void SaveCheckpoint(const std::string& path, const Checkpoint& ck) {
+  std::string s(kCheckpointMagic, sizeof(kCheckpointMagic));
+  Put(s, static_cast<std::int64_t>(ck.iteration));
+  Put(s, static_cast<std::int64_t>(ck.adam.step));
+  PutCloud(s, ck.cloud);
+  PutCloud(s, ck.adam.m);
+  PutCloud(s, ck.adam.v);
+  PutVector(s, std::vector<char>(ck.rng_state.begin(), ck.rng_state.end()));
+  PutVector(s, ck.series);
+  PutVector(s, ck.stats.grad_sum);
+  PutVector(s, ck.stats.seen);
+  Put(s, ck.loss_sum);
+  Put(s, ck.loss_count);
+  WriteFileAtomic(path, s);
+}
+
+Checkpoint LoadCheckpoint(const std::string& path) {
+  const std::string s = ReadTextFile(path);
+  if (s.size() < sizeof(kCheckpointMagic) || std::memcmp(s.data(), kCheckpointMagic, sizeof(kCheckpointMagic)) != 0) {
+    throw Error("train", path, "not a skyfall checkpoint");
+  }
+  Reader r{s, sizeof(kCheckpointMagic), path};
+  Checkpoint ck;
+  ck.iteration = static_cast<int>(r.Get<std::int64_t>());
+  ck.adam.step = static_cast<long>(r.Get<std::int64_t>());
+  ck.cloud = r.GetCloud();
+  ck.adam.m = r.GetCloud();
+  ck.adam.v = r.GetCloud();
+  const auto rng = r.GetVector<char>();
+  ck.rng_state.assign(rng.begin(), rng.end());
+  ck.series = r.GetVector<TrainSample>();
+  ck.stats.grad_sum = r.GetVector<float>();
+  ck.stats.seen = r.GetVector<int>();
+  ck.loss_sum = r.Get<double>();
+  ck.loss_count = r.Get<std::int64_t>();
+  if (ck.stats.grad_sum.size() != ck.cloud.size() || ck.stats.seen.size() != ck.cloud.size()) {
+    throw Error("train", path, "checkpoint is inconsistent (densification statistics size)");
+  }
+  if (ck.adam.m.size() != ck.cloud.size() || ck.adam.v.size() != ck.cloud.size()) {
+    throw Error("train", path, "checkpoint is inconsistent (optimizer state size)");
+  }
+  return ck;
+}
+
+double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster) {
+  double sum = 0;
+  int n = 0;
+  for (const TrainView& v : views) {
+    if (!v.held_out) continue;
+    sum += Psnr(RenderGaussians(c, v.camera, raster).rgb, v.rgb);
+    ++n;
+  }
+  return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
+}
+
+double SceneExtent(const GaussianCloud& c) {
+  if (c.size() == 0) return 1.0;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : c.means) centre += p.cast<double>();
+  centre /= static_cast<double>(c.size());
+  double r = 0;
+  for (const auto& p : c.means) r = std::max(r, (p.cast<double>() - centre).norm());
+  return std::max(1.0, 1.1 * r);
+}
+
+}  // namespace
+
+void TrainOptions::Check() const {
+  auto need = [](bool ok, const char* field, double v) {
+    if (!ok) throw Error("train", field, FormatDouble(v) + " is out of range");
+  };
+  need(iterations >= 1, "iterations", iterations);
+  need(lambda_dssim >= 0 && lambda_dssim <= 1, "lambda_dssim", lambda_dssim);
+  need(lambda_opacity >= 0, "lambda_opacity", lambda_opacity);
+  for (double lr : {lr_mean_initial, lr_mean_final, lr_scale, lr_rotation, lr_opacity, lr_sh_dc, lr_sh_rest})
+    need(lr > 0 && std::isfinite(lr), "learning rate", lr);
+  need(densify_interval >= 1, "densify_interval", densify_interval);
+  need(densify_grad_threshold > 0, "densify_grad_threshold", densify_grad_threshold);
+  need(min_opacity >= 0 && min_opacity < 1, "min_opacity", min_opacity);
+  need(max_scale_m > 0, "max_scale_m", max_scale_m);
+  need(eval_interval >= 1, "eval_interval", eval_interval);
+  need(opacity_reg_from >= 0, "opacity_reg_from", opacity_reg_from);
+  need(checkpoint_interval >= 1, "checkpoint_interval", checkpoint_interval);
+  raster.Check();
+}
+
+GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<Eigen::Vector3f>& colours) {
+  if (points.empty()) throw Error("train", "init", "no SfM points to start from");
+  GaussianCloud c;
+  c.resize(points.size());
+  // Mean distance to the 3 nearest neighbours (brute force on a uniform grid
+  // of cells would be faster; SfM clouds are ~1e4 points).
+  std::vector<std::size_t> order(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return points[a].x() < points[b].x(); });
+  std::vector<std::size_t> rank(points.size());
+  for (std::size_t k = 0; k < order.size(); ++k) rank[order[k]] = k;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::array<float, 3> best = {1e30f, 1e30f, 1e30f};
+    // Sweep outwards in x until the x gap alone exceeds the third-best distance.
+    for (int dir : {-1, 1}) {
+      for (long k = static_cast<long>(rank[i]) + dir; k >= 0 && k < static_cast<long>(order.size()); k += dir) {
+        const Eigen::Vector3f& q = points[order[k]];
+        const float dx = q.x() - points[i].x();
+        if (dx * dx > best[2]) break;
+        const float d2 = (q - points[i]).squaredNorm();
+        if (d2 < best[2]) {
+          best[2] = d2;
+          std::sort(best.begin(), best.end());
+        }
+      }
+    }
+    double mean = 0;
+    int n = 0;
+    for (float d2 : best)
+      if (d2 < 1e29f) {
+        mean += std::sqrt(d2);
+        ++n;
+      }
+    const float scale = static_cast<float>(std::max(0.05, n ? mean / n : 1.0));
+    c.means[i] = points[i];
+    c.log_scales[i] = Eigen::Vector3f::Constant(std::log(scale));
+    c.rotations[i] = Eigen::Vector4f(1, 0, 0, 0);
+    c.opacity_logits[i] = static_cast<float>(InverseSigmoid(0.1));
+    c.sh[i].fill(0.0f);
+    for (int ch = 0; ch < 3; ++ch) c.sh[i][ch * 4] = static_cast<float>(ShDcFromColour(colours[i][ch]));
+  }
+  return c;
+}
+
+TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
+                           const std::string& checkpoint_dir, Progress& progress) {
+  o.Check();
+  Stopwatch clock;
+  TrainResult result;
+  result.report.stage = "splat_train";
+  std::vector<int> train_ids;
+  for (int k = 0; k < static_cast<int>(views.size()); ++k)
+    if (!views[k].held_out) train_ids.push_back(k);
+  if (train_ids.empty()) throw Error("train", "views", "no training view (all are held out or none given)");
+  for (const TrainView& v : views) {
+    if (v.rgb.size() != 3u * v.camera.width_px * v.camera.height_px) {
+      throw Error("train", v.name, "image size does not match its camera");
+    }
+  }
+
+  Adam adam;
+  adam.Resize(cloud.size());
+  std::mt19937_64 rng(o.seed);
+  // The extent scales the position learning rate and the split size. It is
+  // taken from the initial cloud (the caller passes the same one when
+  // resuming), so a resumed run uses the same value.
+  const double extent = SceneExtent(cloud);
+  int start = 0;
+  DensifyStats stats;
+  stats.Reset(cloud.size());
+  double loss_sum = 0;
+  int loss_count = 0;
+  const std::string ck_path = checkpoint_dir.empty() ? "" : (fs::path(checkpoint_dir) / "checkpoint.bin").string();
+  if (!ck_path.empty() && fs::exists(ck_path)) {
+    Checkpoint ck = LoadCheckpoint(ck_path);
+    cloud = std::move(ck.cloud);
+    adam = std::move(ck.adam);
+    std::istringstream(ck.rng_state) >> rng;
+    result.series = std::move(ck.series);
+    stats = std::move(ck.stats);
+    loss_sum = ck.loss_sum;
+    loss_count = static_cast<int>(ck.loss_count);
+    start = ck.iteration;
+    result.start_iteration = start;
+  }
+  const PhotometricLossOptions photometric{o.lambda_dssim};
+  const double previous_seconds = result.series.empty() ? 0.0 : result.series.back().seconds;
+  if (result.series.empty()) {  // the starting point of the error-versus-time series
+    TrainSample s;
+    s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster);
+    s.gaussians = cloud.size();
+    s.loss = std::numeric_limits<double>::quiet_NaN();
+    result.series.push_back(s);
+  }
+  progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
+  for (int it = start + 1; it <= o.iterations; ++it) {
+    const TrainView& view = views[train_ids[rng() % train_ids.size()]];
+    const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster);
+    std::vector<float> d_rgb;
+    double loss = PhotometricLoss(r.rgb, view.rgb, view.camera.width_px, view.camera.height_px, photometric, &d_rgb);
+    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, {}, {});
+    if (o.lambda_opacity > 0 && it >= o.opacity_reg_from) {
+      std::vector<float> d_op;
+      loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
+      for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
+    }
+    loss_sum += loss;
+    ++loss_count;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      if (r.state.radius_px[i]) {
+        stats.grad_sum[i] += g.mean2d_norm[i] * 0.5f * static_cast<float>(view.camera.width_px);
+        ++stats.seen[i];
+      }
+    }
+    const double t = static_cast<double>(it) / o.iterations;
+    const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
+    AdamStep(cloud, adam, g.d, o, lr_mean);
+
+    if (it >= o.densify_from && it % o.densify_interval == 0 && it <= o.densify_until + o.densify_interval) {
+      Densify(cloud, adam, stats, o, extent, it <= o.densify_until, rng);
+      stats.Reset(cloud.size());
+    }
+    if (it % o.eval_interval == 0 || it == o.iterations) {
+      TrainSample s;
+      s.iteration = it;
+      s.seconds = previous_seconds + clock.Seconds();
+      s.loss = loss_sum / std::max(1, loss_count);
+      s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster);
+      s.gaussians = cloud.size();
+      result.series.push_back(s);
+      loss_sum = 0;
+      loss_count = 0;
+    }
+    if (!ck_path.empty() && (it % o.checkpoint_interval == 0 || it == o.iterations)) {
+      std::ostringstream state;
+      state << rng;
+      SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count});
+    }
+    progress.Advance(static_cast<std::size_t>(it), "");
+  }
+  progress.End();
+  result.cloud = std::move(cloud);
+  result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
+  if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
+  result.report.seconds = clock.Seconds();
+  return result;
+}
+
+}  // namespace skyfall

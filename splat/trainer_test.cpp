@@ -1,0 +1,166 @@
+#include "splat/trainer.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
+#include <random>
+
+#include "splat/dataset.h"
+#include "synth/synth.h"
+#include "tests/test_support.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+// A small synthetic city with its true cameras as training views, and
+// Gaussians seeded on its true surface (standing in for SfM points).
+struct Fixture {
+  std::vector<TrainView> views;
+  GaussianCloud init;
+};
+
+Fixture MakeFixture(int downscale) {
+  synth::SynthOptions o;
+  o.size_m = 96;
+  o.views = 5;
+  o.seed = 9;
+  NullProgress progress;
+  const fs::path root = ScratchDir("synth");
+  const synth::SynthResult scene = synth::RunSynth(o, root.string(), progress);
+  Fixture f;
+  for (size_t v = 0; v < scene.aois[0].views.size(); ++v) {
+    const synth::SynthView& sv = scene.aois[0].views[v];
+    PinholeCamera cam;
+    cam.fx = cam.fy = sv.camera.focal_px;
+    cam.cx = sv.camera.principal_px.x();
+    cam.cy = sv.camera.principal_px.y();
+    cam.cam_from_world_rotation = sv.camera.cam_from_enu;
+    cam.cam_from_world_translation = -sv.camera.cam_from_enu * sv.camera.centre_enu_m;
+    cam.width_px = sv.camera.width_px;
+    cam.height_px = sv.camera.height_px;
+    TrainView tv;
+    tv.name = sv.name;
+    tv.held_out = v == 1;
+    tv.camera = DownscaledCamera(cam, downscale);
+    const FloatImage img = ReadFloatImage(sv.path);
+    const int w = tv.camera.width_px, h = tv.camera.height_px;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c)
+          tv.rgb.push_back(img.values[(static_cast<size_t>(y * downscale) * img.width_px + x * downscale) * 3 + c] / 255.0f);
+    f.views.push_back(std::move(tv));
+  }
+  // Points on the true height field (scene frame = ENU up to millimetres
+  // over this area, see SceneFromEnu), grey.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-20.0, 116.0);
+  std::vector<Eigen::Vector3f> points, colours;
+  const synth::SceneFromEnu& m = scene.scene_from_enu;
+  const Eigen::Matrix3d enu_from_scene = m.linear.inverse();
+  for (int k = 0; k < 3000; ++k) {
+    const double x = u(rng), y = u(rng);
+    const Eigen::Vector3d s(x, y, scene.city.HeightAt(x, y));
+    points.push_back((enu_from_scene * (s - m.offset_m)).cast<float>());
+    colours.emplace_back(0.4f, 0.4f, 0.4f);
+  }
+  f.init = InitializeFromPoints(points, colours);
+  return f;
+}
+
+TrainOptions ShortRun(int iterations) {
+  TrainOptions o;
+  o.iterations = iterations;
+  o.densify_from = 40;
+  o.densify_interval = 40;
+  o.densify_until = 120;
+  o.opacity_reg_from = 80;
+  o.eval_interval = 50;
+  o.checkpoint_interval = 30;
+  return o;
+}
+
+TEST(Trainer, HeldOutPsnrRises) {
+  const Fixture f = MakeFixture(2);
+  NullProgress progress;
+  // Photometric optimization alone: on this 4-view scene, densification and
+  // the entropy term lower held-out PSNR in a 200-iteration run (measured:
+  // 19.1 dB without, 17.4 with densification, 14.6 with entropy from 80).
+  TrainOptions o = ShortRun(200);
+  o.densify_from = o.iterations + 1;
+  o.lambda_opacity = 0;
+  const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);
+  ASSERT_GE(r.series.size(), 3u);
+  const double before = r.series.front().psnr_test_db, after = r.series.back().psnr_test_db;
+  std::printf("[figures] synthetic 200 iterations: held-out PSNR %.2f -> %.2f dB, %zu -> %zu Gaussians, %.1f s\n",
+              before, after, f.init.size(), r.cloud.size(), r.report.seconds);
+  EXPECT_GT(after, before + 2.0);
+  EXPECT_EQ(r.series.front().iteration, 0);
+  EXPECT_EQ(r.series.back().iteration, 200);
+}
+
+TEST(Trainer, DensificationGrowsAndPrunes) {
+  Fixture f = MakeFixture(4);
+  // Two Gaussians away from every view, so only pruning can change them: a
+  // transparent one and a huge one (> max_scale_m).
+  GaussianCloud extra = InitializeFromPoints({{500, 500, 0}, {-500, -500, 0}}, {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}});
+  extra.opacity_logits[0] = -10.0f;
+  extra.log_scales[1] = Eigen::Vector3f::Constant(std::log(50.0f));
+  for (size_t i = 0; i < 2; ++i) {
+    f.init.means.push_back(extra.means[i]);
+    f.init.log_scales.push_back(extra.log_scales[i]);
+    f.init.rotations.push_back(extra.rotations[i]);
+    f.init.opacity_logits.push_back(extra.opacity_logits[i]);
+    f.init.sh.push_back(extra.sh[i]);
+  }
+  NullProgress progress;
+  TrainOptions o = ShortRun(121);
+  o.lambda_opacity = 0;
+  const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);
+  EXPECT_GT(r.cloud.size(), f.init.size());  // clones and splits
+  for (size_t i = 0; i < r.cloud.size(); ++i) {
+    EXPECT_GT(r.cloud.means[i].norm(), 0.0f);
+    EXPECT_LT(r.cloud.means[i].head<2>().cwiseAbs().maxCoeff(), 400.0f) << "a pruned Gaussian survived";
+  }
+}
+
+TEST(Trainer, KilledRunResumesBitIdentically) {
+  const Fixture f = MakeFixture(4);
+  NullProgress progress;
+  const TrainResult straight = TrainGaussians(ShortRun(90), f.init, f.views, "", progress);
+  const fs::path ck = ScratchDir("ck");
+  // The same run killed right after its checkpoint at iteration 60...
+  struct Killer : Progress {
+    void Advance(std::size_t done, std::string_view) override {
+      if (done == 60) throw std::runtime_error("killed");
+    }
+  } killer;
+  EXPECT_THROW(TrainGaussians(ShortRun(90), f.init, f.views, ck.string(), killer), std::runtime_error);
+  // ...and restarted.
+  const TrainResult resumed = TrainGaussians(ShortRun(90), f.init, f.views, ck.string(), progress);
+  EXPECT_EQ(resumed.start_iteration, 60);
+  ASSERT_EQ(resumed.cloud.size(), straight.cloud.size());
+  for (size_t i = 0; i < straight.cloud.size(); ++i) {
+    ASSERT_EQ(resumed.cloud.means[i], straight.cloud.means[i]) << i;
+    ASSERT_EQ(resumed.cloud.opacity_logits[i], straight.cloud.opacity_logits[i]) << i;
+  }
+  EXPECT_EQ(resumed.series.size(), straight.series.size());
+}
+
+TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
+  Fixture f;
+  TrainView v;
+  v.name = "bad";
+  v.camera.width_px = 4;
+  v.camera.height_px = 4;
+  v.rgb.assign(5, 0.0f);
+  f.views.push_back(v);
+  NullProgress progress;
+  EXPECT_THROW(TrainGaussians(ShortRun(10), InitializeFromPoints({{0, 0, 0}}, {{0.5f, 0.5f, 0.5f}}), f.views, "", progress),
+               Error);
+}
+
+}  // namespace
+}  // namespace skyfall
