@@ -18,7 +18,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -123,6 +123,21 @@ TEST(Cli, SynthIngestSfmChain) {
   const auto report = nlohmann::json::parse(std::ifstream(dir / "sfm" / "sfm_report.json"));
   EXPECT_EQ(report["status"], "ok");
   EXPECT_EQ(report["num_images_used"], 3);
+
+  // Training and rendering on the SfM result.
+  const std::string splat = (dir / "splat").string();
+  const CommandResult train = RunCommand(Skyfall() + " splat train --sfm " + (dir / "sfm").string() + " --out " +
+                                             splat + " --iterations 30 --resolution 2", dir);
+  ASSERT_EQ(train.exit_code, 0) << train.err;
+  const auto train_report = nlohmann::json::parse(std::ifstream(dir / "splat" / "train_report.json"));
+  EXPECT_EQ(train_report["series"].back()["iteration"], 30);
+  EXPECT_TRUE(fs::exists(dir / "splat" / "checkpoints" / "checkpoint.bin"));
+  const CommandResult render = RunCommand(Skyfall() + " splat render --scene " + splat + "/scene.ply --cameras " +
+                                              (dir / "sfm" / "cameras.json").string() + " --out " +
+                                              (dir / "render").string() + " --resolution 2", dir);
+  ASSERT_EQ(render.exit_code, 0) << render.err;
+  EXPECT_TRUE(fs::exists(dir / "render" / "SYN_001_001_RGB_rgb.png"));
+  EXPECT_TRUE(fs::exists(dir / "render" / "SYN_001_001_RGB_depth.tif"));
 
   // One image only: a degenerate status with its own exit code, and a report.
   auto catalog = nlohmann::json::parse(std::ifstream(aoi));
