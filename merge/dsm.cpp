@@ -1,0 +1,304 @@
+#include "merge/dsm.h"
+
+#include <gdal.h>
+#include <Eigen/Geometry>
+#include <ogr_srs_api.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "splat/rasterizer.h"
+#include "tiler/dfc2019.h"
+#include "tiler/geo.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+constexpr float kNoData = std::numeric_limits<float>::quiet_NaN();
+constexpr int kWaterClass = 9;
+
+// 2x downsampling that averages the finite values of each 2x2 block.
+DsmGrid Downsample(const DsmGrid& g) {
+  DsmGrid out = g;
+  out.width_px = std::max(1, g.width_px / 2);
+  out.height_px = std::max(1, g.height_px / 2);
+  out.gsd_m = 2 * g.gsd_m;
+  out.height_m.assign(static_cast<size_t>(out.width_px) * out.height_px, kNoData);
+  for (int r = 0; r < out.height_px; ++r)
+    for (int c = 0; c < out.width_px; ++c) {
+      double sum = 0;
+      int n = 0;
+      for (int dr = 0; dr < 2; ++dr)
+        for (int dc = 0; dc < 2; ++dc) {
+          const int cc = 2 * c + dc, rr = 2 * r + dr;
+          if (cc >= g.width_px || rr >= g.height_px) continue;
+          const float v = g.At(cc, rr);
+          if (std::isfinite(v)) {
+            sum += v;
+            ++n;
+          }
+        }
+      if (n) out.height_m[static_cast<size_t>(r) * out.width_px + c] = static_cast<float>(sum / n);
+    }
+  return out;
+}
+
+// NCC of truth(c, r) against prediction(c + dx, r + dy) over pixels valid in both.
+double Ncc(const DsmGrid& pred, const DsmGrid& truth, int dx, int dy, int* overlap) {
+  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  int n = 0;
+  for (int r = 0; r < truth.height_px; ++r) {
+    const int pr = r + dy;
+    if (pr < 0 || pr >= pred.height_px) continue;
+    for (int c = 0; c < truth.width_px; ++c) {
+      const int pc = c + dx;
+      if (pc < 0 || pc >= pred.width_px) continue;
+      const double a = truth.At(c, r), b = pred.At(pc, pr);
+      if (!std::isfinite(a) || !std::isfinite(b)) continue;
+      sa += a;
+      sb += b;
+      saa += a * a;
+      sbb += b * b;
+      sab += a * b;
+      ++n;
+    }
+  }
+  *overlap = n;
+  if (n < 16) return -2.0;
+  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n, cov = sab - sa * sb / n;
+  if (va <= 0 || vb <= 0) return -2.0;
+  return cov / std::sqrt(va * vb);
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + mid, v.end());
+  return v[mid];
+}
+
+}  // namespace
+
+DsmGrid GridOfTruth(const TruthGrid& t) {
+  DsmGrid g;
+  g.width_px = t.width_px;
+  g.height_px = t.height_px;
+  g.upper_left_easting_m = t.lower_left_easting_m;
+  g.upper_left_northing_m = t.UpperLeftNorthing();
+  g.gsd_m = t.gsd_m;
+  g.epsg = t.epsg;
+  g.height_m.assign(static_cast<size_t>(g.width_px) * g.height_px, kNoData);
+  return g;
+}
+
+DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) {
+  const FloatBand band = ReadFloatBand(path);
+  DsmGrid g;
+  g.width_px = band.width_px;
+  g.height_px = band.height_px;
+  g.height_m = band.values;
+  if (band.has_nodata)
+    for (float& v : g.height_m)
+      if (v == static_cast<float>(band.nodata)) v = kNoData;
+  if (!grid_txt.empty()) {
+    const DsmTxt txt = ParseDsmTxt(ReadTextFile(grid_txt), grid_txt);
+    if (txt.size_px != g.width_px || txt.size_px != g.height_px) {
+      throw Error("dsm", grid_txt + ": size", "is " + std::to_string(txt.size_px) + " but " + path + " is " +
+                                                  std::to_string(g.width_px) + "x" + std::to_string(g.height_px));
+    }
+    g.upper_left_easting_m = txt.easting_m;
+    g.upper_left_northing_m = txt.northing_m + txt.size_px * txt.gsd_m;
+    g.gsd_m = txt.gsd_m;
+    g.epsg = epsg;
+    return g;
+  }
+  GDALAllRegister();
+  GDALDatasetH ds = GDALOpen(path.c_str(), GA_ReadOnly);
+  double gt[6];
+  const bool georeferenced = ds && GDALGetGeoTransform(ds, gt) == CE_None && !(gt[1] == 1 && gt[5] == 1);
+  if (georeferenced) {
+    g.upper_left_easting_m = gt[0];
+    g.upper_left_northing_m = gt[3];
+    g.gsd_m = gt[1];
+    if (std::abs(gt[5] + gt[1]) > 1e-9 || gt[2] != 0 || gt[4] != 0) {
+      GDALClose(ds);
+      throw Error("dsm", path, "is not a north-up grid with square pixels");
+    }
+    OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+    const char* code = srs ? OSRGetAuthorityCode(srs, nullptr) : nullptr;
+    g.epsg = code ? std::atoi(code) : epsg;
+  }
+  if (ds) GDALClose(ds);
+  if (!georeferenced) throw Error("dsm", path, "has no georeferencing; give its _DSM.txt grid file");
+  return g;
+}
+
+void WriteDsm(const std::string& path, const DsmGrid& g) {
+  GDALAllRegister();
+  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", g.width_px, g.height_px, 1, GDT_Float32, nullptr);
+  double gt[6] = {g.upper_left_easting_m, g.gsd_m, 0, g.upper_left_northing_m, 0, -g.gsd_m};
+  GDALSetGeoTransform(mem, gt);
+  OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+  OSRImportFromEPSG(srs, g.epsg);
+  GDALSetSpatialRef(mem, srs);
+  OSRDestroySpatialReference(srs);
+  GDALRasterBandH band = GDALGetRasterBand(mem, 1);
+  GDALSetRasterNoDataValue(band, std::numeric_limits<double>::quiet_NaN());
+  GDALRasterIO(band, GF_Write, 0, 0, g.width_px, g.height_px, const_cast<float*>(g.height_m.data()), g.width_px,
+               g.height_px, GDT_Float32, 0, 0);
+  const std::string tmp = path + ".tmp.tif";
+  std::error_code ec;
+  if (std::filesystem::path(path).has_parent_path()) std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
+  const char* options[] = {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", nullptr};
+  GDALDatasetH cog = GDALCreateCopy(GDALGetDriverByName("COG"), tmp.c_str(), mem, FALSE,
+                                    const_cast<char**>(options), nullptr, nullptr);
+  GDALClose(mem);
+  if (!cog) throw Error("dsm", path, std::string("write failed: ") + CPLGetLastErrorMsg());
+  GDALClose(cog);
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw Error("dsm", path, "rename failed: " + ec.message());
+}
+
+void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,
+                  DsmGrid* grid) {
+  const EnuFrame frame(enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(grid->epsg);
+  const int W = grid->width_px, H = grid->height_px;
+  // ENU position of a grid pixel centre at the frame's height.
+  auto enu_of_pixel = [&](double col, double row) {
+    const Eigen::Vector2d ll = GeodeticFromUtm(zone, grid->upper_left_easting_m + (col + 0.5) * grid->gsd_m,
+                                               grid->upper_left_northing_m - (row + 0.5) * grid->gsd_m);
+    return frame.EnuFromGeodetic({ll.x(), ll.y(), enu_origin.height_m});
+  };
+  // Image axes: one grid pixel along each, measured in ENU (UTM's scale
+  // factor and grid convergence make them differ from gsd and from east/north).
+  const Eigen::Vector3d centre = enu_of_pixel(0.5 * (W - 1), 0.5 * (H - 1));
+  const Eigen::Vector3d du = (enu_of_pixel(W - 1, 0.5 * (H - 1)) - enu_of_pixel(0, 0.5 * (H - 1))) / std::max(1, W - 1);
+  const Eigen::Vector3d dv = (enu_of_pixel(0.5 * (W - 1), H - 1) - enu_of_pixel(0.5 * (W - 1), 0)) / std::max(1, H - 1);
+  PinholeCamera cam;
+  const Eigen::Vector3d right = du.normalized();
+  const Eigen::Vector3d forward = -Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d down = forward.cross(right).normalized();
+  const Eigen::Vector3d right_orth = down.cross(forward).normalized();
+  cam.cam_from_world_rotation.row(0) = right_orth.transpose();
+  cam.cam_from_world_rotation.row(1) = down.transpose();
+  cam.cam_from_world_rotation.row(2) = forward.transpose();
+  const Eigen::Vector3d eye = centre + o.camera_height_m * Eigen::Vector3d::UnitZ();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  // Focal lengths so that one pixel spans |du| and |dv| at the ground; the
+  // small skew absorbs a non-orthogonal grid.
+  const double depth = o.camera_height_m;
+  cam.fx = depth / du.dot(right_orth);
+  cam.fy = depth / dv.dot(down);
+  cam.skew = -cam.fx * dv.dot(right_orth) / dv.dot(down);
+  cam.cx = 0.5 * (W - 1);
+  cam.cy = 0.5 * (H - 1);
+  cam.width_px = W;
+  cam.height_px = H;
+  RasterOptions ro;
+  const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
+  grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
+  for (int row = 0; row < H; ++row)
+    for (int col = 0; col < W; ++col) {
+      const size_t p = static_cast<size_t>(row) * W + col;
+      if (r.alpha[p] < o.min_alpha) continue;
+      const double z_cam = r.depth[p] + r.reference_depth_m;
+      // The pixel's ray with unit camera-z, so that z_cam scales it to the hit.
+      const double yn = (row - cam.cy) / cam.fy;
+      const Eigen::Vector3d dir = cam.cam_from_world_rotation.transpose() *
+                                  Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
+      const Eigen::Vector3d hit = eye + z_cam * dir;
+      grid->height_m[p] = static_cast<float>(frame.GeodeticFromEnu(hit).height_m);
+    }
+}
+
+DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std::vector<float>* cls,
+                         const DsmCompareOptions& o) {
+  if (pred.width_px != truth_in.width_px || pred.height_px != truth_in.height_px) {
+    throw Error("dsm", "compare", "prediction is " + std::to_string(pred.width_px) + "x" + std::to_string(pred.height_px) +
+                                      " px, truth is " + std::to_string(truth_in.width_px) + "x" +
+                                      std::to_string(truth_in.height_px) + ": resample the prediction to the truth grid");
+  }
+  DsmGrid truth = truth_in;
+  if (cls && o.mask_water) {
+    if (cls->size() != truth.height_m.size()) throw Error("dsm", "compare", "CLS raster size differs from the truth");
+    for (size_t p = 0; p < truth.height_m.size(); ++p)
+      if (static_cast<int>((*cls)[p]) == kWaterClass) truth.height_m[p] = kNoData;
+  }
+  // Coarse-to-fine integer shift search maximizing NCC.
+  std::vector<DsmGrid> pp{pred}, tp{truth};
+  for (int l = 1; l < o.pyramid_levels; ++l) {
+    pp.push_back(Downsample(pp.back()));
+    tp.push_back(Downsample(tp.back()));
+  }
+  DsmComparison out;
+  int bx = 0, by = 0;
+  for (int l = o.pyramid_levels - 1; l >= 0; --l) {
+    const int cx = 2 * bx * (l < o.pyramid_levels - 1), cy = 2 * by * (l < o.pyramid_levels - 1);
+    double best = -3;
+    for (int dy = cy - o.max_shift_px; dy <= cy + o.max_shift_px; ++dy)
+      for (int dx = cx - o.max_shift_px; dx <= cx + o.max_shift_px; ++dx) {
+        int overlap = 0;
+        const double ncc = Ncc(pp[l], tp[l], dx, dy, &overlap);
+        if (ncc > best) {
+          best = ncc;
+          bx = dx;
+          by = dy;
+        }
+      }
+    out.ncc = best;
+  }
+  out.shift_col_px = bx;
+  out.shift_row_px = by;
+  // Bias, then the metrics, over pixels valid in both.
+  const int W = truth.width_px, H = truth.height_px;
+  out.error_m.assign(static_cast<size_t>(W) * H, kNoData);
+  std::vector<double> diff;
+  int valid_truth = 0;
+  for (int r = 0; r < H; ++r)
+    for (int c = 0; c < W; ++c) {
+      const float t = truth.At(c, r);
+      if (!std::isfinite(t)) continue;
+      ++valid_truth;
+      const int pc = c + bx, pr = r + by;
+      if (pc < 0 || pr < 0 || pc >= W || pr >= H) continue;
+      const float v = pred.At(pc, pr);
+      if (!std::isfinite(v)) continue;
+      diff.push_back(static_cast<double>(v) - t);
+      out.error_m[static_cast<size_t>(r) * W + c] = v - t;
+    }
+  out.valid_pixels = static_cast<int>(diff.size());
+  out.completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
+  if (diff.empty()) return out;
+  double sum = 0;
+  for (double d : diff) sum += d;
+  out.bias_m = sum / diff.size();
+  double abs_sum = 0, sq_sum = 0;
+  int within = 0;
+  std::vector<double> abs_err(diff.size()), centred(diff.size());
+  for (size_t k = 0; k < diff.size(); ++k) {
+    const double e = diff[k] - out.bias_m;
+    diff[k] = e;
+    abs_err[k] = std::abs(e);
+    abs_sum += abs_err[k];
+    sq_sum += e * e;
+    within += abs_err[k] <= o.within_m;
+  }
+  for (float& e : out.error_m)
+    if (std::isfinite(e)) e = static_cast<float>(e - out.bias_m);
+  out.mae_m = abs_sum / diff.size();
+  out.rmse_m = std::sqrt(sq_sum / diff.size());
+  out.median_abs_m = Median(abs_err);
+  const double med = Median(diff);
+  for (size_t k = 0; k < diff.size(); ++k) centred[k] = std::abs(diff[k] - med);
+  out.nmad_m = 1.4826 * Median(centred);
+  out.within_fraction = static_cast<double>(within) / diff.size();
+  return out;
+}
+
+}  // namespace skyfall
