@@ -15,5 +15,6 @@ void AddRpcCommand(CLI::App& app, Runner* runner);
 void AddSynthCommand(CLI::App& app, Runner* runner);
 void AddSfmCommand(CLI::App& app, Runner* runner);
 void AddSplatCommand(CLI::App& app, Runner* runner);
+void AddDsmCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

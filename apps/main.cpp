@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddSynthCommand(app, &runner);
   skyfall::cli::AddSfmCommand(app, &runner);
   skyfall::cli::AddSplatCommand(app, &runner);
+  skyfall::cli::AddDsmCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

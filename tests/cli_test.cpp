@@ -1,6 +1,7 @@
 // End-to-end checks of the `skyfall` binary as a user runs it.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -18,7 +19,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -138,6 +139,20 @@ TEST(Cli, SynthIngestSfmChain) {
   ASSERT_EQ(render.exit_code, 0) << render.err;
   EXPECT_TRUE(fs::exists(dir / "render" / "SYN_001_001_RGB_rgb.png"));
   EXPECT_TRUE(fs::exists(dir / "render" / "SYN_001_001_RGB_depth.tif"));
+
+  // DSM of the trained scene on the AOI's truth grid, compared with the truth.
+  const std::string dsm = (dir / "dsm.tif").string();
+  const CommandResult exported = RunCommand(Skyfall() + " dsm export --scene " + splat + "/scene.ply --frame " + aoi +
+                                                " --out " + dsm, dir);
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  const std::string truth = root + "/Track3-Truth/SYN_001";
+  const CommandResult compared = RunCommand(Skyfall() + " dsm compare --pred " + dsm + " --gt " + truth + "_DSM.tif --gt-txt " +
+                                                truth + "_DSM.txt --epsg 32617 --cls " + truth + "_CLS.tif --out " +
+                                                (dir / "cmp").string(), dir);
+  ASSERT_EQ(compared.exit_code, 0) << compared.err;
+  const auto cmp = nlohmann::json::parse(std::ifstream(dir / "cmp" / "report.json"));
+  EXPECT_GT(cmp["completeness"].get<double>(), 0.5);
+  EXPECT_TRUE(std::isfinite(cmp["mae_m"].get<double>()));
 
   // One image only: a degenerate status with its own exit code, and a report.
   auto catalog = nlohmann::json::parse(std::ifstream(aoi));

@@ -1,0 +1,135 @@
+// skyfall dsm export | compare
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+
+#include "apps/commands.h"
+#include "catalogs/aoi_catalog.h"
+#include "core/error.h"
+#include "merge/dsm.h"
+#include "merge/dsm_report.h"
+#include "splat/ply.h"
+#include "tiler/dfc2019.h"
+#include "tiler/raster.h"
+#include "core/atomic_file.h"
+
+namespace skyfall::cli {
+namespace {
+
+struct ExportArgs {
+  std::string scene, frame, out, grid_txt;
+  std::vector<double> bounds;  // min_easting min_northing max_easting max_northing
+  double gsd_m = 0.5;
+  int epsg = 0;
+};
+
+void AddExport(CLI::App& dsm, Runner* runner) {
+  auto a = std::make_shared<ExportArgs>();
+  CLI::App* cmd = dsm.add_subcommand("export", "Rasterize a Gaussian scene into a DSM GeoTIFF on a UTM grid");
+  cmd->add_option("--scene", a->scene, "Inria 3DGS PLY in the AOI's ENU frame")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--frame", a->frame, "aoi.json giving the ENU frame (and the default grid: its truth)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", a->out, "Output GeoTIFF")->required();
+  cmd->add_option("--grid", a->grid_txt, "A DFC2019 _DSM.txt grid (lower-left easting, northing, size, gsd)");
+  cmd->add_option("--bounds", a->bounds, "min_easting min_northing max_easting max_northing [m]")->expected(4);
+  cmd->add_option("--gsd", a->gsd_m, "Grid spacing with --bounds [m]")->capture_default_str();
+  cmd->add_option("--epsg", a->epsg, "UTM EPSG code (default: the AOI's zone)");
+  cmd->callback([runner, a] {
+    *runner = [a] {
+      const AoiCatalog catalog = ReadAoiCatalog(a->frame);
+      DsmGrid grid;
+      grid.epsg = a->epsg ? a->epsg : catalog.epsg;
+      if (!a->grid_txt.empty()) {
+        const DsmTxt t = ParseDsmTxt(ReadTextFile(a->grid_txt), a->grid_txt);
+        grid.width_px = grid.height_px = t.size_px;
+        grid.gsd_m = t.gsd_m;
+        grid.upper_left_easting_m = t.easting_m;
+        grid.upper_left_northing_m = t.northing_m + t.size_px * t.gsd_m;
+      } else if (!a->bounds.empty()) {
+        if (!(a->bounds[2] > a->bounds[0] && a->bounds[3] > a->bounds[1]) || !(a->gsd_m > 0)) {
+          throw Error("dsm", "--bounds", "needs min < max on both axes and --gsd > 0");
+        }
+        grid.gsd_m = a->gsd_m;
+        grid.width_px = static_cast<int>(std::ceil((a->bounds[2] - a->bounds[0]) / a->gsd_m));
+        grid.height_px = static_cast<int>(std::ceil((a->bounds[3] - a->bounds[1]) / a->gsd_m));
+        grid.upper_left_easting_m = a->bounds[0];
+        grid.upper_left_northing_m = a->bounds[3];
+      } else if (catalog.truth) {
+        grid = GridOfTruth(*catalog.truth);
+      } else {
+        throw Error("dsm", a->frame, "has no truth grid: give --grid or --bounds/--gsd");
+      }
+      const GaussianCloud scene = ReadGaussiansPly(a->scene);
+      RasterizeDsm(scene, catalog.enu_origin, DsmExportOptions{}, &grid);
+      WriteDsm(a->out, grid);
+      std::size_t valid = 0;
+      for (float v : grid.height_m) valid += std::isfinite(v);
+      spdlog::info("dsm export: {}x{} px at {} m, EPSG:{}, {:.1f}% with data -> {}", grid.width_px, grid.height_px,
+                   grid.gsd_m, grid.epsg, 100.0 * valid / grid.height_m.size(), a->out);
+      return 0;
+    };
+  });
+}
+
+struct CompareArgs {
+  std::string pred, gt, gt_txt, cls, out;
+  int epsg = 0;
+};
+
+void AddCompare(CLI::App& dsm, Runner* runner) {
+  auto a = std::make_shared<CompareArgs>();
+  auto opts = std::make_shared<DsmCompareOptions>();
+  CLI::App* cmd = dsm.add_subcommand("compare", "Compare a DSM with LiDAR truth (Sat-NeRF / EO-NeRF / EOGS protocol)");
+  cmd->add_option("--pred", a->pred, "Predicted DSM GeoTIFF")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--gt", a->gt, "Truth DSM")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--gt-txt", a->gt_txt, "The truth's _DSM.txt when the truth has no georeferencing");
+  cmd->add_option("--cls", a->cls, "Truth classes (_CLS.tif); water (9) is masked");
+  cmd->add_option("--epsg", a->epsg, "UTM EPSG of a truth read through --gt-txt (JAX: 32617)");
+  cmd->add_option("--out", a->out, "Output folder")->required();
+  cmd->add_option("--max-shift", opts->max_shift_px, "Shift search radius per pyramid level [px]")->capture_default_str();
+  cmd->callback([runner, a, opts] {
+    *runner = [a, opts] {
+      if (!a->gt_txt.empty() && a->epsg == 0) {
+        throw Error("dsm", a->gt_txt, "a _DSM.txt grid carries no CRS: give --epsg (DFC2019 JAX is 32617)");
+      }
+      const DsmGrid truth = ReadDsm(a->gt, a->gt_txt, a->epsg);
+      DsmGrid pred = ReadDsm(a->pred);
+      // Crop/resample to the truth grid: nearest pixel centre, same GSD expected.
+      if (std::abs(pred.gsd_m - truth.gsd_m) > 1e-6) {
+        throw Error("dsm", a->pred, "GSD " + std::to_string(pred.gsd_m) + " differs from the truth's " +
+                                        std::to_string(truth.gsd_m) + "; export on the truth grid");
+      }
+      DsmGrid cropped = truth;
+      for (int r = 0; r < truth.height_px; ++r)
+        for (int c = 0; c < truth.width_px; ++c) {
+          const double e = truth.upper_left_easting_m + (c + 0.5) * truth.gsd_m;
+          const double n = truth.upper_left_northing_m - (r + 0.5) * truth.gsd_m;
+          const int pc = static_cast<int>(std::floor((e - pred.upper_left_easting_m) / pred.gsd_m));
+          const int pr = static_cast<int>(std::floor((pred.upper_left_northing_m - n) / pred.gsd_m));
+          cropped.height_m[static_cast<size_t>(r) * truth.width_px + c] =
+              pc >= 0 && pr >= 0 && pc < pred.width_px && pr < pred.height_px ? pred.At(pc, pr) : NAN;
+        }
+      std::vector<float> cls;
+      if (!a->cls.empty()) cls = ReadFloatBand(a->cls).values;
+      const DsmComparison r = CompareDsm(cropped, truth, a->cls.empty() ? nullptr : &cls, *opts);
+      WriteDsmComparison(r, truth, *opts, {a->pred, a->gt, a->cls}, a->out);
+      spdlog::info("dsm compare: MAE {:.3f} m, RMSE {:.3f} m, median {:.3f} m, NMAD {:.3f} m, completeness {:.1f}%, "
+                   "within 1 m {:.1f}%, shift ({}, {}) px, bias {:.3f} m -> {}",
+                   r.mae_m, r.rmse_m, r.median_abs_m, r.nmad_m, 100 * r.completeness, 100 * r.within_fraction,
+                   r.shift_col_px, r.shift_row_px, r.bias_m, a->out);
+      return 0;
+    };
+  });
+}
+
+}  // namespace
+
+void AddDsmCommand(CLI::App& app, Runner* runner) {
+  CLI::App* dsm = app.add_subcommand("dsm", "DSM export and comparison with LiDAR truth");
+  dsm->require_subcommand(1);
+  AddExport(*dsm, runner);
+  AddCompare(*dsm, runner);
+}
+
+}  // namespace skyfall::cli
