@@ -56,6 +56,9 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   cmd->add_option("--resolution", *downscale, "Image downscale factor (1 = full resolution)")->capture_default_str();
   cmd->add_option("--lambda-opacity", opts->lambda_opacity, "Entropy opacity weight (0 = off)")->capture_default_str();
   cmd->add_option("--seed", opts->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--checkpoint-every", opts->checkpoint_interval, "Checkpoint interval [iterations]")->capture_default_str();
+  cmd->add_flag("--snapshots", opts->keep_snapshots,
+                "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       std::vector<Eigen::Vector3f> points, colours;

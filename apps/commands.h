@@ -16,5 +16,6 @@ void AddSynthCommand(CLI::App& app, Runner* runner);
 void AddSfmCommand(CLI::App& app, Runner* runner);
 void AddSplatCommand(CLI::App& app, Runner* runner);
 void AddDsmCommand(CLI::App& app, Runner* runner);
+void AddReportCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

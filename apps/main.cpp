@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddSfmCommand(app, &runner);
   skyfall::cli::AddSplatCommand(app, &runner);
   skyfall::cli::AddDsmCommand(app, &runner);
+  skyfall::cli::AddReportCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/format.h"
 #include "splat/losses.h"
+#include "splat/ply.h"
 
 #include <Eigen/Geometry>
 
@@ -433,6 +434,10 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       std::ostringstream state;
       state << rng;
       SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count});
+      if (o.keep_snapshots) {
+        WriteGaussiansPly((fs::path(checkpoint_dir) / "snapshots" / ("scene_" + std::to_string(it) + ".ply")).string(),
+                          cloud);
+      }
     }
     progress.Advance(static_cast<std::size_t>(it), "");
   }

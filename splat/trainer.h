@@ -55,6 +55,9 @@ struct TrainOptions {
   // Bookkeeping.
   int eval_interval = 250;        // held-out PSNR into the report
   int checkpoint_interval = 500;  // resumable state
+  // Also keep scene_<iteration>.ply in <checkpoint_dir>/snapshots at every
+  // checkpoint, so that DSM error can be measured against run time.
+  bool keep_snapshots = false;
   RasterOptions raster;
   void Check() const;  // throws Error("train", field, ...)
 };

@@ -19,7 +19,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare", "report"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -128,7 +128,7 @@ TEST(Cli, SynthIngestSfmChain) {
   // Training and rendering on the SfM result.
   const std::string splat = (dir / "splat").string();
   const CommandResult train = RunCommand(Skyfall() + " splat train --sfm " + (dir / "sfm").string() + " --out " +
-                                             splat + " --iterations 30 --resolution 2", dir);
+                                             splat + " --iterations 30 --resolution 2 --snapshots --checkpoint-every 15", dir);
   ASSERT_EQ(train.exit_code, 0) << train.err;
   const auto train_report = nlohmann::json::parse(std::ifstream(dir / "splat" / "train_report.json"));
   EXPECT_EQ(train_report["series"].back()["iteration"], 30);
@@ -153,6 +153,23 @@ TEST(Cli, SynthIngestSfmChain) {
   const auto cmp = nlohmann::json::parse(std::ifstream(dir / "cmp" / "report.json"));
   EXPECT_GT(cmp["completeness"].get<double>(), 0.5);
   EXPECT_TRUE(std::isfinite(cmp["mae_m"].get<double>()));
+
+  // Error against run time from the snapshots at iterations 15 and 30.
+  const CommandResult run_report = RunCommand(Skyfall() + " report --run " + splat + " --aoi " + aoi, dir);
+  ASSERT_EQ(run_report.exit_code, 0) << run_report.err;
+  std::ifstream csv(dir / "splat" / "error_vs_time.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "iteration,elapsed_s,loss,psnr_test_db,gaussians,dsm_mae_m,dsm_rmse_m");
+  int with_mae = 0, rows = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    const double mae = std::stod(line.substr(line.rfind(',', line.rfind(',') - 1) + 1));
+    with_mae += std::isfinite(mae);
+  }
+  EXPECT_EQ(rows, 2);      // iterations 0 and 30 (eval every 250, and the last)
+  EXPECT_EQ(with_mae, 1);  // the snapshot at 30 (15 is not in the series)
+  EXPECT_TRUE(fs::exists(dir / "splat" / "error_vs_time.png"));
 
   // One image only: a degenerate status with its own exit code, and a report.
   auto catalog = nlohmann::json::parse(std::ifstream(aoi));

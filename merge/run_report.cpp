@@ -1,0 +1,137 @@
+#include "merge/run_report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "splat/ply.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double NumberOrNaN(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j.at(key).is_number() ? j.at(key).get<double>() : kNaN;
+}
+
+// One curve on the plot: y values scaled into the plot box.
+void DrawCurve(cv::Mat& img, const std::vector<RunPoint>& pts, double RunPoint::*field, double x_max, double y_min,
+               double y_max, const cv::Scalar& colour, const cv::Rect& box) {
+  cv::Point prev(-1, -1);
+  for (const RunPoint& p : pts) {
+    const double y = p.*field;
+    if (!std::isfinite(y)) continue;
+    const cv::Point q(box.x + static_cast<int>(p.elapsed_s / x_max * box.width),
+                      box.y + box.height - static_cast<int>((y - y_min) / (y_max - y_min) * box.height));
+    if (prev.x >= 0) cv::line(img, prev, q, colour, 2, cv::LINE_AA);
+    cv::circle(img, q, 3, colour, cv::FILLED, cv::LINE_AA);
+    prev = q;
+  }
+}
+
+void Range(const std::vector<RunPoint>& pts, double RunPoint::*field, double* lo, double* hi) {
+  *lo = std::numeric_limits<double>::infinity();
+  *hi = -*lo;
+  for (const RunPoint& p : pts)
+    if (std::isfinite(p.*field)) {
+      *lo = std::min(*lo, p.*field);
+      *hi = std::max(*hi, p.*field);
+    }
+  if (!(*lo <= *hi)) *lo = 0, *hi = 1;
+  const double pad = std::max(1e-3, 0.1 * (*hi - *lo));
+  *lo -= pad;
+  *hi += pad;
+}
+
+}  // namespace
+
+std::vector<RunPoint> EvaluateRun(const std::string& run_dir, const AoiCatalog& catalog, const DsmCompareOptions& o) {
+  const fs::path dir(run_dir);
+  const std::string report_path = (dir / "train_report.json").string();
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(ReadTextFile(report_path));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("report", report_path, std::string("not valid JSON: ") + e.what());
+  }
+  std::vector<RunPoint> out;
+  for (const auto& s : doc.at("series")) {
+    RunPoint p;
+    p.iteration = s.at("iteration").get<int>();
+    p.elapsed_s = NumberOrNaN(s, "elapsed_s");
+    p.loss = NumberOrNaN(s, "loss");
+    p.psnr_test_db = NumberOrNaN(s, "psnr_test_db");
+    p.gaussians = NumberOrNaN(s, "gaussians");
+    p.dsm_mae_m = p.dsm_rmse_m = kNaN;
+    out.push_back(p);
+  }
+  if (!catalog.truth) return out;
+  DsmGrid truth = ReadDsm(catalog.truth->dsm_path, catalog.truth->dsm_txt_path, catalog.truth->epsg);
+  std::vector<float> cls;
+  if (!catalog.truth->cls_path.empty()) cls = ReadFloatBand(catalog.truth->cls_path).values;
+  for (RunPoint& p : out) {
+    const fs::path snapshot = dir / "checkpoints" / "snapshots" / ("scene_" + std::to_string(p.iteration) + ".ply");
+    if (!fs::exists(snapshot)) continue;
+    DsmGrid pred = GridOfTruth(*catalog.truth);
+    RasterizeDsm(ReadGaussiansPly(snapshot.string()), catalog.enu_origin, DsmExportOptions{}, &pred);
+    const DsmComparison c = CompareDsm(pred, truth, cls.empty() ? nullptr : &cls, o);
+    p.dsm_mae_m = c.mae_m;
+    p.dsm_rmse_m = c.rmse_m;
+  }
+  return out;
+}
+
+void WriteRunReport(const std::vector<RunPoint>& pts, const std::string& out_dir) {
+  const fs::path dir(out_dir);
+  std::string csv = "iteration,elapsed_s,loss,psnr_test_db,gaussians,dsm_mae_m,dsm_rmse_m\n";
+  for (const RunPoint& p : pts) {
+    char line[256];
+    std::snprintf(line, sizeof(line), "%d,%.3f,%.6f,%.4f,%.0f,%.4f,%.4f\n", p.iteration, p.elapsed_s, p.loss,
+                  p.psnr_test_db, p.gaussians, p.dsm_mae_m, p.dsm_rmse_m);
+    csv += line;
+  }
+  WriteFileAtomic((dir / "error_vs_time.csv").string(), csv);
+
+  constexpr int kW = 800, kH = 420;
+  const cv::Rect box(70, 40, kW - 140, kH - 100);
+  cv::Mat img(kH, kW, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::rectangle(img, box, cv::Scalar(0, 0, 0));
+  double x_max = 1;
+  for (const RunPoint& p : pts)
+    if (std::isfinite(p.elapsed_s)) x_max = std::max(x_max, p.elapsed_s);
+  double mae_lo, mae_hi, psnr_lo, psnr_hi;
+  Range(pts, &RunPoint::dsm_mae_m, &mae_lo, &mae_hi);
+  Range(pts, &RunPoint::psnr_test_db, &psnr_lo, &psnr_hi);
+  const cv::Scalar red(40, 40, 200), blue(180, 90, 30), black(0, 0, 0);
+  DrawCurve(img, pts, &RunPoint::dsm_mae_m, x_max, mae_lo, mae_hi, red, box);
+  DrawCurve(img, pts, &RunPoint::psnr_test_db, x_max, psnr_lo, psnr_hi, blue, box);
+  auto text = [&](const std::string& s, cv::Point at, const cv::Scalar& c) {
+    cv::putText(img, s, at, cv::FONT_HERSHEY_SIMPLEX, 0.42, c, 1, cv::LINE_AA);
+  };
+  for (int k = 0; k <= 4; ++k) {
+    const int y = box.y + box.height - k * box.height / 4;
+    char a[32], b[32], t[32];
+    std::snprintf(a, sizeof(a), "%.2f", mae_lo + (mae_hi - mae_lo) * k / 4);
+    std::snprintf(b, sizeof(b), "%.1f", psnr_lo + (psnr_hi - psnr_lo) * k / 4);
+    text(a, {box.x - 50, y + 4}, red);
+    text(b, {box.x + box.width + 8, y + 4}, blue);
+    std::snprintf(t, sizeof(t), "%.0f", x_max * k / 4);
+    text(t, {box.x + k * box.width / 4 - 10, box.y + box.height + 18}, black);
+  }
+  text("elapsed seconds", {box.x + box.width / 2 - 50, kH - 20}, black);
+  text("DSM MAE [m]", {4, 25}, red);
+  text("held-out PSNR [dB]", {kW - 160, 25}, blue);
+  cv::Mat rgb;
+  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+  WriteBytePng((dir / "error_vs_time.png").string(), rgb.cols, rgb.rows, 3, rgb.ptr<std::uint8_t>());
+}
+
+}  // namespace skyfall

@@ -1,0 +1,33 @@
+// Error against run time: joins a training run's series (train_report.json)
+// with DSM evaluations of its snapshots, and plots both against elapsed
+// seconds.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aoi.h"
+#include "merge/dsm.h"
+
+namespace skyfall {
+
+struct RunPoint {
+  int iteration = 0;
+  double elapsed_s = 0;
+  double loss = 0;          // NaN when unknown
+  double psnr_test_db = 0;  // NaN when unknown
+  double gaussians = 0;
+  double dsm_mae_m = 0;     // NaN when the iteration has no snapshot
+  double dsm_rmse_m = 0;
+};
+
+// Reads DIR/train_report.json and, when `catalog` has a truth grid, exports
+// and compares every DIR/checkpoints/snapshots/scene_<iteration>.ply.
+std::vector<RunPoint> EvaluateRun(const std::string& run_dir, const AoiCatalog& catalog,
+                                  const DsmCompareOptions& options);
+
+// Writes error_vs_time.csv and error_vs_time.png (MAE and PSNR against
+// elapsed seconds) into `out_dir`.
+void WriteRunReport(const std::vector<RunPoint>& points, const std::string& out_dir);
+
+}  // namespace skyfall
