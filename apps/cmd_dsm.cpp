@@ -41,11 +41,7 @@ void AddExport(CLI::App& dsm, Runner* runner) {
       DsmGrid grid;
       grid.epsg = a->epsg ? a->epsg : catalog.epsg;
       if (!a->grid_txt.empty()) {
-        const DsmTxt t = ParseDsmTxt(ReadTextFile(a->grid_txt), a->grid_txt);
-        grid.width_px = grid.height_px = t.size_px;
-        grid.gsd_m = t.gsd_m;
-        grid.upper_left_easting_m = t.easting_m;
-        grid.upper_left_northing_m = t.northing_m + t.size_px * t.gsd_m;
+        grid = GridOfDsmTxt(ParseDsmTxt(ReadTextFile(a->grid_txt), a->grid_txt), grid.epsg);
       } else if (!a->bounds.empty()) {
         if (!(a->bounds[2] > a->bounds[0] && a->bounds[3] > a->bounds[1]) || !(a->gsd_m > 0)) {
           throw Error("dsm", "--bounds", "needs min < max on both axes and --gsd > 0");

@@ -96,6 +96,17 @@ DsmGrid GridOfTruth(const TruthGrid& t) {
   return g;
 }
 
+DsmGrid GridOfDsmTxt(const DsmTxt& t, int epsg) {
+  DsmGrid g;
+  g.width_px = g.height_px = t.size_px;
+  g.gsd_m = t.gsd_m;
+  g.upper_left_easting_m = t.easting_m;
+  g.upper_left_northing_m = t.northing_m + t.size_px * t.gsd_m;
+  g.epsg = epsg;
+  g.height_m.assign(static_cast<size_t>(g.width_px) * g.height_px, kNoData);
+  return g;
+}
+
 DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) {
   const FloatBand band = ReadFloatBand(path);
   DsmGrid g;
@@ -111,11 +122,9 @@ DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) 
       throw Error("dsm", grid_txt + ": size", "is " + std::to_string(txt.size_px) + " but " + path + " is " +
                                                   std::to_string(g.width_px) + "x" + std::to_string(g.height_px));
     }
-    g.upper_left_easting_m = txt.easting_m;
-    g.upper_left_northing_m = txt.northing_m + txt.size_px * txt.gsd_m;
-    g.gsd_m = txt.gsd_m;
-    g.epsg = epsg;
-    return g;
+    DsmGrid grid = GridOfDsmTxt(txt, epsg);
+    grid.height_m = std::move(g.height_m);
+    return grid;
   }
   GDALAllRegister();
   GDALDatasetH ds = GDALOpen(path.c_str(), GA_ReadOnly);

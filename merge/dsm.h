@@ -8,6 +8,7 @@
 
 #include "core/aoi.h"
 #include "core/gaussians.h"
+#include "tiler/dfc2019.h"
 
 namespace skyfall {
 
@@ -27,6 +28,8 @@ struct DsmGrid {
 
 // The truth grid of an AOI catalog, without data.
 DsmGrid GridOfTruth(const TruthGrid& truth);
+// The grid a DFC2019 _DSM.txt describes (lower-left corner, size, gsd), without data.
+DsmGrid GridOfDsmTxt(const DsmTxt& txt, int epsg);
 
 // Reads a DSM GeoTIFF. A raster without georeferencing (the DFC2019 truth)
 // needs `grid_txt`, its _DSM.txt (lower-left convention), and `epsg`.
