@@ -8,6 +8,7 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "core/atomic_file.h"
+#include "core/error.h"
 #include "splat/dataset.h"
 #include "splat/ply.h"
 #include "splat/trainer.h"
@@ -40,7 +41,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
                    {"densification", o.densify_from <= o.densify_until},
                    {"appearance_model", false},
-                   {"pseudo_camera_depth", false}}},
+                   {"pseudo_camera_depth", o.pseudo_interval > 0}}},
       {"series", series}};
   return doc.dump(2) + "\n";
 }
@@ -57,6 +58,14 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   cmd->add_option("--lambda-opacity", opts->lambda_opacity, "Entropy opacity weight (0 = off)")->capture_default_str();
   cmd->add_option("--seed", opts->seed, "Random seed")->capture_default_str();
   cmd->add_option("--checkpoint-every", opts->checkpoint_interval, "Checkpoint interval [iterations]")->capture_default_str();
+  auto prior = std::make_shared<std::string>("surface");
+  cmd->add_option("--depth-prior", *prior,
+                  "Pseudo-camera depth prior: 'surface' (built in: the SfM points' height field), 'none', or "
+                  "'cmd:COMMAND' with {in} (view PNG) and {out} (depth TIFF to write)")
+      ->capture_default_str();
+  opts->pseudo_interval = 4;
+  cmd->add_option("--pseudo-every", opts->pseudo_interval, "Iterations between pseudo views (0 = off)")->capture_default_str();
+  cmd->add_option("--lambda-depth", opts->lambda_depth, "Depth loss weight")->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
@@ -67,9 +76,19 @@ void AddTrain(CLI::App& splat, Runner* runner) {
       spdlog::info("splat train: {} views ({} held out), {} SfM points, {} iterations", views.size(),
                    std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
                    points.size(), opts->iterations);
+      std::unique_ptr<DepthPrior> depth_prior;
+      if (*prior == "surface") {
+        depth_prior = std::make_unique<SurfaceDepthPrior>(points, 2.0);
+      } else if (prior->rfind("cmd:", 0) == 0) {
+        fs::create_directories(fs::path(*out) / "pseudo");
+        depth_prior = std::make_unique<CommandDepthPrior>(prior->substr(4), (fs::path(*out) / "pseudo").string());
+      } else if (*prior != "none") {
+        throw Error("splat", "--depth-prior", "'" + *prior + "' is not 'surface', 'none' or 'cmd:...'");
+      }
+      if (!depth_prior) opts->pseudo_interval = 0;
       ConsoleProgress progress;
       const TrainResult r = TrainGaussians(*opts, InitializeFromPoints(points, colours), views,
-                                           (fs::path(*out) / "checkpoints").string(), progress);
+                                           (fs::path(*out) / "checkpoints").string(), progress, depth_prior.get());
       WriteGaussiansPly((fs::path(*out) / "scene.ply").string(), r.cloud);
       WriteFileAtomic((fs::path(*out) / "train_report.json").string(), TrainReportJson(r, *opts, *downscale, views.size()));
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;

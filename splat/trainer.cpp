@@ -292,6 +292,9 @@ void TrainOptions::Check() const {
   need(max_scale_m > 0, "max_scale_m", max_scale_m);
   need(eval_interval >= 1, "eval_interval", eval_interval);
   need(opacity_reg_from >= 0, "opacity_reg_from", opacity_reg_from);
+  need(lambda_depth >= 0, "lambda_depth", lambda_depth);
+  need(pseudo_interval >= 0, "pseudo_interval", pseudo_interval);
+  need(pseudo.size_px >= 16 && pseudo.radius_m > 0 && pseudo.fov_deg > 0 && pseudo.fov_deg < 170, "pseudo", pseudo.size_px);
   need(checkpoint_interval >= 1, "checkpoint_interval", checkpoint_interval);
   raster.Check();
 }
@@ -342,7 +345,7 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
 }
 
 TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
-                           const std::string& checkpoint_dir, Progress& progress) {
+                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior) {
   o.Check();
   Stopwatch clock;
   TrainResult result;
@@ -364,6 +367,9 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   // taken from the initial cloud (the caller passes the same one when
   // resuming), so a resumed run uses the same value.
   const double extent = SceneExtent(cloud);
+  Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();
+  for (const auto& p : cloud.means) scene_centre += p.cast<double>();
+  scene_centre /= std::max<std::size_t>(1, cloud.size());
   int start = 0;
   DensifyStats stats;
   stats.Reset(cloud.size());
@@ -402,6 +408,23 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       std::vector<float> d_op;
       loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
       for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
+    }
+    if (depth_prior && o.pseudo_interval > 0 && it % o.pseudo_interval == 0) {
+      // Pseudo view: the same sample for the same iteration, so resumes match.
+      const PinholeCamera pc = SamplePseudoCamera(o.pseudo, scene_centre, static_cast<std::uint64_t>(it));
+      const RenderOutput<float> pr = RenderGaussians(cloud, pc, o.raster);
+      DepthMap prior = depth_prior->Estimate(pc, pr.rgb);
+      for (std::size_t k = 0; k < prior.valid.size(); ++k) prior.valid[k] &= pr.alpha[k] > 0.5f;
+      std::vector<float> d_depth;
+      loss += o.lambda_depth * PearsonDepthLoss(pr.depth, prior.depth, prior.valid, &d_depth);
+      for (float& v : d_depth) v *= static_cast<float>(o.lambda_depth);
+      const GaussianGradients<float> gd = BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth);
+      for (std::size_t i = 0; i < cloud.size(); ++i) {
+        g.d.means[i] += gd.d.means[i];
+        g.d.log_scales[i] += gd.d.log_scales[i];
+        g.d.rotations[i] += gd.d.rotations[i];
+        g.d.opacity_logits[i] += gd.d.opacity_logits[i];
+      }
     }
     loss_sum += loss;
     ++loss_count;

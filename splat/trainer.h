@@ -12,6 +12,7 @@
 #include "core/gaussians.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
+#include "splat/depth_prior.h"
 #include "splat/rasterizer.h"
 
 namespace skyfall {
@@ -58,6 +59,11 @@ struct TrainOptions {
   // Also keep scene_<iteration>.ply in <checkpoint_dir>/snapshots at every
   // checkpoint, so that DSM error can be measured against run time.
   bool keep_snapshots = false;
+  // Pseudo-camera depth supervision (needs a DepthPrior): every
+  // `pseudo_interval` iterations a pseudo view adds lambda_depth * (1 - |r|).
+  double lambda_depth = 0.5;
+  int pseudo_interval = 0;  // 0 disables
+  PseudoCameraOptions pseudo;
   RasterOptions raster;
   void Check() const;  // throws Error("train", field, ...)
 };
@@ -86,7 +92,8 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
 // Trains `cloud` on the views. With a non-empty `checkpoint_dir`, state is
 // saved there every checkpoint_interval iterations and a matching checkpoint
 // is resumed from.
+// `depth_prior` may be null (no depth supervision).
 TrainResult TrainGaussians(const TrainOptions& options, GaussianCloud cloud, const std::vector<TrainView>& views,
-                           const std::string& checkpoint_dir, Progress& progress);
+                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior = nullptr);
 
 }  // namespace skyfall

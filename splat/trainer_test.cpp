@@ -129,7 +129,15 @@ TEST(Trainer, DensificationGrowsAndPrunes) {
 TEST(Trainer, KilledRunResumesBitIdentically) {
   const Fixture f = MakeFixture(4);
   NullProgress progress;
-  const TrainResult straight = TrainGaussians(ShortRun(90), f.init, f.views, "", progress);
+  // With pseudo-camera depth supervision on, which must also resume exactly.
+  SurfaceDepthPrior prior(f.init.means, 4.0);
+  const auto run = [&](const std::string& dir, Progress& p) {
+    TrainOptions o = ShortRun(90);
+    o.pseudo_interval = 7;
+    o.pseudo.size_px = 32;
+    return TrainGaussians(o, f.init, f.views, dir, p, &prior);
+  };
+  const TrainResult straight = run("", progress);
   const fs::path ck = ScratchDir("ck");
   // The same run killed right after its checkpoint at iteration 60...
   struct Killer : Progress {
@@ -137,9 +145,9 @@ TEST(Trainer, KilledRunResumesBitIdentically) {
       if (done == 60) throw std::runtime_error("killed");
     }
   } killer;
-  EXPECT_THROW(TrainGaussians(ShortRun(90), f.init, f.views, ck.string(), killer), std::runtime_error);
+  EXPECT_THROW(run(ck.string(), killer), std::runtime_error);
   // ...and restarted.
-  const TrainResult resumed = TrainGaussians(ShortRun(90), f.init, f.views, ck.string(), progress);
+  const TrainResult resumed = run(ck.string(), progress);
   EXPECT_EQ(resumed.start_iteration, 60);
   ASSERT_EQ(resumed.cloud.size(), straight.cloud.size());
   for (size_t i = 0; i < straight.cloud.size(); ++i) {

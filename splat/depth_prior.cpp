@@ -1,0 +1,170 @@
+#include "splat/depth_prior.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <random>
+
+#include "core/error.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+
+SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m) : cell_(cell_m) {
+  if (points.empty()) throw Error("depth_prior", "points", "no SfM points to fit a surface to");
+  if (!(cell_m > 0)) throw Error("depth_prior", "cell_m", "must be > 0");
+  Eigen::Vector3f lo = points[0], hi = points[0];
+  for (const auto& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  x0_ = lo.x();
+  y0_ = lo.y();
+  nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell_m)) + 1);
+  ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell_m)) + 1);
+  std::vector<std::vector<float>> cells(static_cast<size_t>(nx_) * ny_);
+  for (const auto& p : points) {
+    const int i = static_cast<int>((p.x() - x0_) / cell_), j = static_cast<int>((p.y() - y0_) / cell_);
+    cells[static_cast<size_t>(j) * nx_ + i].push_back(p.z());
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  height_.assign(cells.size(), nan);
+  for (size_t k = 0; k < cells.size(); ++k) {
+    auto& c = cells[k];
+    if (c.empty()) continue;
+    std::nth_element(c.begin(), c.begin() + c.size() / 2, c.end());
+    height_[k] = c[c.size() / 2];
+  }
+  // Fill holes from known neighbours, ring by ring.
+  for (int pass = 0; pass < nx_ + ny_; ++pass) {
+    std::vector<float> next = height_;
+    bool missing = false;
+    for (int j = 0; j < ny_; ++j)
+      for (int i = 0; i < nx_; ++i) {
+        if (std::isfinite(height_[static_cast<size_t>(j) * nx_ + i])) continue;
+        double sum = 0;
+        int n = 0;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const int a = i + di, b = j + dj;
+            if (a < 0 || b < 0 || a >= nx_ || b >= ny_) continue;
+            const float v = height_[static_cast<size_t>(b) * nx_ + a];
+            if (std::isfinite(v)) {
+              sum += v;
+              ++n;
+            }
+          }
+        if (n) next[static_cast<size_t>(j) * nx_ + i] = static_cast<float>(sum / n);
+        else missing = true;
+      }
+    height_ = std::move(next);
+    if (!missing) break;
+  }
+  min_z_ = *std::min_element(height_.begin(), height_.end());
+  max_z_ = *std::max_element(height_.begin(), height_.end());
+}
+
+double SurfaceDepthPrior::HeightAt(double x, double y) const {
+  const int i = static_cast<int>(std::floor((x - x0_) / cell_)), j = static_cast<int>(std::floor((y - y0_) / cell_));
+  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return std::numeric_limits<double>::quiet_NaN();
+  return height_[static_cast<size_t>(j) * nx_ + i];
+}
+
+DepthMap SurfaceDepthPrior::Estimate(const PinholeCamera& cam, const std::vector<float>&) {
+  const int W = cam.width_px, H = cam.height_px;
+  DepthMap out;
+  out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
+  out.valid.assign(out.depth.size(), 0);
+  const Eigen::Vector3d c = cam.Centre();
+  const Eigen::Matrix3d Rt = cam.cam_from_world_rotation.transpose();
+  const double step = 0.5 * cell_;
+  for (int r = 0; r < H; ++r)
+    for (int col = 0; col < W; ++col) {
+      const double yn = (r - cam.cy) / cam.fy;
+      const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);  // unit camera z
+      if (d.z() >= 0) continue;  // looking up: no surface
+      // March from the top of the surface's height range downwards.
+      double t = std::max(0.0, (max_z_ + 1.0 - c.z()) / d.z());
+      const double t_end = (min_z_ - 1.0 - c.z()) / d.z();
+      // At most half a cell horizontally and vertically per step.
+      const double dt = step / std::max(d.head<2>().norm(), std::abs(d.z()));
+      auto below = [&](double tt) {
+        const Eigen::Vector3d p = c + tt * d;
+        const double h = HeightAt(p.x(), p.y());
+        return std::isfinite(h) && p.z() <= h;
+      };
+      for (double prev = t; t <= t_end; prev = t, t += dt) {
+        if (!below(t)) continue;
+        // Bisection between the last sample above and the first below.
+        double a = prev, b = t;
+        for (int k = 0; k < 12; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
+        out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(b);  // camera depth (d has unit camera z)
+        out.valid[static_cast<size_t>(r) * W + col] = 1;
+        break;
+      }
+    }
+  return out;
+}
+
+CommandDepthPrior::CommandDepthPrior(std::string command, std::string work_dir)
+    : command_(std::move(command)), work_dir_(std::move(work_dir)) {
+  if (command_.find("{in}") == std::string::npos || command_.find("{out}") == std::string::npos) {
+    throw Error("depth_prior", "command", "must contain {in} and {out}: '" + command_ + "'");
+  }
+}
+
+DepthMap CommandDepthPrior::Estimate(const PinholeCamera& cam, const std::vector<float>& rgb) {
+  namespace fs = std::filesystem;
+  const int W = cam.width_px, H = cam.height_px;
+  const std::string in = (fs::path(work_dir_) / ("pseudo_" + std::to_string(calls_) + ".png")).string();
+  const std::string out = (fs::path(work_dir_) / ("pseudo_" + std::to_string(calls_) + "_depth.tif")).string();
+  ++calls_;
+  std::vector<std::uint8_t> bytes(rgb.size());
+  for (size_t k = 0; k < rgb.size(); ++k) bytes[k] = static_cast<std::uint8_t>(std::clamp(rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+  WriteBytePng(in, W, H, 3, bytes.data());
+  std::string cmd = command_;
+  cmd.replace(cmd.find("{in}"), 4, "'" + in + "'");
+  cmd.replace(cmd.find("{out}"), 5, "'" + out + "'");
+  if (std::system(cmd.c_str()) != 0) throw Error("depth_prior", command_, "failed on " + in);
+  const FloatBand band = ReadFloatBand(out);
+  if (band.width_px != W || band.height_px != H) {
+    throw Error("depth_prior", out, "is " + std::to_string(band.width_px) + "x" + std::to_string(band.height_px) +
+                                        ", the view is " + std::to_string(W) + "x" + std::to_string(H));
+  }
+  DepthMap m;
+  m.depth = band.values;
+  m.valid.resize(m.depth.size());
+  for (size_t k = 0; k < m.depth.size(); ++k) m.valid[k] = std::isfinite(m.depth[k]) ? 1 : 0;
+  std::error_code ec;
+  fs::remove(in, ec);
+  fs::remove(out, ec);
+  return m;
+}
+
+PinholeCamera SamplePseudoCamera(const PseudoCameraOptions& o, const Eigen::Vector3d& centre, std::uint64_t sample) {
+  std::mt19937_64 rng(0x5EED0000ull + sample);
+  std::normal_distribution<double> n(0.0, o.look_at_sigma_m);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const Eigen::Vector3d target = centre + Eigen::Vector3d(n(rng), n(rng), 0.0);
+  const double az = 2 * M_PI * u(rng);
+  const double el = (o.min_elevation_deg + (o.max_elevation_deg - o.min_elevation_deg) * u(rng)) * M_PI / 180.0;
+  const Eigen::Vector3d eye =
+      target + o.radius_m * Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
+  const Eigen::Vector3d f = (target - eye).normalized();
+  const Eigen::Vector3d right = f.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d down = f.cross(right);
+  PinholeCamera cam;
+  cam.cam_from_world_rotation.row(0) = right.transpose();
+  cam.cam_from_world_rotation.row(1) = down.transpose();
+  cam.cam_from_world_rotation.row(2) = f.transpose();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  cam.fx = cam.fy = 0.5 * o.size_px / std::tan(0.5 * o.fov_deg * M_PI / 180.0);
+  cam.cx = cam.cy = 0.5 * (o.size_px - 1);
+  cam.width_px = cam.height_px = o.size_px;
+  return cam;
+}
+
+}  // namespace skyfall

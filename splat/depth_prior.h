@@ -1,0 +1,73 @@
+// Depth priors for pseudo-camera supervision (Skyfall-GS uses the monocular
+// estimator MoGe, whose weights cannot be had here). A prior maps a rendered
+// pseudo view to a depth map; only its correlation with the rendered depth
+// is used (1 - |Pearson r|), so any affine depth or disparity works.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/pinhole.h"
+
+namespace skyfall {
+
+struct DepthMap {
+  std::vector<float> depth;           // per pixel, any affine scale
+  std::vector<unsigned char> valid;   // 0 where the prior has no answer
+};
+
+class DepthPrior {
+ public:
+  virtual ~DepthPrior() = default;
+  // `rgb`: the rendered view, 3 floats per pixel in [0, 1].
+  virtual DepthMap Estimate(const PinholeCamera& camera, const std::vector<float>& rgb) = 0;
+};
+
+// Built-in, weight-free prior: the depth of a height field fitted to the SfM
+// tie points (median height per cell, holes filled from their neighbours),
+// ray-cast from the pseudo camera. It knows the coarse surface, not detail.
+class SurfaceDepthPrior final : public DepthPrior {
+ public:
+  SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m);
+  DepthMap Estimate(const PinholeCamera& camera, const std::vector<float>& rgb) override;
+  // Height of the fitted surface [m in the points' frame]; NaN outside.
+  double HeightAt(double x_m, double y_m) const;
+
+ private:
+  double x0_ = 0, y0_ = 0, cell_ = 1;
+  int nx_ = 0, ny_ = 0;
+  std::vector<float> height_;
+  float min_z_ = 0, max_z_ = 0;
+};
+
+// External estimator: runs `command` with {in} replaced by a PNG of the view
+// and {out} by the path of a float32 GeoTIFF/TIFF depth map it must write
+// (same size; non-finite = invalid). E.g. a user's MoGe wrapper script.
+class CommandDepthPrior final : public DepthPrior {
+ public:
+  CommandDepthPrior(std::string command, std::string work_dir);
+  DepthMap Estimate(const PinholeCamera& camera, const std::vector<float>& rgb) override;
+
+ private:
+  std::string command_;
+  std::string work_dir_;
+  int calls_ = 0;
+};
+
+// Pseudo cameras for depth supervision: looking at points near the scene
+// centre from `radius_m`, at elevations in [min, max] degrees and random
+// azimuths, with a 60 degree field of view (paper: 80 -> 45 deg, radii 300 -> 250).
+struct PseudoCameraOptions {
+  double radius_m = 250.0;
+  double look_at_sigma_m = 64.0;
+  double min_elevation_deg = 45.0;
+  double max_elevation_deg = 80.0;
+  int size_px = 192;
+  double fov_deg = 60.0;
+};
+PinholeCamera SamplePseudoCamera(const PseudoCameraOptions& options, const Eigen::Vector3d& scene_centre,
+                                 std::uint64_t sample);
+
+}  // namespace skyfall

@@ -1,0 +1,80 @@
+#include "splat/depth_prior.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "tests/test_support.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+TEST(DepthPrior, SurfaceOfAFlatGroundGivesRayPlaneDepths) {
+  // Points on z = 5 m over 200 m x 200 m, with a hole in the middle.
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> u(-100, 100);
+  std::vector<Eigen::Vector3f> pts;
+  while (pts.size() < 4000) {
+    const float x = u(rng), y = u(rng);
+    if (std::abs(x) < 10 && std::abs(y) < 10) continue;
+    pts.emplace_back(x, y, 5.0f);
+  }
+  SurfaceDepthPrior prior(pts, 2.0);
+  EXPECT_NEAR(prior.HeightAt(0.5, 0.5), 5.0, 1e-6);  // the hole is filled
+  PseudoCameraOptions o;
+  o.look_at_sigma_m = 10;
+  o.radius_m = 120;  // the view stays over the 200 m square
+  o.size_px = 48;
+  const PinholeCamera cam = SamplePseudoCamera(o, Eigen::Vector3d(0, 0, 5), 7);
+  const DepthMap m = prior.Estimate(cam, {});
+  int valid = 0;
+  const Eigen::Vector3d c = cam.Centre();
+  for (int r = 0; r < cam.height_px; ++r)
+    for (int col = 0; col < cam.width_px; ++col) {
+      const size_t p = static_cast<size_t>(r) * cam.width_px + col;
+      if (!m.valid[p]) continue;
+      ++valid;
+      const double yn = (r - cam.cy) / cam.fy;
+      const Eigen::Vector3d d = cam.cam_from_world_rotation.transpose() * Eigen::Vector3d((col - cam.cx) / cam.fx, yn, 1);
+      const double t = (5.0 - c.z()) / d.z();  // exact ray-plane depth
+      EXPECT_NEAR(m.depth[p], t, 0.01) << col << "," << r;
+    }
+  EXPECT_GT(valid, cam.width_px * cam.height_px / 2);
+}
+
+TEST(DepthPrior, PseudoCamerasLookDownAtTheSceneFromTheRequestedRange) {
+  const PseudoCameraOptions o;
+  for (std::uint64_t s = 0; s < 20; ++s) {
+    const PinholeCamera cam = SamplePseudoCamera(o, Eigen::Vector3d(10, -20, 3), s);
+    const Eigen::Vector3d f = cam.cam_from_world_rotation.row(2).transpose();
+    const double elevation = std::asin(-f.z()) * 180 / M_PI;
+    EXPECT_GE(elevation, o.min_elevation_deg - 1e-9);
+    EXPECT_LE(elevation, o.max_elevation_deg + 1e-9);
+    EXPECT_NEAR(cam.Centre().z() - 3.0, o.radius_m * std::sin(elevation * M_PI / 180), 1e-6);
+  }
+}
+
+TEST(DepthPrior, ExternalCommandIsPluggable) {
+  // Any program that writes a depth raster for the view works; here GDAL
+  // turns the view's red channel into the "depth".
+  const fs::path dir = ScratchDir("cmd");
+  CommandDepthPrior prior("gdal_translate -q -ot Float32 -b 1 {in} {out}", dir.string());
+  PinholeCamera cam;
+  cam.width_px = 8;
+  cam.height_px = 6;
+  std::vector<float> rgb(8 * 6 * 3, 0.0f);
+  for (int k = 0; k < 8 * 6; ++k) rgb[3 * k] = k / 100.0f;
+  const DepthMap m = prior.Estimate(cam, rgb);
+  ASSERT_EQ(m.depth.size(), 48u);
+  EXPECT_FLOAT_EQ(m.depth[10], std::round(0.10f * 255.0f));
+  EXPECT_EQ(m.valid[0], 1);
+  EXPECT_THROW(CommandDepthPrior("echo no placeholders", dir.string()), Error);
+  CommandDepthPrior failing("false {in} {out}", dir.string());
+  EXPECT_THROW(failing.Estimate(cam, rgb), Error);
+}
+
+}  // namespace
+}  // namespace skyfall
