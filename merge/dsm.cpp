@@ -148,29 +148,8 @@ DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) 
 }
 
 void WriteDsm(const std::string& path, const DsmGrid& g) {
-  GDALAllRegister();
-  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", g.width_px, g.height_px, 1, GDT_Float32, nullptr);
-  double gt[6] = {g.upper_left_easting_m, g.gsd_m, 0, g.upper_left_northing_m, 0, -g.gsd_m};
-  GDALSetGeoTransform(mem, gt);
-  OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
-  OSRImportFromEPSG(srs, g.epsg);
-  GDALSetSpatialRef(mem, srs);
-  OSRDestroySpatialReference(srs);
-  GDALRasterBandH band = GDALGetRasterBand(mem, 1);
-  GDALSetRasterNoDataValue(band, std::numeric_limits<double>::quiet_NaN());
-  GDALRasterIO(band, GF_Write, 0, 0, g.width_px, g.height_px, const_cast<float*>(g.height_m.data()), g.width_px,
-               g.height_px, GDT_Float32, 0, 0);
-  const std::string tmp = path + ".tmp.tif";
-  std::error_code ec;
-  if (std::filesystem::path(path).has_parent_path()) std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
-  const char* options[] = {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", nullptr};
-  GDALDatasetH cog = GDALCreateCopy(GDALGetDriverByName("COG"), tmp.c_str(), mem, FALSE,
-                                    const_cast<char**>(options), nullptr, nullptr);
-  GDALClose(mem);
-  if (!cog) throw Error("dsm", path, std::string("write failed: ") + CPLGetLastErrorMsg());
-  GDALClose(cog);
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw Error("dsm", path, "rename failed: " + ec.message());
+  WriteFloatCog(path, g.width_px, g.height_px, g.height_m.data(),
+                {g.upper_left_easting_m, g.upper_left_northing_m, g.gsd_m, g.epsg});
 }
 
 void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,

@@ -332,6 +332,15 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   return result;
 }
 
+AoiIngestResult FailedAoi(const std::string& aoi, const std::string& message) {
+  AoiIngestResult r;
+  r.aoi = aoi;
+  r.report.stage = "ingest";
+  r.report.status = StageStatus::kFailed;
+  r.report.message = message;
+  return r;
+}
+
 double ParseDsmField(const std::string& token, const std::string& path, const char* field) {
   char* end = nullptr;
   const double v = std::strtod(token.c_str(), &end);
@@ -406,12 +415,7 @@ IngestResult RunIngest(const IngestOptions& options, const std::string& root,
   IngestResult result;
   for (const std::string& wanted : options.aois) {
     if (!found.count(wanted)) {
-      AoiIngestResult missing;
-      missing.aoi = wanted;
-      missing.report.stage = "ingest";
-      missing.report.status = StageStatus::kFailed;
-      missing.report.message = "ingest: " + wanted + ": no images of this AOI under " + root;
-      result.aois.push_back(missing);
+      result.aois.push_back(FailedAoi(wanted, "ingest: " + wanted + ": no images of this AOI under " + root));
     }
   }
   for (const auto& [aoi, files] : found) {
@@ -422,13 +426,8 @@ IngestResult RunIngest(const IngestOptions& options, const std::string& root,
     try {
       result.aois.push_back(IngestAoi(aoi, files, root_abs, out_dir, options, progress));
     } catch (const Error& e) {
-      AoiIngestResult failed;
-      failed.aoi = aoi;
-      failed.report.stage = "ingest";
-      failed.report.status = StageStatus::kFailed;
-      failed.report.message = e.what();
       progress.Warn(std::string("skipping AOI: ") + e.what());
-      result.aois.push_back(failed);
+      result.aois.push_back(FailedAoi(aoi, e.what()));
     }
   }
   return result;

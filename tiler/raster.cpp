@@ -1,6 +1,10 @@
 #include "tiler/raster.h"
 
+#include <ogr_srs_api.h>
+
 #include <filesystem>
+#include <functional>
+#include <limits>
 #include <vector>
 
 #include "core/error.h"
@@ -85,37 +89,55 @@ FloatImage ReadFloatImage(const std::string& path) {
 
 namespace {
 
-void WriteTiff(const std::string& path, int width_px, int height_px, int bands, GDALDataType type,
-               const void* pixels, const RasterWriteOptions& options) {
+// Every raster writer: the pixels go into a MEM dataset, `prepare` adds
+// georeferencing or metadata, and `driver` writes it to a temporary file
+// beside `path` that is renamed into place once complete.
+void WriteThroughMem(const std::string& path, const char* driver, int width_px, int height_px, int bands,
+                     GDALDataType type, const void* pixels, const std::function<void(GDALDatasetH)>& prepare,
+                     const std::vector<const char*>& create_options) {
   gdal::EnsureRegistered();
-  if (width_px < 1 || height_px < 1 || bands < 1) {
-    throw Error("raster", path, "refusing to write an empty raster");
-  }
-  const std::string tmp = path + ".tmp.tif";
+  if (width_px < 1 || height_px < 1 || bands < 1) throw Error("raster", path, "refusing to write an empty raster");
+  gdal::QuietErrors quiet;
+  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", width_px, height_px, bands, type, nullptr);
+  if (!mem) throw Error("raster", path, "cannot allocate the image: " + quiet.LastMessage());
+  const int type_bytes = GDALGetDataTypeSizeBytes(type);
+  GDALDatasetRasterIO(mem, GF_Write, 0, 0, width_px, height_px, const_cast<void*>(pixels), width_px, height_px, type,
+                      bands, nullptr, static_cast<GSpacing>(type_bytes) * bands,
+                      static_cast<GSpacing>(type_bytes) * bands * width_px, type_bytes);
+  if (prepare) prepare(mem);
+  const std::string tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
   std::error_code ec;
   const auto parent = std::filesystem::path(path).parent_path();
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  gdal::QuietErrors quiet;
-  const bool tiled = width_px > 512 || height_px > 512;
-  const char* create_options[] = {"COMPRESS=DEFLATE", tiled ? "TILED=YES" : "TILED=NO",
-                                  bands > 1 ? "INTERLEAVE=PIXEL" : "INTERLEAVE=BAND", nullptr};
-  GDALDatasetH ds = GDALCreate(GDALGetDriverByName("GTiff"), tmp.c_str(), width_px, height_px, bands,
-                               type, const_cast<char**>(create_options));
-  if (!ds) throw Error("raster", path, "cannot create: " + quiet.LastMessage());
-  for (const auto& [k, v] : options.metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), nullptr);
-  for (const auto& [k, v] : options.rpc_metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), "RPC");
-  const int type_bytes = GDALGetDataTypeSizeBytes(type);
-  const CPLErr err = GDALDatasetRasterIO(
-      ds, GF_Write, 0, 0, width_px, height_px, const_cast<void*>(pixels), width_px, height_px, type,
-      bands, nullptr, static_cast<GSpacing>(type_bytes) * bands,
-      static_cast<GSpacing>(type_bytes) * bands * width_px, type_bytes);
-  GDALClose(ds);
-  if (err != CE_None || CPLGetLastErrorType() == CE_Failure) {
+  std::vector<const char*> options = create_options;
+  options.push_back(nullptr);
+  GDALDatasetH out = GDALCreateCopy(GDALGetDriverByName(driver), tmp.c_str(), mem, FALSE,
+                                    const_cast<char**>(options.data()), nullptr, nullptr);
+  GDALClose(mem);
+  if (!out) {
+    std::filesystem::remove(tmp, ec);
+    throw Error("raster", path, std::string(driver) + " write failed: " + quiet.LastMessage());
+  }
+  GDALClose(out);
+  if (CPLGetLastErrorType() == CE_Failure) {
     std::filesystem::remove(tmp, ec);
     throw Error("raster", path, "write failed: " + quiet.LastMessage());
   }
+  std::filesystem::remove(tmp + ".aux.xml", ec);  // PAM side file of the temporary name
   std::filesystem::rename(tmp, path, ec);
   if (ec) throw Error("raster", path, "rename failed: " + ec.message());
+}
+
+void WriteTiff(const std::string& path, int width_px, int height_px, int bands, GDALDataType type,
+               const void* pixels, const RasterWriteOptions& options) {
+  const bool tiled = width_px > 512 || height_px > 512;
+  WriteThroughMem(
+      path, "GTiff", width_px, height_px, bands, type, pixels,
+      [&](GDALDatasetH ds) {
+        for (const auto& [k, v] : options.metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), nullptr);
+        for (const auto& [k, v] : options.rpc_metadata) GDALSetMetadataItem(ds, k.c_str(), v.c_str(), "RPC");
+      },
+      {"COMPRESS=DEFLATE", tiled ? "TILED=YES" : "TILED=NO", bands > 1 ? "INTERLEAVE=PIXEL" : "INTERLEAVE=BAND"});
 }
 
 }  // namespace
@@ -126,23 +148,23 @@ void WriteByteTiff(const std::string& path, int width_px, int height_px, int ban
 }
 
 void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels) {
-  gdal::EnsureRegistered();
-  gdal::QuietErrors quiet;
-  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", width_px, height_px, bands, GDT_Byte, nullptr);
-  if (!mem) throw Error("raster", path, "cannot allocate the image: " + quiet.LastMessage());
-  GDALDatasetRasterIO(mem, GF_Write, 0, 0, width_px, height_px, const_cast<std::uint8_t*>(pixels), width_px,
-                      height_px, GDT_Byte, bands, nullptr, bands, static_cast<GSpacing>(bands) * width_px, 1);
-  const std::string tmp = path + ".tmp.png";
-  std::error_code ec;
-  const auto parent = std::filesystem::path(path).parent_path();
-  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  GDALDatasetH png = GDALCreateCopy(GDALGetDriverByName("PNG"), tmp.c_str(), mem, FALSE, nullptr, nullptr, nullptr);
-  GDALClose(mem);
-  if (!png) throw Error("raster", path, "PNG write failed: " + quiet.LastMessage());
-  GDALClose(png);
-  std::filesystem::remove(tmp + ".aux.xml", ec);
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw Error("raster", path, "rename failed: " + ec.message());
+  WriteThroughMem(path, "PNG", width_px, height_px, bands, GDT_Byte, pixels, nullptr, {});
+}
+
+void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
+                   const NorthUpGrid& grid) {
+  WriteThroughMem(
+      path, "COG", width_px, height_px, 1, GDT_Float32, pixels,
+      [&](GDALDatasetH ds) {
+        double gt[6] = {grid.upper_left_x, grid.pixel_size, 0, grid.upper_left_y, 0, -grid.pixel_size};
+        GDALSetGeoTransform(ds, gt);
+        OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+        OSRImportFromEPSG(srs, grid.epsg);
+        GDALSetSpatialRef(ds, srs);
+        OSRDestroySpatialReference(srs);
+        GDALSetRasterNoDataValue(GDALGetRasterBand(ds, 1), std::numeric_limits<double>::quiet_NaN());
+      },
+      {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO"});
 }
 
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,

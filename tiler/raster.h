@@ -58,6 +58,16 @@ void WriteByteTiff(const std::string& path, int width_px, int height_px, int ban
                    const std::uint8_t* pixels, const RasterWriteOptions& options = {});
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
                     const RasterWriteOptions& options = {});
+// A float32 GeoTIFF in the COG layout (tiled 256, DEFLATE, overviews) with
+// NaN nodata, on a north-up grid with square pixels; written atomically.
+struct NorthUpGrid {
+  double upper_left_x = 0;  // CRS units (UTM metres)
+  double upper_left_y = 0;
+  double pixel_size = 1;
+  int epsg = 0;
+};
+void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
+                   const NorthUpGrid& grid);
 // An 8-bit PNG (1 or 3 bands, interleaved by pixel), written atomically.
 void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels);
 
