@@ -58,4 +58,15 @@ std::string ReadTextFile(const std::string& path) {
   return ss.str();
 }
 
+bool WriteFileIfChanged(const std::string& path, const std::string& content) {
+  std::ifstream in(path, std::ios::binary);
+  if (in) {
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (!in.bad() && ss.str() == content) return false;
+  }
+  WriteFileAtomic(path, content);
+  return true;
+}
+
 }  // namespace skyfall

@@ -11,6 +11,10 @@ namespace skyfall {
 // the path on failure.
 void WriteFileAtomic(const std::string& path, const std::string& content);
 
+// Like WriteFileAtomic, but leaves the file untouched (and its time stamp
+// unchanged) when it already holds exactly `content`. Returns true when written.
+bool WriteFileIfChanged(const std::string& path, const std::string& content);
+
 // Reads a whole text file; throws Error naming the path when it cannot.
 std::string ReadTextFile(const std::string& path);
 

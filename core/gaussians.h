@@ -36,6 +36,14 @@ struct GaussianCloudT {
     opacity_logits.resize(n);
     sh.resize(n);
   }
+  // Appends Gaussian `i` of `other`.
+  void Append(const GaussianCloudT& other, std::size_t i) {
+    means.push_back(other.means[i]);
+    log_scales.push_back(other.log_scales[i]);
+    rotations.push_back(other.rotations[i]);
+    opacity_logits.push_back(other.opacity_logits[i]);
+    sh.push_back(other.sh[i]);
+  }
 };
 
 using GaussianCloud = GaussianCloudT<float>;

@@ -1,0 +1,53 @@
+// Level of detail: a pyramid of ever coarser Gaussian clouds, each built by
+// merging the previous level's Gaussians that fall in one voxel (edge
+// doubling per level) into a single Gaussian with the same moments.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/gaussians.h"
+
+namespace skyfall {
+
+struct LodOptions {
+  int max_levels = 6;         // levels after the finest (which is level 0)
+  double base_voxel_m = 1.0;  // [m] smallest voxel edge tried; doubles per attempt
+  // A level is kept only when it has at most this fraction of the previous
+  // level's count; otherwise the voxel doubles again (a sparse scene skips
+  // the voxel sizes at which nothing merges).
+  double min_reduction = 0.7;
+  std::size_t min_gaussians = 16;  // no level coarser than this count
+  void Check() const;  // throws Error("lod", field, ...)
+};
+
+struct LodLevel {
+  int level = 0;
+  double voxel_m = 0;            // 0 for the finest level
+  // [m] largest distance from a finest-level Gaussian's centre to the centre
+  // of the Gaussian that represents it at this level.
+  double geometric_error_m = 0;
+  std::size_t saturated = 0;     // merged Gaussians whose opacity hit the cap (mass not kept)
+  Eigen::Vector3d min_m = Eigen::Vector3d::Zero(), max_m = Eigen::Vector3d::Zero();  // bounds of the means
+  GaussianCloud cloud;
+};
+
+// The "mass" a Gaussian carries: opacity x the product of its standard
+// deviations (the integral of opacity x density, up to (2 pi)^1.5). Merging
+// keeps the total mass, the mass-weighted mean and the mass-weighted second
+// moment (covariance of the mixture), and mass-weights the colour.
+double GaussianMass(const GaussianCloud& cloud, std::size_t i);
+
+// Moment-matched merge of the Gaussians `members` of `cloud`; appended to `out`.
+// Returns false when the opacity had to be capped (mass not preserved).
+bool MergeGaussians(const GaussianCloud& cloud, const std::vector<std::size_t>& members, GaussianCloud* out);
+
+// Level 0 is `finest` itself.
+std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& finest);
+
+// Writes DIR/lod_<k>.ply per level and DIR/lod.json (levels, voxel size,
+// geometric error, counts, bounds).
+void WriteLod(const std::string& dir, const std::vector<LodLevel>& levels);
+
+}  // namespace skyfall

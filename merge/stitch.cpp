@@ -1,0 +1,191 @@
+#include "merge/stitch.h"
+
+#include <openvdb/openvdb.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <mutex>
+
+#include "core/error.h"
+#include "tiler/geo.h"
+
+namespace skyfall {
+namespace {
+
+double Sigmoid(double logit) { return 1.0 / (1.0 + std::exp(-logit)); }
+
+void InitOpenVdb() {
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+}
+
+openvdb::MaskGrid::Ptr NewMask(double voxel_m) {
+  openvdb::MaskGrid::Ptr grid = openvdb::MaskGrid::create();
+  grid->setTransform(openvdb::math::Transform::createLinearTransform(voxel_m));
+  return grid;
+}
+
+openvdb::Coord VoxelOf(const openvdb::MaskGrid& grid, const Eigen::Vector3f& p) {
+  return grid.transform().worldToIndexCellCentered(openvdb::Vec3d(p.x(), p.y(), p.z()));
+}
+
+bool AnyActiveNear(const openvdb::MaskGrid::ConstAccessor& acc, const openvdb::Coord& c, int radius) {
+  for (int dz = -radius; dz <= radius; ++dz)
+    for (int dy = -radius; dy <= radius; ++dy)
+      for (int dx = -radius; dx <= radius; ++dx)
+        if (acc.isValueOn(c.offsetBy(dx, dy, dz))) return true;
+  return false;
+}
+
+}  // namespace
+
+void StitchOptions::Check() const {
+  if (!(voxel_m > 0)) throw Error("merge", "voxel_m", "must be > 0, got " + std::to_string(voxel_m));
+  if (!(min_opacity >= 0 && min_opacity < 1)) {
+    throw Error("merge", "min_opacity", "must be in [0, 1), got " + std::to_string(min_opacity));
+  }
+  if (match_radius_voxels < 0 || match_radius_voxels > 8) {
+    throw Error("merge", "match_radius_voxels", "must be in [0, 8], got " + std::to_string(match_radius_voxels));
+  }
+}
+
+Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPoint& to_origin) {
+  if (from_origin.lon_deg == to_origin.lon_deg && from_origin.lat_deg == to_origin.lat_deg &&
+      from_origin.height_m == to_origin.height_m) {
+    return Eigen::Isometry3d::Identity();
+  }
+  // Both frames are ECEF rotated and shifted, so the map between them is
+  // rigid; three points through the geodetic round trip define it.
+  const EnuFrame from(from_origin), to(to_origin);
+  auto map = [&](const Eigen::Vector3d& p) { return to.EnuFromGeodetic(from.GeodeticFromEnu(p)); };
+  const Eigen::Vector3d t = map(Eigen::Vector3d::Zero());
+  constexpr double kArmM = 1000.0;
+  Eigen::Matrix3d r;
+  for (int k = 0; k < 3; ++k) r.col(k) = (map(kArmM * Eigen::Vector3d::Unit(k)) - t) / kArmM;
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = svd.matrixU() * svd.matrixV().transpose();  // nearest rotation
+  out.translation() = t;
+  return out;
+}
+
+GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d& to_from) {
+  if (to_from.isApprox(Eigen::Isometry3d::Identity(), 0.0)) return cloud;
+  GaussianCloud out = cloud;
+  const Eigen::Matrix3d r = to_from.linear();
+  const Eigen::Quaterniond qr(r);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    out.means[i] = (to_from * cloud.means[i].cast<double>()).cast<float>();
+    const Eigen::Vector4f& q = cloud.rotations[i];
+    const Eigen::Quaterniond rotated = qr * Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+    out.rotations[i] = Eigen::Vector4f(rotated.w(), rotated.x(), rotated.y(), rotated.z());
+    // Degree-1 SH: the view-dependent term is v . dir with v = (-c_x, -c_y, c_z)
+    // in the [dc, y, z, x] order, so v rotates like a vector.
+    for (int c = 0; c < 3; ++c) {
+      auto& sh = out.sh[i];
+      const Eigen::Vector3d v = r * Eigen::Vector3d(-sh[c * 4 + 3], -sh[c * 4 + 1], sh[c * 4 + 2]);
+      sh[c * 4 + 1] = static_cast<float>(-v.y());
+      sh[c * 4 + 2] = static_cast<float>(v.z());
+      sh[c * 4 + 3] = static_cast<float>(-v.x());
+    }
+  }
+  return out;
+}
+
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
+                         const std::vector<TileCloud>& tiles) {
+  options.Check();
+  InitOpenVdb();
+  Stopwatch clock;
+  StitchResult result;
+  result.report.stage = "merge";
+  if (tiles.empty()) throw Error("merge", "", "no tile to merge");
+  const TileGrid& grid = tiles[0].tile.grid;
+  for (const TileCloud& t : tiles) {
+    if (t.tile.grid.cols != grid.cols || t.tile.grid.rows != grid.rows || t.tile.grid.tile_m != grid.tile_m ||
+        !t.tile.grid.origin_m.isApprox(grid.origin_m, 1e-9)) {
+      throw Error("merge", t.tile.id, "comes from another tiling than " + tiles[0].tile.id + " (grids differ)");
+    }
+  }
+
+  // 1. Every cloud in the city frame; core and overlap Gaussians apart.
+  struct Split {
+    GaussianCloud cloud;
+    std::vector<std::size_t> core, overlap;
+  };
+  std::vector<Split> split(tiles.size());
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    const TileSpec& spec = tiles[k].tile;
+    // Tile boxes are in the frame the tiles were planned in.
+    const Eigen::Isometry3d to_city = FrameChange(spec.enu_origin, city_origin);
+    split[k].cloud = TransformCloud(tiles[k].cloud, to_city);
+    for (std::size_t i = 0; i < tiles[k].cloud.size(); ++i) {
+      const Eigen::Vector3f& p = tiles[k].cloud.means[i];
+      const Eigen::Vector2i owner = grid.Owner(p.x(), p.y());
+      if (owner.x() == spec.col && owner.y() == spec.row) {
+        split[k].core.push_back(i);
+      } else if (!spec.extent.Contains(p.x(), p.y())) {
+        ++result.outside_extent;
+      } else if (Sigmoid(tiles[k].cloud.opacity_logits[i]) < options.min_opacity) {
+        ++result.transparent_dropped;
+      } else {
+        split[k].overlap.push_back(i);
+      }
+    }
+  }
+
+  // 2. Occupancy of what each tile keeps in its core, and of the union.
+  openvdb::MaskGrid::Ptr occupied = NewMask(options.voxel_m);
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
+    auto acc = mine->getAccessor();
+    for (std::size_t i : split[k].core) {
+      if (Sigmoid(split[k].cloud.opacity_logits[i]) >= options.min_opacity) {
+        acc.setValueOn(VoxelOf(*mine, split[k].cloud.means[i]));
+      }
+      result.cloud.Append(split[k].cloud, i);
+      result.source_tile.push_back(static_cast<int>(k));
+    }
+    result.occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
+    occupied->topologyUnion(*mine);
+  }
+  result.kept_in_core = result.cloud.size();
+
+  // 3. Overlap bands: duplicates of the owners' geometry go; Gaussians where
+  //    no core has geometry fill the hole, once (fills of earlier tiles count
+  //    as occupied for later ones).
+  openvdb::MaskGrid::Ptr filled = NewMask(options.voxel_m);
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    const auto occupied_acc = occupied->getConstAccessor();
+    const auto filled_acc = filled->getConstAccessor();
+    std::vector<std::size_t> fills;
+    for (std::size_t i : split[k].overlap) {
+      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud.means[i]);
+      if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
+          AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
+        ++result.duplicates_removed;
+      } else {
+        fills.push_back(i);
+      }
+    }
+    auto fill_acc = filled->getAccessor();
+    for (std::size_t i : fills) {
+      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud.means[i]));
+      result.cloud.Append(split[k].cloud, i);
+      result.source_tile.push_back(static_cast<int>(k));
+    }
+    result.holes_filled += fills.size();
+  }
+  result.occupied_voxels_union = occupied->activeVoxelCount();
+  result.report.metrics = {{"gaussians", static_cast<double>(result.cloud.size())},
+                           {"kept_in_core", static_cast<double>(result.kept_in_core)},
+                           {"duplicates_removed", static_cast<double>(result.duplicates_removed)},
+                           {"holes_filled", static_cast<double>(result.holes_filled)},
+                           {"outside_extent_dropped", static_cast<double>(result.outside_extent)},
+                           {"transparent_overlap_dropped", static_cast<double>(result.transparent_dropped)},
+                           {"occupied_voxels_union", static_cast<double>(result.occupied_voxels_union)}};
+  result.report.seconds = clock.Seconds();
+  return result;
+}
+
+}  // namespace skyfall

@@ -1,0 +1,57 @@
+// Stitching independently reconstructed tiles into one scene: every
+// Gaussian is brought into the city frame, the tile whose core owns its
+// ground position keeps it, and OpenVDB occupancy grids decide in the
+// overlap bands whether a neighbour's Gaussian duplicates geometry the owner
+// already has (removed) or fills a hole the owner left (kept).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "core/gaussians.h"
+#include "core/stage.h"
+#include "core/tile.h"
+
+namespace skyfall {
+
+struct TileCloud {
+  TileSpec tile;        // grid, core, extent and the frame the cloud is in
+  GaussianCloud cloud;  // in the ENU frame at tile.enu_origin
+};
+
+struct StitchOptions {
+  double voxel_m = 1.0;         // [m] occupancy voxel edge
+  // Gaussians more transparent than this neither mark occupancy nor fill
+  // holes: near-transparent floaters are not geometry.
+  double min_opacity = 0.05;
+  // [voxels] a neighbour's Gaussian is a duplicate when the owner's occupancy
+  // has an active voxel within this distance (tolerates the sub-metre
+  // disagreement of two independent reconstructions of one surface).
+  int match_radius_voxels = 1;
+  void Check() const;  // throws Error("merge", field, ...)
+};
+
+struct StitchResult {
+  GaussianCloud cloud;              // in the city frame
+  std::vector<int> source_tile;     // per kept Gaussian: index into the input tiles
+  std::size_t kept_in_core = 0;     // owned by the tile they came from
+  std::size_t duplicates_removed = 0;
+  std::size_t holes_filled = 0;     // kept from a neighbour where the owner had no geometry
+  std::size_t outside_extent = 0;   // beyond the producing tile's extent (unsupported): dropped
+  std::size_t transparent_dropped = 0;  // overlap Gaussians below min_opacity: dropped
+  std::vector<std::size_t> occupied_voxels_per_tile;
+  std::size_t occupied_voxels_union = 0;
+  StageReport report;
+};
+
+// Rigid transform from one local ENU frame to another (exact: both are
+// rotations of ECEF). Identity when the origins are equal.
+Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPoint& to_origin);
+// Applies it to means, rotations and the degree-1 SH (which rotate with the frame).
+GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d& to_from);
+
+// All tiles must come from one tiling (same grid). Output frame: `city_origin`.
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
+                         const std::vector<TileCloud>& tiles);
+
+}  // namespace skyfall

@@ -1,0 +1,55 @@
+// Partitioning a city (one or several adjacent AOIs) into overlapping tiles,
+// each an independent unit of work with its own crop windows and RPCs.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aoi.h"
+#include "core/stage.h"
+#include "core/tile.h"
+
+namespace skyfall {
+
+struct TilingOptions {
+  double tile_m = 256.0;      // [m] side of a tile core
+  double overlap_m = 32.0;    // [m] margin reconstructed around each core
+  // An image is used for a tile when at least this fraction of the tile's
+  // projected 3D box (extent x height range) falls inside the image.
+  double min_coverage = 0.5;
+  int min_images = 2;         // below this a tile has nothing to reconstruct
+  std::string city;           // name of the city; empty = the AOI name, or the AOIs' common prefix
+  void Check() const;         // throws Error("tile", field, ...)
+};
+
+struct TilePlan {
+  std::string city;
+  GeodeticPoint enu_origin;   // shared by every tile
+  GroundBox bounds;           // union of the AOI footprints in that frame
+  TileGrid grid;
+  std::vector<TileSpec> tiles;         // images without crop_path yet
+  std::vector<AoiCatalog> catalogs;    // per tile, what SfM reads (paths filled by WriteTiles)
+};
+
+// Plans the tiles of a city made of `aois` (adjacent AOIs ingested
+// separately). Pure computation: nothing is read or written. Throws Error
+// for an empty AOI list or AOIs in different UTM zones.
+TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& aois);
+
+// The name of a tile's folder.
+std::string TileId(const std::string& city, int col, int row);
+
+struct TilingResult {
+  TilePlan plan;
+  std::vector<std::string> tile_dirs;  // OUT/<tile id>, same order as plan.tiles
+  StageReport report;                  // metrics: tiles, tiles_without_images, crops
+};
+
+// Writes, for each tile, OUT/<id>/tile.json, OUT/<id>/aoi.json (the tile's
+// catalog: the crops with shifted RPCs) and one GDAL VRT per crop window
+// (OUT/<id>/crops/<image>.vrt, a window of the source, no pixel copy), then
+// OUT/tiles.json indexing them. Files whose content would not change are left
+// untouched, so re-tiling never disturbs finished tile runs.
+TilingResult WriteTiles(const TilePlan& plan, const std::string& out_dir, Progress& progress);
+
+}  // namespace skyfall
