@@ -3,15 +3,11 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
+#include "apps/jobs.h"
 #include "catalogs/aoi_catalog.h"
-#include "sfm/export.h"
 #include "sfm/sfm.h"
 
 namespace skyfall::cli {
-
-// Exit code of a stage that ended degenerate (too little data), distinct from
-// bad input (1) so batch drivers can tell them apart.
-constexpr int kExitDegenerate = 4;
 
 void AddSfmCommand(CLI::App& app, Runner* runner) {
   auto aoi = std::make_shared<std::string>();
@@ -29,8 +25,7 @@ void AddSfmCommand(CLI::App& app, Runner* runner) {
     *runner = [aoi, out, opts, no_images] {
       const AoiCatalog catalog = ReadAoiCatalog(*aoi);
       ConsoleProgress progress;
-      const SfmResult r = RunSfm(*opts, catalog, progress);
-      WriteSfmOutputs(r, catalog, *out, !*no_images);
+      const SfmResult r = RunSfmJob(*opts, catalog, *out, !*no_images, progress);
       const auto& m = r.report.metrics;
       for (const auto& w : r.report.warnings) spdlog::warn("{}", w);
       if (r.report.status != StageStatus::kOk) {

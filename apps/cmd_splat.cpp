@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
+#include "apps/jobs.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "splat/dataset.h"
@@ -18,33 +19,6 @@ namespace skyfall::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views) {
-  nlohmann::json series = nlohmann::json::array();
-  for (const TrainSample& s : r.series) {
-    series.push_back({{"iteration", s.iteration},
-                      {"elapsed_s", s.seconds},
-                      {"loss", std::isfinite(s.loss) ? nlohmann::json(s.loss) : nlohmann::json()},
-                      {"psnr_test_db", std::isfinite(s.psnr_test_db) ? nlohmann::json(s.psnr_test_db) : nlohmann::json()},
-                      {"gaussians", s.gaussians}});
-  }
-  const nlohmann::json doc = {
-      {"status", ToString(r.report.status)},
-      {"iterations", o.iterations},
-      {"resumed_from_iteration", r.start_iteration},
-      {"resolution_downscale", downscale},
-      {"views", views},
-      {"lambda_dssim", o.lambda_dssim},
-      {"lambda_opacity", o.lambda_opacity},
-      {"gaussians", r.cloud.size()},
-      {"seconds_this_run", r.report.seconds},
-      {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
-                   {"densification", o.densify_from <= o.densify_until},
-                   {"appearance_model", false},
-                   {"pseudo_camera_depth", o.pseudo_interval > 0}}},
-      {"series", series}};
-  return doc.dump(2) + "\n";
-}
 
 void AddTrain(CLI::App& splat, Runner* runner) {
   auto sfm = std::make_shared<std::string>(), out = std::make_shared<std::string>();
@@ -70,27 +44,8 @@ void AddTrain(CLI::App& splat, Runner* runner) {
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
-      std::vector<Eigen::Vector3f> points, colours;
-      ReadSfmPoints((fs::path(*sfm) / "points.ply").string(), &points, &colours);
-      const std::vector<TrainView> views = LoadTrainViews(*sfm, *downscale);
-      spdlog::info("splat train: {} views ({} held out), {} SfM points, {} iterations", views.size(),
-                   std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
-                   points.size(), opts->iterations);
-      std::unique_ptr<DepthPrior> depth_prior;
-      if (*prior == "surface") {
-        depth_prior = std::make_unique<SurfaceDepthPrior>(points, 2.0);
-      } else if (prior->rfind("cmd:", 0) == 0) {
-        fs::create_directories(fs::path(*out) / "pseudo");
-        depth_prior = std::make_unique<CommandDepthPrior>(prior->substr(4), (fs::path(*out) / "pseudo").string());
-      } else if (*prior != "none") {
-        throw Error("splat", "--depth-prior", "'" + *prior + "' is not 'surface', 'none' or 'cmd:...'");
-      }
-      if (!depth_prior) opts->pseudo_interval = 0;
       ConsoleProgress progress;
-      const TrainResult r = TrainGaussians(*opts, InitializeFromPoints(points, colours), views,
-                                           (fs::path(*out) / "checkpoints").string(), progress, depth_prior.get());
-      WriteGaussiansPly((fs::path(*out) / "scene.ply").string(), r.cloud);
-      WriteFileAtomic((fs::path(*out) / "train_report.json").string(), TrainReportJson(r, *opts, *downscale, views.size()));
+      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior}, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

@@ -7,6 +7,10 @@
 
 namespace skyfall::cli {
 
+// Exit code of a stage that ended degenerate (too little data), distinct from
+// bad input (1) and internal errors (3) so batch drivers can tell them apart.
+constexpr int kExitDegenerate = 4;
+
 // Called after parsing when the subcommand was chosen; returns the exit code.
 using Runner = std::function<int()>;
 
@@ -17,5 +21,7 @@ void AddSfmCommand(CLI::App& app, Runner* runner);
 void AddSplatCommand(CLI::App& app, Runner* runner);
 void AddDsmCommand(CLI::App& app, Runner* runner);
 void AddReportCommand(CLI::App& app, Runner* runner);
+void AddTileCommands(CLI::App& app, Runner* runner);  // tile, run-tile, merge
+void AddRunCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

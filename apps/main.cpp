@@ -26,6 +26,8 @@ int main(int argc, char** argv) {
   skyfall::cli::AddSplatCommand(app, &runner);
   skyfall::cli::AddDsmCommand(app, &runner);
   skyfall::cli::AddReportCommand(app, &runner);
+  skyfall::cli::AddTileCommands(app, &runner);
+  skyfall::cli::AddRunCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

@@ -289,4 +289,18 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   return out;
 }
 
+TruthDsm ReadTruthDsm(const TruthGrid& truth) {
+  TruthDsm t;
+  t.dsm = ReadDsm(truth.dsm_path, truth.dsm_txt_path, truth.epsg);
+  if (!truth.cls_path.empty()) t.cls = ReadFloatBand(truth.cls_path).values;
+  return t;
+}
+
+DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,
+                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction) {
+  *prediction = GridOfTruth(grid);
+  RasterizeDsm(scene, enu_origin, DsmExportOptions{}, prediction);
+  return CompareDsm(*prediction, truth.dsm, truth.cls.empty() ? nullptr : &truth.cls, options);
+}
+
 }  // namespace skyfall

@@ -75,4 +75,16 @@ struct DsmComparison {
 DsmComparison CompareDsm(const DsmGrid& prediction, const DsmGrid& truth, const std::vector<float>* cls,
                          const DsmCompareOptions& options);
 
+// A catalog's truth DSM (read through its _DSM.txt grid) and classes.
+struct TruthDsm {
+  DsmGrid dsm;
+  std::vector<float> cls;  // empty when the AOI has no CLS raster
+};
+TruthDsm ReadTruthDsm(const TruthGrid& truth);
+
+// Rasterizes `scene` (ENU frame at `enu_origin`) on the truth grid into
+// `prediction` and compares it with the truth.
+DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,
+                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction);
+
 }  // namespace skyfall

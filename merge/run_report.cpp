@@ -74,15 +74,13 @@ std::vector<RunPoint> EvaluateRun(const std::string& run_dir, const AoiCatalog& 
     out.push_back(p);
   }
   if (!catalog.truth) return out;
-  DsmGrid truth = ReadDsm(catalog.truth->dsm_path, catalog.truth->dsm_txt_path, catalog.truth->epsg);
-  std::vector<float> cls;
-  if (!catalog.truth->cls_path.empty()) cls = ReadFloatBand(catalog.truth->cls_path).values;
+  const TruthDsm truth = ReadTruthDsm(*catalog.truth);
   for (RunPoint& p : out) {
     const fs::path snapshot = dir / "checkpoints" / "snapshots" / ("scene_" + std::to_string(p.iteration) + ".ply");
     if (!fs::exists(snapshot)) continue;
-    DsmGrid pred = GridOfTruth(*catalog.truth);
-    RasterizeDsm(ReadGaussiansPly(snapshot.string()), catalog.enu_origin, DsmExportOptions{}, &pred);
-    const DsmComparison c = CompareDsm(pred, truth, cls.empty() ? nullptr : &cls, o);
+    DsmGrid pred;
+    const DsmComparison c =
+        CompareSceneWithTruth(ReadGaussiansPly(snapshot.string()), catalog.enu_origin, *catalog.truth, truth, o, &pred);
     p.dsm_mae_m = c.mae_m;
     p.dsm_rmse_m = c.rmse_m;
   }

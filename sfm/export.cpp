@@ -186,11 +186,14 @@ std::string PointsToPly(const SfmResult& r) {
 
 void WriteSfmOutputs(const SfmResult& r, const AoiCatalog& c, const std::string& out_dir, bool colmap_images) {
   const fs::path dir(out_dir);
+  // The report goes last: a run killed while exporting leaves no report, so
+  // a resuming driver redoes the stage instead of trusting half the files.
+  if (r.report.status == StageStatus::kOk) {
+    WriteFileAtomic((dir / "cameras.json").string(), CamerasJson(r, c));
+    WriteFileAtomic((dir / "points.ply").string(), PointsToPly(r));
+    WriteColmap(r, dir / "colmap", colmap_images);
+  }
   WriteFileAtomic((dir / "sfm_report.json").string(), ReportJson(r));
-  if (r.report.status != StageStatus::kOk) return;  // nothing usable to export
-  WriteFileAtomic((dir / "cameras.json").string(), CamerasJson(r, c));
-  WriteFileAtomic((dir / "points.ply").string(), PointsToPly(r));
-  WriteColmap(r, dir / "colmap", colmap_images);
 }
 
 }  // namespace skyfall

@@ -1,0 +1,82 @@
+#include "apps/jobs.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "sfm/export.h"
+#include "splat/dataset.h"
+#include "splat/ply.h"
+
+namespace skyfall::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views) {
+  nlohmann::json series = nlohmann::json::array();
+  for (const TrainSample& s : r.series) {
+    series.push_back({{"iteration", s.iteration},
+                      {"elapsed_s", s.seconds},
+                      {"loss", std::isfinite(s.loss) ? nlohmann::json(s.loss) : nlohmann::json()},
+                      {"psnr_test_db", std::isfinite(s.psnr_test_db) ? nlohmann::json(s.psnr_test_db) : nlohmann::json()},
+                      {"gaussians", s.gaussians}});
+  }
+  const nlohmann::json doc = {
+      {"status", ToString(r.report.status)},
+      {"iterations", o.iterations},
+      {"resumed_from_iteration", r.start_iteration},
+      {"resolution_downscale", downscale},
+      {"views", views},
+      {"lambda_dssim", o.lambda_dssim},
+      {"lambda_opacity", o.lambda_opacity},
+      {"gaussians", r.cloud.size()},
+      {"seconds_this_run", r.report.seconds},
+      {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
+                   {"densification", o.densify_from <= o.densify_until},
+                   {"appearance_model", false},
+                   {"pseudo_camera_depth", o.pseudo_interval > 0}}},
+      {"series", series}};
+  return doc.dump(2) + "\n";
+}
+
+}  // namespace
+
+SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const std::string& out_dir,
+                    bool colmap_images, Progress& progress) {
+  SfmResult r = RunSfm(options, catalog, progress);
+  WriteSfmOutputs(r, catalog, out_dir, colmap_images);
+  return r;
+}
+
+TrainResult RunTrainJob(TrainJob job, Progress& progress) {
+  std::vector<Eigen::Vector3f> points, colours;
+  ReadSfmPoints((fs::path(job.sfm_dir) / "points.ply").string(), &points, &colours);
+  const std::vector<TrainView> views = LoadTrainViews(job.sfm_dir, job.downscale);
+  spdlog::info("splat train: {} views ({} held out), {} SfM points, {} iterations", views.size(),
+               std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
+               points.size(), job.options.iterations);
+  std::unique_ptr<DepthPrior> depth_prior;
+  if (job.depth_prior == "surface") {
+    depth_prior = std::make_unique<SurfaceDepthPrior>(points, 2.0);
+  } else if (job.depth_prior.rfind("cmd:", 0) == 0) {
+    fs::create_directories(fs::path(job.out_dir) / "pseudo");
+    depth_prior = std::make_unique<CommandDepthPrior>(job.depth_prior.substr(4), (fs::path(job.out_dir) / "pseudo").string());
+  } else if (job.depth_prior != "none") {
+    throw Error("splat", "--depth-prior", "'" + job.depth_prior + "' is not 'surface', 'none' or 'cmd:...'");
+  }
+  if (!depth_prior) job.options.pseudo_interval = 0;
+  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours), views,
+                                       (fs::path(job.out_dir) / "checkpoints").string(), progress, depth_prior.get());
+  WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
+  WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),
+                  TrainReportJson(r, job.options, job.downscale, views.size()));
+  return r;
+}
+
+}  // namespace skyfall::cli
