@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "catalogs/json_doc.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 
@@ -169,17 +170,7 @@ std::string AoiCatalogToJson(const AoiCatalog& c) {
 }
 
 AoiCatalog AoiCatalogFromJson(const std::string& text, const std::string& subject) {
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::exception& e) {
-    throw Error("catalog", subject, std::string("not valid JSON: ") + e.what());
-  }
-  const std::string schema = doc.value("schema", std::string());
-  if (schema != kAoiCatalogSchema) {
-    throw Error("catalog", subject,
-                "schema is '" + schema + "', expected '" + kAoiCatalogSchema + "'");
-  }
+  const json doc = catalogs::ParseVersioned(text, subject, kAoiCatalogSchema);
   AoiCatalog c;
   try {
     c.aoi = doc.at("aoi").get<std::string>();

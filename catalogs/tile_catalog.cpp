@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "catalogs/json_doc.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 
@@ -53,16 +54,7 @@ std::string TileSpecToJson(const TileSpec& t) {
 }
 
 TileSpec TileSpecFromJson(const std::string& text, const std::string& subject) {
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::exception& e) {
-    throw Error("catalog", subject, std::string("not valid JSON: ") + e.what());
-  }
-  const std::string schema = doc.value("schema", std::string());
-  if (schema != kTileSchema) {
-    throw Error("catalog", subject, "schema is '" + schema + "', expected '" + kTileSchema + "'");
-  }
+  const json doc = catalogs::ParseVersioned(text, subject, kTileSchema);
   TileSpec t;
   try {
     t.id = doc.at("id").get<std::string>();

@@ -19,7 +19,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare", "report"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare", "report", "tile", "run-tile", "merge", "run"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -179,6 +179,94 @@ TEST(Cli, SynthIngestSfmChain) {
       Skyfall() + " sfm --aoi " + (dir / "one.json").string() + " --out " + (dir / "sfm1").string(), dir);
   EXPECT_EQ(one.exit_code, 4) << one.err;
   EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "sfm1" / "sfm_report.json"))["status"], "degenerate");
+}
+
+
+TEST(Cli, RunTilesMergesAndResumesATwoBlockCity) {
+  const fs::path dir = ScratchDir("run");
+  const std::string root = (dir / "city").string(), out = (dir / "out").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 96 --views 4 --blocks-x 2 --seed 3", dir).exit_code, 0);
+  const std::string run = Skyfall() + " run " + root + " --out " + out + " --tile-m 64 --overlap-m 12 --iterations 40";
+  const CommandResult first = RunCommand(run, dir);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  // Two adjacent AOIs form one city in one frame: 192 m x 96 m in 3 x 2 tiles.
+  const fs::path city = fs::path(out) / "SYN_001";
+  const auto report = nlohmann::json::parse(std::ifstream(city / "run_report.json"));
+  ASSERT_EQ(report["tiles"].size(), 6u);
+  for (const auto& t : report["tiles"]) EXPECT_EQ(t["status"], "ok") << t.dump();
+  EXPECT_EQ(report["aois"].size(), 2u);
+  EXPECT_GT(report["peak_tile_rss_mb"].get<double>(), 10.0);
+  EXPECT_TRUE(std::isfinite(report["seam"]["interior_mean_step_m"].get<double>()));
+  // Per AOI: DSM and comparison with the truth.
+  for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
+    EXPECT_TRUE(fs::exists(fs::path(out) / aoi / "dsm.tif")) << aoi;
+    const auto cmp = nlohmann::json::parse(std::ifstream(fs::path(out) / aoi / "dsm_compare" / "report.json"));
+    EXPECT_GT(cmp["completeness"].get<double>(), 0.5) << aoi;
+  }
+  // Scene and LOD: the finest level is the merged scene, counts fall.
+  const auto lod = nlohmann::json::parse(std::ifstream(city / "scene" / "lod.json"));
+  ASSERT_GE(lod["levels"].size(), 2u);
+  const auto merge = nlohmann::json::parse(std::ifstream(city / "scene" / "merge_report.json"));
+  EXPECT_EQ(lod["levels"][0]["count"], merge["stitch"]["gaussians"]);
+  EXPECT_LT(lod["levels"][1]["count"].get<int>(), lod["levels"][0]["count"].get<int>());
+  for (std::size_t k = 0; k < lod["levels"].size(); ++k) {
+    EXPECT_TRUE(fs::exists(city / "scene" / lod["levels"][k]["file"].get<std::string>()));
+  }
+  EXPECT_GT(merge["stitch"]["duplicates_removed"].get<int>(), 0);
+
+  // Rerun: finished tiles are skipped (their reports stay as they were).
+  const fs::path tile = city / "tiles" / "SYN_001_c1_r0";
+  const auto stamp = fs::last_write_time(tile / "tile_report.json");
+  ASSERT_EQ(RunCommand(run, dir).exit_code, 0);
+  EXPECT_EQ(fs::last_write_time(tile / "tile_report.json"), stamp);
+
+  // A tile killed during SfM export (no sfm_report.json, no tile report)
+  // is redone cleanly by run-tile and merges again.
+  fs::remove(tile / "tile_report.json");
+  fs::remove(tile / "sfm" / "sfm_report.json");
+  fs::remove(tile / "sfm" / "points.ply");
+  const CommandResult again = RunCommand(Skyfall() + " run-tile " + tile.string() + " --iterations 40", dir);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_TRUE(fs::exists(tile / "sfm" / "points.ply"));
+  const CommandResult merged = RunCommand(Skyfall() + " merge --tiles " + (city / "tiles").string() + " --out " +
+                                              (dir / "scene2").string(), dir);
+  ASSERT_EQ(merged.exit_code, 0) << merged.err;
+  EXPECT_TRUE(fs::exists(dir / "scene2" / "scene.ply"));
+
+  // Different options are a different run: the tile is not taken as done.
+  const CommandResult other = RunCommand(Skyfall() + " run-tile " + tile.string() + " --iterations 41", dir);
+  ASSERT_EQ(other.exit_code, 0) << other.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(tile / "tile_report.json"))["options"]["iterations"], 41);
+}
+
+TEST(Cli, TileWithoutImagesIsSkippedNotFatal) {
+  const fs::path dir = ScratchDir("run");
+  const std::string root = (dir / "city").string(), cat = (dir / "catalogs").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 2", dir).exit_code, 0);
+  ASSERT_EQ(RunCommand(Skyfall() + " ingest " + root + " --out " + cat, dir).exit_code, 0);
+  // Images cropped to their western quarter see only the western tiles.
+  auto catalog = nlohmann::json::parse(std::ifstream(cat + "/SYN_001/aoi.json"));
+  for (auto& im : catalog["images"]) im["width_px"] = im["width_px"].get<int>() / 4;
+  std::ofstream(dir / "narrow.json") << catalog.dump();
+  const CommandResult tiled = RunCommand(Skyfall() + " tile --aoi " + (dir / "narrow.json").string() + " --out " +
+                                             (dir / "tiles").string() + " --tile-m 32 --overlap-m 4", dir);
+  ASSERT_EQ(tiled.exit_code, 0) << tiled.err;
+  const auto index = nlohmann::json::parse(std::ifstream(dir / "tiles" / "tiles.json"));
+  std::string empty_tile;
+  for (const auto& t : index["tiles"]) {
+    if (t["status"] == "no_images") empty_tile = t["id"];
+  }
+  ASSERT_FALSE(empty_tile.empty()) << index.dump();
+  EXPECT_NE(tiled.err.find(empty_tile + ": fewer than 2 images see it"), std::string::npos) << tiled.err;
+  const CommandResult r = RunCommand(Skyfall() + " run-tile " + (dir / "tiles" / empty_tile).string(), dir);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("nothing to reconstruct"), std::string::npos) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "tiles" / empty_tile / "tile_report.json"))["status"], "skipped");
+  // Merging tiles none of which finished is a clear error naming the folder.
+  const CommandResult m = RunCommand(Skyfall() + " merge --tiles " + (dir / "tiles").string() + " --out " +
+                                         (dir / "scene").string(), dir);
+  EXPECT_EQ(m.exit_code, 1);
+  EXPECT_NE(m.err.find("no finished tile to merge"), std::string::npos) << m.err;
 }
 
 }  // namespace

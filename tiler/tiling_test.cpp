@@ -26,13 +26,19 @@ AoiCatalog IngestJax(const fs::path& dir) {
   return ReadAoiCatalog((dir / "catalogs" / "JAX_068" / "aoi.json").string());
 }
 
+// 2 x 2 tiles over JAX_068's 256 m truth grid.
+TilingOptions QuarterTiles() {
+  TilingOptions o;
+  o.tile_m = 128;
+  o.overlap_m = 16;
+  return o;
+}
+
 TEST(Tiling, CoresPartitionTheAoiAndExtentsOverlapByTheMargin) {
   SKYFALL_REQUIRE_DFC2019();
   const fs::path dir = ScratchDir("tiles");
   const AoiCatalog jax = IngestJax(dir);
-  TilingOptions o;
-  o.tile_m = 128;
-  o.overlap_m = 16;
+  const TilingOptions o = QuarterTiles();
   const TilePlan plan = PlanTiles(o, {jax});
   EXPECT_EQ(plan.city, "JAX_068");
   // The truth grid is 256 m x 256 m: two by two tiles of 128 m.
@@ -69,9 +75,7 @@ TEST(Tiling, CropsAreVrtWindowsWithShiftedRpcs) {
   SKYFALL_REQUIRE_DFC2019();
   const fs::path dir = ScratchDir("tiles");
   const AoiCatalog jax = IngestJax(dir);
-  TilingOptions o;
-  o.tile_m = 128;
-  o.overlap_m = 16;
+  const TilingOptions o = QuarterTiles();
   NullProgress progress;
   const TilingResult r = WriteTiles(PlanTiles(o, {jax}), (dir / "tiles").string(), progress);
   ASSERT_EQ(r.tile_dirs.size(), 4u);
