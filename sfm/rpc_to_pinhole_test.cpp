@@ -110,6 +110,7 @@ TEST(RpcToPinhole, StiffCameraNeedsHartleyNormalization) {
 }
 
 TEST(RpcToPinhole, RejectsAnEmptyHeightRange) {
+  SKYFALL_REQUIRE_DFC2019();
   const RpcModel rpc = ReadRpcFromRaster(Jax068Image("001").string());
   const EnuFrame frame({-81.66, 30.35, 0});
   EXPECT_THROW(ApproximateRpcByPinhole(rpc, 100, 100, 5.0, 5.0, EnuFunction(frame)), Error);
