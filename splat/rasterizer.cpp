@@ -40,13 +40,14 @@ struct Projection {
   Eigen::Vector3d view_dir;     // unit, from the camera centre to the mean
   double view_distance = 0;
   Eigen::Vector3d rgb;
+  Eigen::Vector3d sh_rgb;       // the SH colour before the appearance transform
   std::uint8_t clamped = 0;
   double opacity = 0;
 };
 
 template <typename T>
 Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeCamera& cam,
-                   const Eigen::Vector3d& centre, const RasterOptions& o) {
+                   const Eigen::Vector3d& centre, const RasterOptions& o, const std::vector<ColourAffine<T>>* affine) {
   Projection p;
   const Eigen::Vector3d mean = cloud.means[i].template cast<double>();
   p.cam = cam.cam_from_world_rotation * mean + cam.cam_from_world_translation;
@@ -75,6 +76,8 @@ Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeC
     if (o.sh_degree >= 1) {
       v += kShC1 * (-p.view_dir.y() * sh[c * 4 + 1] + p.view_dir.z() * sh[c * 4 + 2] - p.view_dir.x() * sh[c * 4 + 3]);
     }
+    p.sh_rgb[c] = v;
+    if (affine) v = static_cast<double>((*affine)[i][c]) * v + static_cast<double>((*affine)[i][3 + c]);
     if (v < 0) {
       v = 0;
       p.clamped |= static_cast<std::uint8_t>(1u << c);
@@ -105,6 +108,14 @@ PixelBox FootprintInTile(const RasterState<T>& s, int i, int tx0, int ty0, int t
   return {std::max(0, f[0] - tx0), std::max(0, f[1] - ty0), std::min(tw, f[2] - tx0), std::min(th, f[3] - ty0)};
 }
 
+template <typename T>
+void CheckAffine(const GaussianCloudT<T>& cloud, const std::vector<ColourAffine<T>>* affine) {
+  if (affine && affine->size() != cloud.size()) {
+    throw Error("raster", "colour_affine",
+                std::to_string(affine->size()) + " transforms for " + std::to_string(cloud.size()) + " Gaussians");
+  }
+}
+
 }  // namespace
 
 void RasterOptions::Check() const {
@@ -122,8 +133,10 @@ void RasterOptions::Check() const {
 }
 
 template <typename T>
-RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& cam, const RasterOptions& o) {
+RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& cam, const RasterOptions& o,
+                                const std::vector<ColourAffine<T>>* colour_affine) {
   o.Check();
+  CheckAffine(cloud, colour_affine);
   const int W = cam.width_px, H = cam.height_px;
   if (W < 1 || H < 1) throw Error("raster", "camera", "has an empty image size");
   RenderOutput<T> out;
@@ -144,7 +157,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   // 1. Project every Gaussian (double precision), in parallel.
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t i = range.begin(); i < range.end(); ++i) {
-      const Projection p = Project(cloud, i, cam, centre, o);
+      const Projection p = Project(cloud, i, cam, centre, o, colour_affine);
       if (!p.visible) continue;
       const double A = p.cov(0, 0), B = p.cov(0, 1), C = p.cov(1, 1);
       const double det = A * C - B * B;
@@ -274,7 +287,9 @@ template <typename T>
 GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& cam,
                                        const RasterOptions& o, const RenderOutput<T>& fwd,
                                        const std::vector<T>& d_rgb, const std::vector<T>& d_alpha,
-                                       const std::vector<T>& d_depth) {
+                                       const std::vector<T>& d_depth,
+                                       const std::vector<ColourAffine<T>>* colour_affine) {
+  CheckAffine(cloud, colour_affine);
   const RasterState<T>& s = fwd.state;
   const int W = fwd.width_px, H = fwd.height_px;
   const std::size_t n = cloud.size();
@@ -376,6 +391,7 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
   GaussianGradients<T> out;
   out.d.resize(n);
   out.mean2d_norm.assign(n, T(0));
+  if (colour_affine) out.d_colour_affine.assign(n, ColourAffine<T>::Zero());
   const Eigen::Vector3d centre = cam.Centre();
   const Eigen::Matrix3d& Rw = cam.cam_from_world_rotation;
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
@@ -385,7 +401,7 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
     out.d.opacity_logits[i] = T(0);
     out.d.sh[i].fill(T(0));
     if (!s.radius_px[i]) return;
-    const Projection p = Project(cloud, i, cam, centre, o);
+    const Projection p = Project(cloud, i, cam, centre, o, colour_affine);
     const T* g = &screen[kFields * i];
     const Eigen::Vector2d d_uv(g[0], g[1]);
     out.mean2d_norm[i] = T(d_uv.norm());
@@ -394,7 +410,12 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
     const auto& sh = cloud.sh[i];
     for (int c = 0; c < 3; ++c) {
       if (p.clamped & (1u << c)) continue;
-      const double gc = g[6 + c];
+      double gc = g[6 + c];
+      if (colour_affine) {  // colour = gamma * sh_rgb + beta
+        out.d_colour_affine[i][c] = T(gc * p.sh_rgb[c]);
+        out.d_colour_affine[i][3 + c] = T(gc);
+        gc *= static_cast<double>((*colour_affine)[i][c]);
+      }
       out.d.sh[i][c * 4 + 0] = T(kShC0 * gc);
       if (o.sh_degree >= 1) {
         out.d.sh[i][c * 4 + 1] = T(-kShC1 * p.view_dir.y() * gc);
@@ -450,15 +471,19 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
   return out;
 }
 
-template RenderOutput<float> RenderGaussians(const GaussianCloudT<float>&, const PinholeCamera&, const RasterOptions&);
-template RenderOutput<double> RenderGaussians(const GaussianCloudT<double>&, const PinholeCamera&, const RasterOptions&);
+template RenderOutput<float> RenderGaussians(const GaussianCloudT<float>&, const PinholeCamera&, const RasterOptions&,
+                                             const std::vector<ColourAffine<float>>*);
+template RenderOutput<double> RenderGaussians(const GaussianCloudT<double>&, const PinholeCamera&, const RasterOptions&,
+                                              const std::vector<ColourAffine<double>>*);
 template GaussianGradients<float> BackwardGaussians(const GaussianCloudT<float>&, const PinholeCamera&,
                                                     const RasterOptions&, const RenderOutput<float>&,
                                                     const std::vector<float>&, const std::vector<float>&,
-                                                    const std::vector<float>&);
+                                                    const std::vector<float>&,
+                                                    const std::vector<ColourAffine<float>>*);
 template GaussianGradients<double> BackwardGaussians(const GaussianCloudT<double>&, const PinholeCamera&,
                                                      const RasterOptions&, const RenderOutput<double>&,
                                                      const std::vector<double>&, const std::vector<double>&,
-                                                     const std::vector<double>&);
+                                                     const std::vector<double>&,
+                                                     const std::vector<ColourAffine<double>>*);
 
 }  // namespace skyfall

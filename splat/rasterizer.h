@@ -14,6 +14,7 @@
 
 #include "core/gaussians.h"
 #include "core/pinhole.h"
+#include "splat/appearance.h"
 
 namespace skyfall {
 
@@ -63,15 +64,19 @@ struct RenderOutput {
   RasterState<T> state;
 };
 
+// `colour_affine` (optional, one per Gaussian) transforms each Gaussian's SH
+// colour before the clamp at 0: colour = gamma * colour + beta (appearance.h).
 template <typename T>
 RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& camera,
-                                const RasterOptions& options);
+                                const RasterOptions& options,
+                                const std::vector<ColourAffine<T>>* colour_affine = nullptr);
 
 // Gradients of a scalar loss with respect to every Gaussian parameter.
 template <typename T>
 struct GaussianGradients {
   GaussianCloudT<T> d;                 // same layout as the cloud
   std::vector<T> mean2d_norm;          // |dL/d(u, v)| per Gaussian, for densification [1/px]
+  std::vector<ColourAffine<T>> d_colour_affine;  // when rendered with a colour transform
 };
 
 // `d_rgb`, `d_alpha`, `d_depth`: dL/d of the matching RenderOutput fields
@@ -80,6 +85,7 @@ template <typename T>
 GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const PinholeCamera& camera,
                                        const RasterOptions& options, const RenderOutput<T>& forward,
                                        const std::vector<T>& d_rgb, const std::vector<T>& d_alpha,
-                                       const std::vector<T>& d_depth);
+                                       const std::vector<T>& d_depth,
+                                       const std::vector<ColourAffine<T>>* colour_affine = nullptr);
 
 }  // namespace skyfall

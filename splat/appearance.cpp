@@ -1,0 +1,260 @@
+#include "splat/appearance.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "core/error.h"
+#include "core/format.h"
+
+namespace skyfall {
+namespace {
+
+// Gaussians per block of the batched MLP: large enough for efficient matrix
+// products, small enough that a block's activations (2 x hidden x block
+// floats = 2 MB) stay in cache and the blocks spread over the cores.
+constexpr std::size_t kBlock = 2048;
+
+template <typename T>
+using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+template <typename T>
+using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+
+// The MLP input colour: the SH degree-0 colour of Gaussians [a, a + n).
+template <typename T>
+Mat<T> BaseColours(const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n) {
+  Mat<T> c(3, n);
+  for (std::size_t k = 0; k < n; ++k)
+    for (int ch = 0; ch < 3; ++ch) c(ch, k) = T(kShC0) * cloud.sh[a + k][ch * 4] + T(0.5);
+  return c;
+}
+
+// Forward activations of one block of Gaussians.
+template <typename T>
+struct BlockActivations {
+  Mat<T> colour, z1, h1, z2, h2, out;
+};
+
+template <typename T>
+BlockActivations<T> ForwardBlock(const AppearanceModelT<T>& m, const Vec<T>& first_layer_image_term,
+                                 const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n) {
+  const int de = m.image_dim(), dg = m.gaussian_dim();
+  BlockActivations<T> act;
+  act.colour = BaseColours(cloud, a, n);
+  // The first layer is linear in the concatenated input [e; g; c], so the
+  // image term is computed once per call, not once per Gaussian.
+  act.z1 = m.w1.middleCols(de, dg) * m.gaussian_embeddings.middleCols(a, n) + m.w1.rightCols(3) * act.colour;
+  act.z1.colwise() += first_layer_image_term;
+  act.h1 = act.z1.cwiseMax(T(0));
+  act.z2 = m.w2 * act.h1;
+  act.z2.colwise() += m.b2;
+  act.h2 = act.z2.cwiseMax(T(0));
+  act.out = m.w3 * act.h2;
+  act.out.colwise() += m.b3;
+  return act;
+}
+
+template <typename T>
+Vec<T> ImageTerm(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
+  if (embedding.size() != m.image_dim()) {
+    throw Error("appearance", "embedding", "has " + std::to_string(embedding.size()) + " values, the model takes " +
+                                               std::to_string(m.image_dim()));
+  }
+  return m.w1.leftCols(m.image_dim()) * embedding + m.b1;
+}
+
+template <typename T>
+void CheckCloud(const AppearanceModelT<T>& m, const GaussianCloudT<T>& cloud) {
+  if (static_cast<std::size_t>(m.gaussian_embeddings.cols()) != cloud.size()) {
+    throw Error("appearance", "gaussian_embeddings",
+                std::to_string(m.gaussian_embeddings.cols()) + " embeddings for " + std::to_string(cloud.size()) +
+                    " Gaussians");
+  }
+}
+
+std::size_t Blocks(std::size_t n) { return (n + kBlock - 1) / kBlock; }
+
+}  // namespace
+
+void AppearanceOptions::Check() const {
+  auto need = [](bool ok, const char* field, double v) {
+    if (!ok) throw Error("appearance", field, FormatDouble(v) + " is out of range");
+  };
+  need(image_dim >= 1 && image_dim <= 1024, "image_dim", image_dim);
+  need(gaussian_dim >= 1 && gaussian_dim <= 1024, "gaussian_dim", gaussian_dim);
+  need(hidden >= 1 && hidden <= 4096, "hidden", hidden);
+  for (double lr : {lr_image, lr_gaussian, lr_mlp}) need(lr > 0 && std::isfinite(lr), "learning rate", lr);
+  need(init_std > 0 && std::isfinite(init_std), "init_std", init_std);
+}
+
+template <typename T>
+AppearanceModelT<T> AppearanceModelT<T>::ZerosLike() const {
+  AppearanceModelT z;
+  for (auto [dst, src] : {std::pair{&z.image_embeddings, &image_embeddings},
+                          std::pair{&z.gaussian_embeddings, &gaussian_embeddings}, std::pair{&z.w1, &w1},
+                          std::pair{&z.w2, &w2}, std::pair{&z.w3, &w3}})
+    dst->setZero(src->rows(), src->cols());
+  z.b1.setZero(b1.size());
+  z.b2.setZero(b2.size());
+  z.b3.setZero(b3.size());
+  return z;
+}
+
+template <typename T>
+void AppearanceModelT<T>::GatherGaussians(const std::vector<std::size_t>& source) {
+  Mat kept(gaussian_embeddings.rows(), static_cast<Eigen::Index>(source.size()));
+  for (std::size_t k = 0; k < source.size(); ++k) kept.col(k) = gaussian_embeddings.col(source[k]);
+  gaussian_embeddings = std::move(kept);
+}
+
+AppearanceModel InitAppearance(const AppearanceOptions& o, int images, std::size_t gaussians, std::uint64_t seed) {
+  o.Check();
+  if (images < 1) throw Error("appearance", "images", "a model needs at least one image");
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> normal(0.0f, static_cast<float>(o.init_std));
+  AppearanceModel m;
+  const int in = o.image_dim + o.gaussian_dim + 3;
+  m.image_embeddings = Eigen::MatrixXf::NullaryExpr(o.image_dim, images, [&] { return normal(rng); });
+  m.gaussian_embeddings =
+      Eigen::MatrixXf::NullaryExpr(o.gaussian_dim, static_cast<Eigen::Index>(gaussians), [&] { return normal(rng); });
+  // Hidden layers: the usual uniform(-1/sqrt(fan_in), 1/sqrt(fan_in)).
+  auto uniform = [&](int rows, int cols, int fan_in) {
+    std::uniform_real_distribution<float> u(-1.0f / std::sqrt(static_cast<float>(fan_in)),
+                                            1.0f / std::sqrt(static_cast<float>(fan_in)));
+    return Eigen::MatrixXf(Eigen::MatrixXf::NullaryExpr(rows, cols, [&] { return u(rng); }));
+  };
+  m.w1 = uniform(o.hidden, in, in);
+  m.b1 = uniform(o.hidden, 1, in);
+  m.w2 = uniform(o.hidden, o.hidden, o.hidden);
+  m.b2 = uniform(o.hidden, 1, o.hidden);
+  // Zero output layer: gamma = 1, beta = 0 until training moves it.
+  m.w3.setZero(6, o.hidden);
+  m.b3.setZero(6);
+  return m;
+}
+
+template <typename T>
+std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
+                                                const GaussianCloudT<T>& cloud) {
+  CheckCloud(m, cloud);
+  const Vec<T> image_term = ImageTerm(m, embedding);
+  std::vector<ColourAffine<T>> affine(cloud.size());
+  tbb::parallel_for(std::size_t{0}, Blocks(cloud.size()), [&](std::size_t b) {
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
+    const BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
+    for (std::size_t k = 0; k < n; ++k) {
+      affine[a + k] = act.out.col(k);
+      affine[a + k].template head<3>().array() += T(1);
+    }
+  });
+  return affine;
+}
+
+template <typename T>
+Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding, const GaussianCloudT<T>& cloud,
+                          const std::vector<ColourAffine<T>>& d_affine, AppearanceModelT<T>* grad,
+                          std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh) {
+  CheckCloud(m, cloud);
+  if (d_affine.size() != cloud.size()) throw Error("appearance", "d_affine", "size differs from the cloud");
+  const int de = m.image_dim(), dg = m.gaussian_dim();
+  const Vec<T> image_term = ImageTerm(m, embedding);
+  // Weight gradients are summed per block, then over blocks in block order,
+  // so the result does not depend on thread scheduling.
+  const std::size_t blocks = Blocks(cloud.size());
+  struct Partial {
+    Mat<T> w1, w2, w3;
+    Vec<T> b1, b2, b3;
+  };
+  std::vector<Partial> partial(blocks);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
+    // Recomputing the activations costs a third of the backward pass and
+    // saves keeping 1 kB per Gaussian between the passes.
+    const BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
+    Mat<T> d_out(6, n);
+    for (std::size_t k = 0; k < n; ++k) d_out.col(k) = d_affine[a + k];
+    Partial& p = partial[b];
+    p.w3 = d_out * act.h2.transpose();
+    p.b3 = d_out.rowwise().sum();
+    const Mat<T> d_z2 = (m.w3.transpose() * d_out).cwiseProduct((act.z2.array() > T(0)).matrix().template cast<T>());
+    p.w2 = d_z2 * act.h1.transpose();
+    p.b2 = d_z2.rowwise().sum();
+    const Mat<T> d_z1 = (m.w2.transpose() * d_z2).cwiseProduct((act.z1.array() > T(0)).matrix().template cast<T>());
+    p.b1 = d_z1.rowwise().sum();
+    p.w1.setZero(m.w1.rows(), m.w1.cols());
+    p.w1.leftCols(de) = p.b1 * embedding.transpose();
+    p.w1.middleCols(de, dg) = d_z1 * m.gaussian_embeddings.middleCols(a, n).transpose();
+    p.w1.rightCols(3) = d_z1 * act.colour.transpose();
+    grad->gaussian_embeddings.middleCols(a, n) += m.w1.middleCols(de, dg).transpose() * d_z1;
+    if (d_sh) {
+      const Mat<T> d_colour = m.w1.rightCols(3).transpose() * d_z1;
+      for (std::size_t k = 0; k < n; ++k)
+        for (int ch = 0; ch < 3; ++ch) (*d_sh)[a + k][ch * 4] += T(kShC0) * d_colour(ch, k);
+    }
+  });
+  Vec<T> d_b1_total = Vec<T>::Zero(m.b1.size());
+  for (const Partial& p : partial) {
+    grad->w1 += p.w1;
+    grad->w2 += p.w2;
+    grad->w3 += p.w3;
+    grad->b1 += p.b1;
+    grad->b2 += p.b2;
+    grad->b3 += p.b3;
+    d_b1_total += p.b1;
+  }
+  // The embedding enters only through w1's left block: its gradient is that
+  // block's transpose times the summed first-layer gradient.
+  return m.w1.leftCols(de).transpose() * d_b1_total;
+}
+
+GaussianCloud FuseAppearance(const AppearanceModel& model, const Eigen::VectorXf& embedding, const GaussianCloud& cloud) {
+  const std::vector<ColourAffine<float>> affine = EvaluateAppearance(model, embedding, cloud);
+  GaussianCloud fused = cloud;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    for (int ch = 0; ch < 3; ++ch) {
+      // gamma (C0 dc + 0.5 + rest) + beta = C0 dc' + 0.5 + rest'
+      const double gamma = affine[i][ch], beta = affine[i][3 + ch];
+      const double dc = cloud.sh[i][ch * 4];
+      fused.sh[i][ch * 4] = static_cast<float>((gamma * (kShC0 * dc + 0.5) + beta - 0.5) / kShC0);
+      for (int k = 1; k < kShCoeffsPerChannel; ++k)
+        fused.sh[i][ch * 4 + k] = static_cast<float>(gamma * cloud.sh[i][ch * 4 + k]);
+    }
+  }
+  return fused;
+}
+
+int TypicalImage(const AppearanceModel& model, const std::vector<int>& images) {
+  if (images.empty()) throw Error("appearance", "images", "no image to choose an embedding from");
+  Eigen::VectorXf mean = Eigen::VectorXf::Zero(model.image_dim());
+  for (int j : images) mean += model.image_embeddings.col(j);
+  mean /= static_cast<float>(images.size());
+  int best = images.front();
+  float best_d = std::numeric_limits<float>::infinity();
+  for (int j : images) {
+    const float d = (model.image_embeddings.col(j) - mean).squaredNorm();
+    if (d < best_d) {
+      best_d = d;
+      best = j;
+    }
+  }
+  return best;
+}
+
+template struct AppearanceModelT<float>;
+template struct AppearanceModelT<double>;
+template std::vector<ColourAffine<float>> EvaluateAppearance(const AppearanceModelT<float>&, const Vec<float>&,
+                                                             const GaussianCloudT<float>&);
+template std::vector<ColourAffine<double>> EvaluateAppearance(const AppearanceModelT<double>&, const Vec<double>&,
+                                                              const GaussianCloudT<double>&);
+template Vec<float> BackwardAppearance(const AppearanceModelT<float>&, const Vec<float>&, const GaussianCloudT<float>&,
+                                       const std::vector<ColourAffine<float>>&, AppearanceModelT<float>*,
+                                       std::vector<std::array<float, 12>>*);
+template Vec<double> BackwardAppearance(const AppearanceModelT<double>&, const Vec<double>&,
+                                        const GaussianCloudT<double>&, const std::vector<ColourAffine<double>>&,
+                                        AppearanceModelT<double>*, std::vector<std::array<double, 12>>*);
+
+}  // namespace skyfall

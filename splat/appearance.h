@@ -1,0 +1,90 @@
+// Appearance modelling for multi-date imagery (Skyfall-GS, after
+// WildGaussians): a per-image embedding e_j, a per-Gaussian embedding g_i and
+// a small MLP f give an affine colour transform per Gaussian and image,
+//   (gamma, beta) = f(e_j, g_i, c_i),   colour = gamma * c(view) + beta,
+// where c_i is the Gaussian's SH degree-0 colour (kShC0 * dc + 0.5). The
+// transform is applied before the rasterizer's clamp at 0, so fusing it into
+// static SH colours for a chosen embedding (FuseAppearance) renders exactly
+// what the model renders with that embedding.
+//
+// The MLP is in -> hidden -> hidden -> 6 with ReLU; its output o gives
+// gamma = 1 + o[0..2] and beta = o[3..5], and the last layer starts at zero,
+// so training starts from the plain 3DGS colours.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/gaussians.h"
+
+namespace skyfall {
+
+struct AppearanceOptions {
+  bool enabled = false;
+  int image_dim = 32;        // per-image embedding size (paper: 32)
+  int gaussian_dim = 24;     // per-Gaussian embedding size (paper: 24)
+  int hidden = 128;          // width of the two hidden layers (paper: 2 x 128, ReLU)
+  double lr_image = 0.001;   // Adam learning rates (paper)
+  double lr_gaussian = 0.005;
+  double lr_mlp = 0.0005;
+  // Embeddings start as N(0, init_std^2): small, so that the first layer's
+  // random weights see a well-scaled input, and distinct, so that images can
+  // diverge from the first step.
+  double init_std = 0.1;
+  void Check() const;  // throws Error("appearance", field, ...)
+};
+
+// Per Gaussian: gamma (r, g, b) then beta (r, g, b).
+template <typename T>
+using ColourAffine = Eigen::Matrix<T, 6, 1>;
+
+template <typename T>
+struct AppearanceModelT {
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  Mat image_embeddings;     // image_dim x images
+  Mat gaussian_embeddings;  // gaussian_dim x Gaussians (column i belongs to Gaussian i)
+  Mat w1, w2, w3;           // layers: (hidden x in), (hidden x hidden), (6 x hidden)
+  Vec b1, b2, b3;
+
+  int image_dim() const { return static_cast<int>(image_embeddings.rows()); }
+  int gaussian_dim() const { return static_cast<int>(gaussian_embeddings.rows()); }
+  // The same shapes, all zero (gradients, optimizer moments).
+  AppearanceModelT ZerosLike() const;
+  // Keeps Gaussian columns `source[k]` in order (densification and pruning).
+  void GatherGaussians(const std::vector<std::size_t>& source);
+};
+using AppearanceModel = AppearanceModelT<float>;
+
+// A model for `images` images and `gaussians` Gaussians.
+AppearanceModel InitAppearance(const AppearanceOptions& options, int images, std::size_t gaussians, std::uint64_t seed);
+
+// The colour transform of every Gaussian for image embedding `embedding`
+// (a column of image_embeddings, or any vector of that size, e.g. their mean).
+template <typename T>
+std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& model,
+                                                const Eigen::Matrix<T, Eigen::Dynamic, 1>& embedding,
+                                                const GaussianCloudT<T>& cloud);
+
+// Back-propagates dL/d(gamma, beta) through the MLP. Adds to `grad` (same
+// shapes as the model: weights, biases, the Gaussian embeddings) and returns
+// dL/d(embedding); adds dL/d(SH dc) through the MLP's colour input to `d_sh`.
+template <typename T>
+Eigen::Matrix<T, Eigen::Dynamic, 1> BackwardAppearance(const AppearanceModelT<T>& model,
+                                                       const Eigen::Matrix<T, Eigen::Dynamic, 1>& embedding,
+                                                       const GaussianCloudT<T>& cloud,
+                                                       const std::vector<ColourAffine<T>>& d_affine,
+                                                       AppearanceModelT<T>* grad,
+                                                       std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh);
+
+// A plain 3DGS cloud whose SH colours render as the model does with
+// `embedding` (the embeddings and the MLP are then no longer needed).
+GaussianCloud FuseAppearance(const AppearanceModel& model, const Eigen::VectorXf& embedding, const GaussianCloud& cloud);
+
+// Index of the image whose embedding is nearest the mean of `images`: a
+// typical appearance, the default for export.
+int TypicalImage(const AppearanceModel& model, const std::vector<int>& images);
+
+}  // namespace skyfall

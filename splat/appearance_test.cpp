@@ -1,0 +1,308 @@
+#include "splat/appearance.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "core/error.h"
+#include "splat/rasterizer.h"
+
+namespace skyfall {
+namespace {
+
+using Cloud = GaussianCloudT<double>;
+using Model = AppearanceModelT<double>;
+
+// Central differences in double through the MLP and the rasterizer agree
+// with the analytic gradients to ~1e-7 relative; 1e-5 leaves room for the
+// O(step^2) truncation error and the rare ReLU kink near a sample point.
+constexpr double kRelTol = 1e-5;
+constexpr double kAbsTol = 1e-8;
+constexpr double kStep = 1e-6;
+
+PinholeCamera TopCamera(int size_px, double height_m) {
+  PinholeCamera cam;
+  cam.fx = cam.fy = 1.2 * size_px;
+  cam.cx = cam.cy = 0.5 * (size_px - 1);
+  cam.width_px = cam.height_px = size_px;
+  Eigen::Matrix3d down;
+  down << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  cam.cam_from_world_rotation = Eigen::AngleAxisd(0.15, Eigen::Vector3d::UnitX()).toRotationMatrix() * down;
+  const Eigen::Vector3d forward = cam.cam_from_world_rotation.row(2).transpose();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * (-height_m * forward);
+  return cam;
+}
+
+Cloud SmallCloud(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Cloud c;
+  c.resize(n);
+  for (int i = 0; i < n; ++i) {
+    c.means[i] = Eigen::Vector3d(3 * u(rng), 3 * u(rng), 0.5 * u(rng));
+    c.log_scales[i] = Eigen::Vector3d::Constant(std::log(1.0)) + 0.2 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    c.rotations[i] = Eigen::Vector4d(1, 0.3 * u(rng), 0.3 * u(rng), 0.3 * u(rng));
+    c.opacity_logits[i] = 0.5 * u(rng);
+    for (auto& v : c.sh[i]) v = 0.4 * u(rng);
+  }
+  return c;
+}
+
+GaussianCloud ToFloat(const Cloud& d) {
+  GaussianCloud c;
+  c.resize(d.size());
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    c.means[i] = d.means[i].cast<float>();
+    c.log_scales[i] = d.log_scales[i].cast<float>();
+    c.rotations[i] = d.rotations[i].cast<float>();
+    c.opacity_logits[i] = static_cast<float>(d.opacity_logits[i]);
+    for (int k = 0; k < 12; ++k) c.sh[i][k] = static_cast<float>(d.sh[i][k]);
+  }
+  return c;
+}
+
+// A model in double with every layer random (the trained state, not the
+// identity start, so every weight has a gradient).
+Model RandomModel(int gaussians, std::uint64_t seed) {
+  AppearanceOptions o;
+  o.image_dim = 5;
+  o.gaussian_dim = 4;
+  o.hidden = 16;
+  const AppearanceModel f = InitAppearance(o, 3, gaussians, seed);
+  Model m;
+  m.image_embeddings = f.image_embeddings.cast<double>();
+  m.gaussian_embeddings = f.gaussian_embeddings.cast<double>() * 10.0;
+  m.w1 = f.w1.cast<double>();
+  m.w2 = f.w2.cast<double>();
+  m.b1 = f.b1.cast<double>();
+  m.b2 = f.b2.cast<double>();
+  std::mt19937_64 rng(seed + 1);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  m.w3 = Eigen::MatrixXd::NullaryExpr(6, o.hidden, [&] { return u(rng); });
+  m.b3 = Eigen::VectorXd::NullaryExpr(6, [&] { return u(rng); });
+  return m;
+}
+
+RasterOptions SmoothOptions() {
+  RasterOptions o;
+  o.min_alpha = 0.0;
+  o.min_transmittance = 0.0;
+  o.sigma_extent = 8.0;
+  o.background = Eigen::Vector3d(0.1, 0.2, 0.3);
+  return o;
+}
+
+struct Scene {
+  Cloud cloud = SmallCloud(12, 5);
+  Model model = RandomModel(12, 6);
+  Eigen::VectorXd embedding;
+  PinholeCamera cam = TopCamera(40, 30.0);
+  RasterOptions raster = SmoothOptions();
+  std::vector<double> weights;
+  Scene() {
+    embedding = model.image_embeddings.col(1);
+    std::mt19937_64 rng(8);
+    std::uniform_real_distribution<double> u(-1, 1);
+    weights.resize(3 * cam.width_px * cam.height_px);
+    for (double& w : weights) w = u(rng);
+  }
+  // L = sum of weighted rendered RGB, through the appearance transform.
+  double Loss() const {
+    const auto affine = EvaluateAppearance(model, embedding, cloud);
+    const RenderOutput<double> r = RenderGaussians(cloud, cam, raster, &affine);
+    double l = 0;
+    for (std::size_t k = 0; k < r.rgb.size(); ++k) l += weights[k] * r.rgb[k];
+    return l;
+  }
+};
+
+struct Gradients {
+  Model model;
+  Eigen::VectorXd embedding;
+  std::vector<std::array<double, 12>> sh;
+};
+
+Gradients Analytic(const Scene& s) {
+  const auto affine = EvaluateAppearance(s.model, s.embedding, s.cloud);
+  const RenderOutput<double> r = RenderGaussians(s.cloud, s.cam, s.raster, &affine);
+  const GaussianGradients<double> g = BackwardGaussians(s.cloud, s.cam, s.raster, r, s.weights, {}, {}, &affine);
+  Gradients out;
+  out.model = s.model.ZerosLike();
+  out.sh = g.d.sh;
+  out.embedding = BackwardAppearance(s.model, s.embedding, s.cloud, g.d_colour_affine, &out.model, &out.sh);
+  return out;
+}
+
+double CentralDifference(Scene& s, double* param) {
+  const double keep = *param;
+  *param = keep + kStep;
+  const double lp = s.Loss();
+  *param = keep - kStep;
+  const double lm = s.Loss();
+  *param = keep;
+  return (lp - lm) / (2 * kStep);
+}
+
+void ExpectMatches(Scene& s, double* param, double analytic, const std::string& what) {
+  const double fd = CentralDifference(s, param);
+  EXPECT_NEAR(analytic, fd, kAbsTol + kRelTol * std::abs(fd)) << what;
+}
+
+TEST(Appearance, FreshModelIsTheIdentityTransform) {
+  const GaussianCloud cloud = ToFloat(SmallCloud(50, 1));
+  const AppearanceModel m = InitAppearance(AppearanceOptions{}, 4, cloud.size(), 3);
+  EXPECT_EQ(m.image_embeddings.rows(), 32);
+  EXPECT_EQ(m.gaussian_embeddings.rows(), 24);
+  EXPECT_EQ(m.w1.cols(), 32 + 24 + 3);
+  EXPECT_EQ(m.w2.rows(), 128);
+  const auto affine = EvaluateAppearance(m, Eigen::VectorXf(m.image_embeddings.col(2)), cloud);
+  for (const auto& a : affine) EXPECT_EQ(a, (ColourAffine<float>() << 1, 1, 1, 0, 0, 0).finished());
+}
+
+TEST(Appearance, GradientsOfMlpWeightsMatchFiniteDifferences) {
+  Scene s;
+  const Gradients g = Analytic(s);
+  for (auto [param, grad, name] : {std::tuple{&s.model.w1, &g.model.w1, "w1"}, std::tuple{&s.model.w2, &g.model.w2, "w2"},
+                                   std::tuple{&s.model.w3, &g.model.w3, "w3"}}) {
+    // A spread of entries of each layer (all of them would be slow and add nothing).
+    for (Eigen::Index k = 0; k < param->size(); k += 7)
+      ExpectMatches(s, param->data() + k, grad->data()[k], std::string(name) + "[" + std::to_string(k) + "]");
+  }
+  for (auto [param, grad, name] : {std::tuple{&s.model.b1, &g.model.b1, "b1"}, std::tuple{&s.model.b2, &g.model.b2, "b2"},
+                                   std::tuple{&s.model.b3, &g.model.b3, "b3"}}) {
+    for (Eigen::Index k = 0; k < param->size(); ++k)
+      ExpectMatches(s, param->data() + k, (*grad)[k], std::string(name) + "[" + std::to_string(k) + "]");
+  }
+  // Guard against a vacuous pass: the weights do matter.
+  EXPECT_GT(g.model.w2.norm(), 1e-3);
+  EXPECT_GT(g.model.w1.norm(), 1e-3);
+}
+
+TEST(Appearance, GradientsOfEmbeddingsAndBaseColourMatchFiniteDifferences) {
+  Scene s;
+  const Gradients g = Analytic(s);
+  for (Eigen::Index k = 0; k < s.embedding.size(); ++k)
+    ExpectMatches(s, &s.embedding[k], g.embedding[k], "image embedding " + std::to_string(k));
+  for (Eigen::Index i = 0; i < s.model.gaussian_embeddings.cols(); ++i) {
+    for (Eigen::Index k = 0; k < s.model.gaussian_embeddings.rows(); ++k) {
+      ExpectMatches(s, &s.model.gaussian_embeddings(k, i), g.model.gaussian_embeddings(k, i),
+                    "Gaussian embedding " + std::to_string(i) + "," + std::to_string(k));
+    }
+    // The SH colour enters twice: through the rasterized colour and as the MLP input.
+    for (int k = 0; k < 12; ++k)
+      ExpectMatches(s, &s.cloud.sh[i][k], g.sh[i][k], "sh of Gaussian " + std::to_string(i) + "[" + std::to_string(k) + "]");
+  }
+  EXPECT_GT(g.embedding.norm(), 1e-4);
+}
+
+TEST(Appearance, ColourTransformGradientsOfTheRasterizerMatchFiniteDifferences) {
+  Scene s;
+  std::vector<ColourAffine<double>> affine = EvaluateAppearance(s.model, s.embedding, s.cloud);
+  auto loss = [&] {
+    const RenderOutput<double> r = RenderGaussians(s.cloud, s.cam, s.raster, &affine);
+    double l = 0;
+    for (std::size_t k = 0; k < r.rgb.size(); ++k) l += s.weights[k] * r.rgb[k];
+    return l;
+  };
+  const RenderOutput<double> r = RenderGaussians(s.cloud, s.cam, s.raster, &affine);
+  const GaussianGradients<double> g = BackwardGaussians(s.cloud, s.cam, s.raster, r, s.weights, {}, {}, &affine);
+  ASSERT_EQ(g.d_colour_affine.size(), s.cloud.size());
+  for (std::size_t i = 0; i < s.cloud.size(); ++i) {
+    for (int k = 0; k < 6; ++k) {
+      const double keep = affine[i][k];
+      affine[i][k] = keep + kStep;
+      const double lp = loss();
+      affine[i][k] = keep - kStep;
+      const double lm = loss();
+      affine[i][k] = keep;
+      const double fd = (lp - lm) / (2 * kStep);
+      EXPECT_NEAR(g.d_colour_affine[i][k], fd, kAbsTol + kRelTol * std::abs(fd)) << "Gaussian " << i << " field " << k;
+    }
+  }
+}
+
+TEST(Appearance, ClampedChannelGetsNoGradient) {
+  // beta = -5 drives every colour below 0: the rendered colour is the clamp,
+  // flat in every colour parameter.
+  Scene s;
+  std::vector<ColourAffine<double>> affine(s.cloud.size(), (ColourAffine<double>() << 1, 1, 1, -5, -5, -5).finished());
+  const RenderOutput<double> r = RenderGaussians(s.cloud, s.cam, s.raster, &affine);
+  const GaussianGradients<double> g = BackwardGaussians(s.cloud, s.cam, s.raster, r, s.weights, {}, {}, &affine);
+  for (std::size_t i = 0; i < s.cloud.size(); ++i) {
+    EXPECT_EQ(g.d_colour_affine[i].norm(), 0.0);
+    EXPECT_EQ(g.d.sh[i][0], 0.0);
+  }
+}
+
+TEST(Appearance, FusedCloudRendersLikeTheModel) {
+  const GaussianCloud cloud = ToFloat(SmallCloud(40, 12));
+  const Model md = RandomModel(static_cast<int>(cloud.size()), 4);
+  AppearanceModel m;
+  m.image_embeddings = md.image_embeddings.cast<float>();
+  m.gaussian_embeddings = md.gaussian_embeddings.cast<float>();
+  m.w1 = md.w1.cast<float>();
+  m.w2 = md.w2.cast<float>();
+  m.w3 = md.w3.cast<float>();
+  m.b1 = md.b1.cast<float>();
+  m.b2 = md.b2.cast<float>();
+  m.b3 = md.b3.cast<float>();
+  const Eigen::VectorXf e = m.image_embeddings.col(0);
+  const auto affine = EvaluateAppearance(m, e, cloud);
+  const PinholeCamera cam = TopCamera(48, 25.0);
+  const RenderOutput<float> with_model = RenderGaussians(cloud, cam, RasterOptions{}, &affine);
+  const RenderOutput<float> fused = RenderGaussians(FuseAppearance(m, e, cloud), cam, RasterOptions{});
+  // float rounding of the fused coefficients: ~1e-7 relative per colour.
+  constexpr float kFusedTol = 2e-5f;
+  const RenderOutput<float> plain = RenderGaussians(cloud, cam, RasterOptions{});
+  double max_diff = 0, spread = 0;
+  for (std::size_t k = 0; k < fused.rgb.size(); ++k) {
+    max_diff = std::max(max_diff, static_cast<double>(std::abs(fused.rgb[k] - with_model.rgb[k])));
+    spread = std::max(spread, static_cast<double>(std::abs(with_model.rgb[k] - plain.rgb[k])));
+  }
+  EXPECT_LT(max_diff, kFusedTol);
+  EXPECT_GT(spread, 0.01) << "the transform must change the image, or fusing proves nothing";
+}
+
+TEST(Appearance, GatherKeepsEmbeddingsWithTheirGaussians) {
+  AppearanceModel m = InitAppearance(AppearanceOptions{}, 2, 5, 1);
+  const Eigen::MatrixXf before = m.gaussian_embeddings;
+  m.GatherGaussians({4, 4, 0, 2});
+  ASSERT_EQ(m.gaussian_embeddings.cols(), 4);
+  EXPECT_EQ(m.gaussian_embeddings.col(0), before.col(4));
+  EXPECT_EQ(m.gaussian_embeddings.col(1), before.col(4));
+  EXPECT_EQ(m.gaussian_embeddings.col(2), before.col(0));
+  EXPECT_EQ(m.gaussian_embeddings.col(3), before.col(2));
+}
+
+TEST(Appearance, TypicalImageIsNearestTheMeanEmbedding) {
+  AppearanceModel m = InitAppearance(AppearanceOptions{}, 3, 1, 1);
+  m.image_embeddings.col(0).setConstant(1.0f);
+  m.image_embeddings.col(1).setConstant(0.1f);
+  m.image_embeddings.col(2).setConstant(-1.0f);
+  EXPECT_EQ(TypicalImage(m, {0, 1, 2}), 1);
+  EXPECT_EQ(TypicalImage(m, {0, 1}), 0);  // a tie resolves to the first
+  EXPECT_THROW(TypicalImage(m, {}), Error);
+}
+
+TEST(Appearance, BadShapesAndOptionsAreNamed) {
+  AppearanceOptions o;
+  o.hidden = 0;
+  EXPECT_THROW(o.Check(), Error);
+  const AppearanceModel m = InitAppearance(AppearanceOptions{}, 2, 3, 1);
+  GaussianCloud four;
+  four.resize(4);
+  try {
+    EvaluateAppearance(m, Eigen::VectorXf(m.image_embeddings.col(0)), four);
+    FAIL() << "a size mismatch must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("3 embeddings for 4 Gaussians"), std::string::npos) << e.what();
+  }
+  GaussianCloud three;
+  three.resize(3);
+  EXPECT_THROW(EvaluateAppearance(m, Eigen::VectorXf(Eigen::VectorXf::Zero(7)), three), Error);
+}
+
+}  // namespace
+}  // namespace skyfall
