@@ -40,12 +40,18 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   opts->pseudo_interval = 4;
   cmd->add_option("--pseudo-every", opts->pseudo_interval, "Iterations between pseudo views (0 = off)")->capture_default_str();
   cmd->add_option("--lambda-depth", opts->lambda_depth, "Depth loss weight")->capture_default_str();
+  auto appearance = std::make_shared<std::string>("auto");
+  cmd->add_option("--appearance", *appearance,
+                  "Per-image appearance model: 'auto' (on for multi-date views), 'on' or 'off'")
+      ->capture_default_str();
+  cmd->add_option("--appearance-image", opts->appearance_image,
+                  "Training view whose appearance is fused into scene.ply (default: the most typical one)");
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       ConsoleProgress progress;
-      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior}, progress);
+      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance}, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

@@ -48,6 +48,7 @@ void AddRunTileOptions(CLI::App* cmd, TileRunOptions* o) {
   cmd->add_option("--resolution", o->downscale, "Training image downscale factor")->capture_default_str();
   cmd->add_option("--depth-prior", o->depth_prior, "'surface', 'none' or 'cmd:COMMAND' (see splat train)")
       ->capture_default_str();
+  cmd->add_option("--appearance", o->appearance, "'auto', 'on' or 'off' (see splat train)")->capture_default_str();
 }
 
 void AddRunTile(CLI::App& app, Runner* runner) {

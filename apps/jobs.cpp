@@ -18,7 +18,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views) {
+std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views,
+                            const std::string& appearance_reason) {
   nlohmann::json series = nlohmann::json::array();
   for (const TrainSample& s : r.series) {
     series.push_back({{"iteration", s.iteration},
@@ -39,10 +40,45 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"seconds_this_run", r.report.seconds},
       {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
                    {"densification", o.densify_from <= o.densify_until},
-                   {"appearance_model", false},
+                   {"appearance_model", o.appearance.enabled},
                    {"pseudo_camera_depth", o.pseudo_interval > 0}}},
+      {"appearance", {{"reason", appearance_reason},
+                      {"fused_image", r.appearance_image.empty() ? nlohmann::json() : nlohmann::json(r.appearance_image)}}},
       {"series", series}};
   return doc.dump(2) + "\n";
+}
+
+// Decides whether the appearance model runs, and says why.
+std::string ResolveAppearance(const std::string& mode, const std::vector<TrainView>& views, TrainOptions* o) {
+  const int dates = DistinctAcquisitionDates(views);
+  if (mode == "on" || mode == "off") {
+    o->appearance.enabled = mode == "on";
+    return "--appearance " + mode;
+  }
+  if (mode != "auto") throw Error("splat", "--appearance", "'" + mode + "' is not 'auto', 'on' or 'off'");
+  o->appearance.enabled = dates >= 2;
+  return "auto: training views from " + std::to_string(dates) + " acquisition date" + (dates == 1 ? "" : "s");
+}
+
+// A checkpoint is resumed only by a run with the same settings; otherwise it
+// is set aside (renamed, not deleted) and training starts again.
+void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings) {
+  const fs::path settings_path = dir / "settings.json";
+  const fs::path checkpoint = dir / "checkpoint.bin";
+  if (fs::exists(checkpoint)) {
+    nlohmann::json previous;
+    try {
+      previous = nlohmann::json::parse(ReadTextFile(settings_path.string()));
+    } catch (const std::exception&) {
+    }
+    if (previous != settings) {
+      spdlog::warn("splat train: {} was written with other settings; moved to checkpoint.bin.stale, starting again",
+                   checkpoint.string());
+      fs::rename(checkpoint, dir / "checkpoint.bin.stale");
+    }
+  }
+  fs::create_directories(dir);
+  WriteFileIfChanged(settings_path.string(), settings.dump(2) + "\n");
 }
 
 }  // namespace
@@ -71,11 +107,19 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
     throw Error("splat", "--depth-prior", "'" + job.depth_prior + "' is not 'surface', 'none' or 'cmd:...'");
   }
   if (!depth_prior) job.options.pseudo_interval = 0;
-  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours), views,
-                                       (fs::path(job.out_dir) / "checkpoints").string(), progress, depth_prior.get());
+  const std::string appearance_reason = ResolveAppearance(job.appearance, views, &job.options);
+  spdlog::info("splat train: appearance model {} ({})", job.options.appearance.enabled ? "on" : "off",
+               appearance_reason);
+  const fs::path checkpoints = fs::path(job.out_dir) / "checkpoints";
+  SetAsideStaleCheckpoint(checkpoints, {{"appearance_model", job.options.appearance.enabled},
+                                        {"resolution_downscale", job.downscale},
+                                        {"depth_prior", job.depth_prior},
+                                        {"seed", job.options.seed}});
+  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours), views, checkpoints.string(),
+                                       progress, depth_prior.get());
   WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
   WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),
-                  TrainReportJson(r, job.options, job.downscale, views.size()));
+                  TrainReportJson(r, job.options, job.downscale, views.size(), appearance_reason));
   return r;
 }
 

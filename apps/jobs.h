@@ -23,6 +23,9 @@ struct TrainJob {
   TrainOptions options;
   int downscale = 1;                    // image downscale factor
   std::string depth_prior = "surface";  // "surface", "none" or "cmd:COMMAND"
+  // Appearance model: "on", "off", or "auto" (on when the training views
+  // were taken on more than one date).
+  std::string appearance = "auto";
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes

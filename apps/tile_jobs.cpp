@@ -40,7 +40,8 @@ double PeakRssMb() {
 }
 
 json OptionsJson(const TileRunOptions& o) {
-  return {{"iterations", o.iterations}, {"resolution_downscale", o.downscale}, {"depth_prior", o.depth_prior}};
+  return {{"iterations", o.iterations}, {"resolution_downscale", o.downscale}, {"depth_prior", o.depth_prior},
+          {"appearance", o.appearance}};
 }
 
 json StageJson(const StageReport& r) {
@@ -131,6 +132,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   job.options.pseudo_interval = 4;
   job.downscale = options.downscale;
   job.depth_prior = options.depth_prior;
+  job.appearance = options.appearance;
   const TrainResult train = RunTrainJob(job, progress);
   StageReport splat = train.report;
   splat.stage = "splat";
@@ -216,7 +218,8 @@ std::vector<TileOutcome> RunTilesInParallel(const std::vector<std::string>& tile
     outcomes[k].dir = tile_dirs[k];
     std::vector<std::string> args = {self, "-q", "run-tile", tile_dirs[k], "--iterations",
                                      std::to_string(options.iterations), "--resolution", std::to_string(options.downscale),
-                                     "--depth-prior", options.depth_prior, "--threads", std::to_string(threads)};
+                                     "--depth-prior", options.depth_prior, "--appearance", options.appearance,
+                                     "--threads", std::to_string(threads)};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -16,6 +16,7 @@ struct TileRunOptions {
   int iterations = 1000;                // splat training steps per tile
   int downscale = 2;                    // image downscale for training (SfM uses full resolution)
   std::string depth_prior = "surface";  // see `skyfall splat train --depth-prior`
+  std::string appearance = "auto";      // see `skyfall splat train --appearance`
   int threads = 0;                      // TBB threads in this tile (0 = all cores)
 };
 

@@ -76,6 +76,7 @@ std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale)
     TrainView v;
     v.name = im.at("name");
     v.held_out = im.value("split", std::string("train")) == "test";
+    v.acquisition_time = im.value("acquisition_time", std::string());
     const PinholeCamera full = CameraFromJson(im);
     v.camera = DownscaledCamera(full, downscale);
     const FloatImage img = ReadFloatImage(im.at("source_image").get<std::string>());

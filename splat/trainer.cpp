@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "core/atomic_file.h"
@@ -23,7 +24,9 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr double kAdamBeta1 = 0.9, kAdamBeta2 = 0.999, kAdamEps = 1e-15;
-constexpr char kCheckpointMagic[8] = {'S', 'K', 'Y', 'C', 'K', 'P', 'T', '1'};
+// Version 2 adds the appearance model; version 1 files (without it) still load.
+constexpr char kCheckpointMagic[8] = {'S', 'K', 'Y', 'C', 'K', 'P', 'T', '2'};
+constexpr char kCheckpointMagicV1[8] = {'S', 'K', 'Y', 'C', 'K', 'P', 'T', '1'};
 
 double InverseSigmoid(double p) { return std::log(p / (1 - p)); }
 
@@ -46,13 +49,41 @@ struct Adam {
   }
 };
 
-template <int N>
-void AdamUpdate(float* p, float* m, float* v, const float* g, double lr, double bc1, double bc2) {
-  for (int k = 0; k < N; ++k) {
+void AdamUpdate(float* p, float* m, float* v, const float* g, std::size_t n, double lr, double bc1, double bc2) {
+  for (std::size_t k = 0; k < n; ++k) {
     m[k] = static_cast<float>(kAdamBeta1 * m[k] + (1 - kAdamBeta1) * g[k]);
     v[k] = static_cast<float>(kAdamBeta2 * v[k] + (1 - kAdamBeta2) * g[k] * g[k]);
     p[k] -= static_cast<float>(lr * (m[k] / bc1) / (std::sqrt(v[k] / bc2) + kAdamEps));
   }
+}
+template <int N>
+void AdamUpdate(float* p, float* m, float* v, const float* g, double lr, double bc1, double bc2) {
+  AdamUpdate(p, m, v, g, N, lr, bc1, bc2);
+}
+
+// The appearance model with its Adam moments.
+struct AppearanceState {
+  bool enabled = false;
+  AppearanceModel model, m, v;
+};
+
+// The model's parameter blocks with their learning rates, in a fixed order.
+struct ParamBlock {
+  float* data;
+  std::size_t size;
+  double lr;
+};
+std::vector<ParamBlock> Blocks(AppearanceModel& x, const AppearanceOptions& o) {
+  auto block = [](auto& e, double lr) { return ParamBlock{e.data(), static_cast<std::size_t>(e.size()), lr}; };
+  return {block(x.image_embeddings, o.lr_image), block(x.gaussian_embeddings, o.lr_gaussian), block(x.w1, o.lr_mlp),
+          block(x.w2, o.lr_mlp), block(x.w3, o.lr_mlp), block(x.b1, o.lr_mlp), block(x.b2, o.lr_mlp),
+          block(x.b3, o.lr_mlp)};
+}
+
+void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, const AppearanceOptions& o) {
+  const double bc1 = 1 - std::pow(kAdamBeta1, step), bc2 = 1 - std::pow(kAdamBeta2, step);
+  const auto p = Blocks(a.model, o), m = Blocks(a.m, o), v = Blocks(a.v, o), g = Blocks(grad, o);
+  for (std::size_t k = 0; k < p.size(); ++k) AdamUpdate(p[k].data, m[k].data, v[k].data, g[k].data, p[k].size, p[k].lr, bc1, bc2);
 }
 
 
@@ -99,20 +130,19 @@ struct DensifyStats {
 };
 
 // Clone small and split large Gaussians with large view-space gradients,
-// prune transparent and huge ones. Returns how many were added and removed.
-std::pair<int, int> Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const TrainOptions& o,
-                            double extent_m, bool grow, std::mt19937_64& rng) {
+// prune transparent and huge ones. The source of every Gaussian kept or
+// added goes to `source` (per-Gaussian state kept elsewhere follows it).
+void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const TrainOptions& o, double extent_m, bool grow,
+             std::mt19937_64& rng, std::vector<std::size_t>* source) {
   GaussianCloud out, m, v;
   std::normal_distribution<float> normal(0.0f, 1.0f);
-  int added = 0, removed = 0;
+  int added = 0;
+  source->clear();
   const float split_scale = static_cast<float>(o.percent_dense * extent_m);
   for (std::size_t i = 0; i < c.size(); ++i) {
     const float opacity = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
     const float max_scale = std::exp(c.log_scales[i].maxCoeff());
-    if (opacity < o.min_opacity || max_scale > o.max_scale_m) {
-      ++removed;
-      continue;
-    }
+    if (opacity < o.min_opacity || max_scale > o.max_scale_m) continue;
     const float avg_grad = stats.seen[i] ? stats.grad_sum[i] / stats.seen[i] : 0.0f;
     const bool hot = grow && avg_grad >= o.densify_grad_threshold &&
                      c.size() + added < static_cast<std::size_t>(o.max_gaussians);
@@ -124,6 +154,7 @@ std::pair<int, int> Densify(GaussianCloud& c, Adam& adam, const DensifyStats& st
         Append(out, c, i);
         Append(m, adam.m, i);
         Append(v, adam.v, i);
+        source->push_back(i);
         const Eigen::Vector3f z(normal(rng), normal(rng), normal(rng));
         out.means.back() += R * (s.cwiseProduct(z));
         out.log_scales.back() = (s / 1.6f).array().log();
@@ -136,17 +167,18 @@ std::pair<int, int> Densify(GaussianCloud& c, Adam& adam, const DensifyStats& st
     Append(out, c, i);
     Append(m, adam.m, i);
     Append(v, adam.v, i);
+    source->push_back(i);
     if (hot) {  // clone
       Append(out, c, i);
       Append(m, adam.m, i);
       Append(v, adam.v, i);
+      source->push_back(i);
       ++added;
     }
   }
   c = std::move(out);
   adam.m = std::move(m);
   adam.v = std::move(v);
-  return {added, removed};
 }
 
 // --- checkpoints: the cloud, Adam state, RNG and series, in one binary file.
@@ -165,6 +197,17 @@ void PutCloud(std::string& s, const GaussianCloud& c) {
   PutVector(s, c.rotations);
   PutVector(s, c.opacity_logits);
   PutVector(s, c.sh);
+}
+
+template <typename M>
+void PutMatrix(std::string& s, const M& x) {
+  Put(s, static_cast<std::int64_t>(x.rows()));
+  Put(s, static_cast<std::int64_t>(x.cols()));
+  s.append(reinterpret_cast<const char*>(x.data()), static_cast<std::size_t>(x.size()) * sizeof(float));
+}
+void PutAppearance(std::string& s, const AppearanceModel& a) {
+  for (const Eigen::MatrixXf* x : {&a.image_embeddings, &a.gaussian_embeddings, &a.w1, &a.w2, &a.w3}) PutMatrix(s, *x);
+  for (const Eigen::VectorXf* x : {&a.b1, &a.b2, &a.b3}) PutMatrix(s, *x);
 }
 
 struct Reader {
@@ -188,6 +231,23 @@ struct Reader {
     at += n * sizeof(V);
     return v;
   }
+  template <typename M>
+  M GetMatrix() {
+    const auto rows = Get<std::int64_t>(), cols = Get<std::int64_t>();
+    const std::size_t bytes = static_cast<std::size_t>(rows * cols) * sizeof(float);
+    if (rows < 0 || cols < 0 || at + bytes > s.size()) throw Error("train", path, "checkpoint is truncated");
+    M x(rows, cols);
+    std::memcpy(x.data(), s.data() + at, bytes);
+    at += bytes;
+    return x;
+  }
+  AppearanceModel GetAppearance() {
+    AppearanceModel a;
+    for (Eigen::MatrixXf* x : {&a.image_embeddings, &a.gaussian_embeddings, &a.w1, &a.w2, &a.w3})
+      *x = GetMatrix<Eigen::MatrixXf>();
+    for (Eigen::VectorXf* x : {&a.b1, &a.b2, &a.b3}) *x = GetMatrix<Eigen::VectorXf>();
+    return a;
+  }
   GaussianCloud GetCloud() {
     GaussianCloud c;
     c.means = GetVector<Eigen::Vector3f>();
@@ -208,6 +268,7 @@ struct Checkpoint {
   DensifyStats stats;        // gradient statistics since the last densification
   double loss_sum = 0;       // training loss since the last series sample
   std::int64_t loss_count = 0;
+  AppearanceState appearance;
 };
 
 void SaveCheckpoint(const std::string& path, const Checkpoint& ck) {
@@ -223,14 +284,18 @@ void SaveCheckpoint(const std::string& path, const Checkpoint& ck) {
   PutVector(s, ck.stats.seen);
   Put(s, ck.loss_sum);
   Put(s, ck.loss_count);
+  Put(s, static_cast<std::uint8_t>(ck.appearance.enabled));
+  if (ck.appearance.enabled) {
+    for (const AppearanceModel* a : {&ck.appearance.model, &ck.appearance.m, &ck.appearance.v}) PutAppearance(s, *a);
+  }
   WriteFileAtomic(path, s);
 }
 
 Checkpoint LoadCheckpoint(const std::string& path) {
   const std::string s = ReadTextFile(path);
-  if (s.size() < sizeof(kCheckpointMagic) || std::memcmp(s.data(), kCheckpointMagic, sizeof(kCheckpointMagic)) != 0) {
-    throw Error("train", path, "not a skyfall checkpoint");
-  }
+  const bool v2 = s.size() >= sizeof(kCheckpointMagic) && std::memcmp(s.data(), kCheckpointMagic, sizeof(kCheckpointMagic)) == 0;
+  const bool v1 = s.size() >= sizeof(kCheckpointMagic) && std::memcmp(s.data(), kCheckpointMagicV1, sizeof(kCheckpointMagic)) == 0;
+  if (!v1 && !v2) throw Error("train", path, "not a skyfall checkpoint");
   Reader r{s, sizeof(kCheckpointMagic), path};
   Checkpoint ck;
   ck.iteration = static_cast<int>(r.Get<std::int64_t>());
@@ -245,6 +310,17 @@ Checkpoint LoadCheckpoint(const std::string& path) {
   ck.stats.seen = r.GetVector<int>();
   ck.loss_sum = r.Get<double>();
   ck.loss_count = r.Get<std::int64_t>();
+  ck.appearance.enabled = v2 && r.Get<std::uint8_t>() != 0;
+  if (ck.appearance.enabled) {
+    ck.appearance.model = r.GetAppearance();
+    ck.appearance.m = r.GetAppearance();
+    ck.appearance.v = r.GetAppearance();
+    if (static_cast<std::size_t>(ck.appearance.model.gaussian_embeddings.cols()) != ck.cloud.size() ||
+        ck.appearance.m.gaussian_embeddings.cols() != ck.appearance.model.gaussian_embeddings.cols() ||
+        ck.appearance.v.gaussian_embeddings.cols() != ck.appearance.model.gaussian_embeddings.cols()) {
+      throw Error("train", path, "checkpoint is inconsistent (appearance embeddings size)");
+    }
+  }
   if (ck.stats.grad_sum.size() != ck.cloud.size() || ck.stats.seen.size() != ck.cloud.size()) {
     throw Error("train", path, "checkpoint is inconsistent (densification statistics size)");
   }
@@ -254,12 +330,21 @@ Checkpoint LoadCheckpoint(const std::string& path) {
   return ck;
 }
 
-double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster) {
+// Held-out views have no embedding of their own: with the appearance model
+// they are rendered with the mean training embedding.
+double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                   const AppearanceState& appearance, const std::vector<int>& train_ids) {
+  std::vector<ColourAffine<float>> affine;
+  if (appearance.enabled) {
+    Eigen::VectorXf mean = Eigen::VectorXf::Zero(appearance.model.image_dim());
+    for (int j : train_ids) mean += appearance.model.image_embeddings.col(j);
+    affine = EvaluateAppearance(appearance.model, Eigen::VectorXf(mean / static_cast<float>(train_ids.size())), c);
+  }
   double sum = 0;
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
-    sum += Psnr(RenderGaussians(c, v.camera, raster).rgb, v.rgb);
+    sum += Psnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb);
     ++n;
   }
   return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
@@ -275,7 +360,48 @@ double SceneExtent(const GaussianCloud& c) {
   return std::max(1.0, 1.1 * r);
 }
 
+// Mean PSNR of the training views, each rendered with its own embedding:
+// how well the model fits what it was trained on.
+double TrainingPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                    const AppearanceState& appearance, const std::vector<int>& train_ids) {
+  double sum = 0;
+  for (int j : train_ids) {
+    std::vector<ColourAffine<float>> affine;
+    if (appearance.enabled) {
+      affine = EvaluateAppearance(appearance.model, Eigen::VectorXf(appearance.model.image_embeddings.col(j)), c);
+    }
+    sum += Psnr(RenderGaussians(c, views[j].camera, raster, appearance.enabled ? &affine : nullptr).rgb, views[j].rgb);
+  }
+  return sum / static_cast<double>(train_ids.size());
+}
+
+// The view whose appearance the exported cloud is fused with: the named one
+// (checked before training starts), else -1 for "the typical one".
+int AppearanceViewIndex(const TrainOptions& o, const std::vector<TrainView>& views) {
+  if (!o.appearance.enabled || o.appearance_image.empty()) return -1;
+  for (int k = 0; k < static_cast<int>(views.size()); ++k)
+    if (views[k].name == o.appearance_image && !views[k].held_out) return k;
+  throw Error("train", "appearance_image", o.appearance_image + " is not a training view");
+}
+
+int ExportView(const AppearanceState& a, int fused_view, const std::vector<int>& train_ids) {
+  return fused_view >= 0 ? fused_view : TypicalImage(a.model, train_ids);
+}
+
+GaussianCloud ExportCloud(const GaussianCloud& cloud, const AppearanceState& a, int fused_view,
+                          const std::vector<int>& train_ids) {
+  if (!a.enabled) return cloud;
+  return FuseAppearance(a.model, a.model.image_embeddings.col(ExportView(a, fused_view, train_ids)), cloud);
+}
+
 }  // namespace
+
+int DistinctAcquisitionDates(const std::vector<TrainView>& views) {
+  std::set<std::string> dates;
+  for (const TrainView& v : views)
+    if (!v.held_out) dates.insert(v.acquisition_time.substr(0, 10));
+  return static_cast<int>(dates.size());
+}
 
 void TrainOptions::Check() const {
   auto need = [](bool ok, const char* field, double v) {
@@ -296,6 +422,7 @@ void TrainOptions::Check() const {
   need(pseudo_interval >= 0, "pseudo_interval", pseudo_interval);
   need(pseudo.size_px >= 16 && pseudo.radius_m > 0 && pseudo.fov_deg > 0 && pseudo.fov_deg < 170, "pseudo", pseudo.size_px);
   need(checkpoint_interval >= 1, "checkpoint_interval", checkpoint_interval);
+  if (appearance.enabled) appearance.Check();
   raster.Check();
 }
 
@@ -360,9 +487,17 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
   }
 
+  const int fused_view = AppearanceViewIndex(o, views);
   Adam adam;
   adam.Resize(cloud.size());
   std::mt19937_64 rng(o.seed);
+  AppearanceState appearance;
+  if (o.appearance.enabled) {
+    appearance.enabled = true;
+    appearance.model = InitAppearance(o.appearance, static_cast<int>(views.size()), cloud.size(), o.seed);
+    appearance.m = appearance.model.ZerosLike();
+    appearance.v = appearance.model.ZerosLike();
+  }
   // The extent scales the position learning rate and the split size. It is
   // taken from the initial cloud (the caller passes the same one when
   // resuming), so a resumed run uses the same value.
@@ -387,23 +522,44 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     loss_count = static_cast<int>(ck.loss_count);
     start = ck.iteration;
     result.start_iteration = start;
+    if (ck.appearance.enabled != o.appearance.enabled ||
+        (ck.appearance.enabled && ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views.size()))) {
+      throw Error("train", ck_path,
+                  "was written with different appearance-model settings (on/off or image count); delete it to start "
+                  "again");
+    }
+    appearance = std::move(ck.appearance);
   }
   const PhotometricLossOptions photometric{o.lambda_dssim};
   const double previous_seconds = result.series.empty() ? 0.0 : result.series.back().seconds;
   if (result.series.empty()) {  // the starting point of the error-versus-time series
     TrainSample s;
-    s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster);
+    s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
     s.gaussians = cloud.size();
     s.loss = std::numeric_limits<double>::quiet_NaN();
     result.series.push_back(s);
   }
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
   for (int it = start + 1; it <= o.iterations; ++it) {
-    const TrainView& view = views[train_ids[rng() % train_ids.size()]];
-    const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster);
+    const int view_id = train_ids[rng() % train_ids.size()];
+    const TrainView& view = views[view_id];
+    std::vector<ColourAffine<float>> affine;
+    Eigen::VectorXf embedding;
+    if (appearance.enabled) {
+      embedding = appearance.model.image_embeddings.col(view_id);
+      affine = EvaluateAppearance(appearance.model, embedding, cloud);
+    }
+    const std::vector<ColourAffine<float>>* colour_affine = appearance.enabled ? &affine : nullptr;
+    const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
     std::vector<float> d_rgb;
     double loss = PhotometricLoss(r.rgb, view.rgb, view.camera.width_px, view.camera.height_px, photometric, &d_rgb);
-    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, {}, {});
+    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, {}, {}, colour_affine);
+    AppearanceModel appearance_grad;
+    if (appearance.enabled) {
+      appearance_grad = appearance.model.ZerosLike();
+      appearance_grad.image_embeddings.col(view_id) = BackwardAppearance(
+          appearance.model, embedding, cloud, g.d_colour_affine, &appearance_grad, &g.d.sh);
+    }
     if (o.lambda_opacity > 0 && it >= o.opacity_reg_from) {
       std::vector<float> d_op;
       loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
@@ -437,9 +593,14 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     const double t = static_cast<double>(it) / o.iterations;
     const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
     AdamStep(cloud, adam, g.d, o, lr_mean);
+    if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
 
     if (it >= o.densify_from && it % o.densify_interval == 0 && it <= o.densify_until + o.densify_interval) {
-      Densify(cloud, adam, stats, o, extent, it <= o.densify_until, rng);
+      std::vector<std::size_t> source;
+      Densify(cloud, adam, stats, o, extent, it <= o.densify_until, rng, &source);
+      if (appearance.enabled) {
+        for (AppearanceModel* a : {&appearance.model, &appearance.m, &appearance.v}) a->GatherGaussians(source);
+      }
       stats.Reset(cloud.size());
     }
     if (it % o.eval_interval == 0 || it == o.iterations) {
@@ -447,7 +608,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       s.iteration = it;
       s.seconds = previous_seconds + clock.Seconds();
       s.loss = loss_sum / std::max(1, loss_count);
-      s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster);
+      s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
       s.gaussians = cloud.size();
       result.series.push_back(s);
       loss_sum = 0;
@@ -456,18 +617,20 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     if (!ck_path.empty() && (it % o.checkpoint_interval == 0 || it == o.iterations)) {
       std::ostringstream state;
       state << rng;
-      SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count});
+      SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count, appearance});
       if (o.keep_snapshots) {
         WriteGaussiansPly((fs::path(checkpoint_dir) / "snapshots" / ("scene_" + std::to_string(it) + ".ply")).string(),
-                          cloud);
+                          ExportCloud(cloud, appearance, fused_view, train_ids));
       }
     }
     progress.Advance(static_cast<std::size_t>(it), "");
   }
   progress.End();
-  result.cloud = std::move(cloud);
+  result.cloud = ExportCloud(cloud, appearance, fused_view, train_ids);
+  if (appearance.enabled) result.appearance_image = views[ExportView(appearance, fused_view, train_ids)].name;
   result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
   if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
+  result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.seconds = clock.Seconds();
   return result;
 }

@@ -12,6 +12,7 @@
 #include "core/gaussians.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
+#include "splat/appearance.h"
 #include "splat/depth_prior.h"
 #include "splat/rasterizer.h"
 
@@ -22,7 +23,12 @@ struct TrainView {
   PinholeCamera camera;       // for the (possibly downscaled) image
   std::vector<float> rgb;     // 3 per pixel in [0, 1]
   bool held_out = false;      // evaluation only
+  std::string acquisition_time;  // ISO 8601 (UTC) when known, else empty
 };
+
+// Distinct acquisition dates (YYYY-MM-DD) among the training views; views
+// without a time count as one unknown date.
+int DistinctAcquisitionDates(const std::vector<TrainView>& views);
 
 struct TrainOptions {
   int iterations = 3000;
@@ -64,6 +70,11 @@ struct TrainOptions {
   double lambda_depth = 0.5;
   int pseudo_interval = 0;  // 0 disables
   PseudoCameraOptions pseudo;
+  // Per-image appearance (multi-date imagery). The exported cloud is fused
+  // with the embedding of `appearance_image` (a training view name; empty:
+  // the view whose embedding is nearest the mean).
+  AppearanceOptions appearance;
+  std::string appearance_image;
   RasterOptions raster;
   void Check() const;  // throws Error("train", field, ...)
 };
@@ -73,12 +84,14 @@ struct TrainSample {
   int iteration = 0;
   double seconds = 0;
   double loss = 0;          // mean training loss since the previous sample
-  double psnr_test_db = 0;  // mean over held-out views (NaN when there are none)
+  double psnr_test_db = 0;  // mean over held-out views (NaN when there are none); with the
+                            // appearance model, rendered with the mean training embedding
   std::size_t gaussians = 0;
 };
 
 struct TrainResult {
-  GaussianCloud cloud;
+  GaussianCloud cloud;      // plain 3DGS; with appearance, fused for `appearance_image`
+  std::string appearance_image;  // the view whose appearance was fused (empty without the model)
   std::vector<TrainSample> series;
   int start_iteration = 0;  // > 0 when resumed from a checkpoint
   StageReport report;
