@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "splat/appearance.h"
 #include "splat/rasterizer.h"
 
 namespace skyfall {
@@ -58,7 +59,7 @@ void BM_Forward(benchmark::State& state) {
   for (auto _ : state) {
     const RenderOutput<float> r = RenderGaussians(cloud, cam, opts);
     benchmark::DoNotOptimize(r.rgb.data());
-    for (int c : r.state.contributors) blends += c;
+    blends += static_cast<double>(r.state.blends);
   }
   state.counters["blends_per_s"] = benchmark::Counter(blends, benchmark::Counter::kIsRate);
 }
@@ -73,13 +74,30 @@ void BM_ForwardBackward(benchmark::State& state) {
     const RenderOutput<float> r = RenderGaussians(cloud, cam, opts);
     const GaussianGradients<float> g = BackwardGaussians(cloud, cam, opts, r, d_rgb, d_alpha, d_depth);
     benchmark::DoNotOptimize(g.d.means.data());
-    for (int c : r.state.contributors) blends += 2 * c;
+    blends += 2.0 * static_cast<double>(r.state.blends);  // each blend is revisited once backwards
   }
   state.counters["blends_per_s"] = benchmark::Counter(blends, benchmark::Counter::kIsRate);
 }
 
+// The appearance MLP (59 -> 128 -> 128 -> 6) for every Gaussian, forward and
+// backward: what the appearance model adds to a training iteration.
+void BM_AppearanceForwardBackward(benchmark::State& state) {
+  const GaussianCloud cloud = BenchCloud(static_cast<int>(state.range(0)));
+  const AppearanceModel model = InitAppearance(AppearanceOptions{}, 20, cloud.size(), 3);
+  const Eigen::VectorXf embedding = model.image_embeddings.col(0);
+  const std::vector<ColourAffine<float>> d_affine(cloud.size(), ColourAffine<float>::Constant(1e-3f));
+  for (auto _ : state) {
+    const std::vector<ColourAffine<float>> affine = EvaluateAppearance(model, embedding, cloud);
+    AppearanceModel grad = model.ZerosLike();
+    const Eigen::VectorXf d_e = BackwardAppearance<float>(model, embedding, cloud, d_affine, &grad, nullptr);
+    benchmark::DoNotOptimize(affine.data());
+    benchmark::DoNotOptimize(d_e.data());
+  }
+}
+
 BENCHMARK(BM_Forward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ForwardBackward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_AppearanceForwardBackward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace skyfall

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -103,9 +104,8 @@ struct PixelBox {
   int x0, y0, x1, y1;
 };
 template <typename T>
-PixelBox FootprintInTile(const RasterState<T>& s, int i, int tx0, int ty0, int tw, int th) {
-  const Eigen::Vector4i& f = s.footprint[i];  // image pixels, half-open
-  return {std::max(0, f[0] - tx0), std::max(0, f[1] - ty0), std::min(tw, f[2] - tx0), std::min(th, f[3] - ty0)};
+PixelBox FootprintInTile(const ScreenGaussian<T>& q, int tx0, int ty0, int tw, int th) {
+  return {std::max(0, q.x0 - tx0), std::max(0, q.y0 - ty0), std::min(tw, q.x1 - tx0), std::min(th, q.y1 - ty0)};
 }
 
 template <typename T>
@@ -145,11 +145,8 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   out.reference_depth_m = cam.cam_from_world_translation.z();
   RasterState<T>& s = out.state;
   const std::size_t n = cloud.size();
-  for (auto* v : {&s.u, &s.v, &s.conic_a, &s.conic_b, &s.conic_c, &s.opacity, &s.red, &s.green, &s.blue, &s.depth})
-    v->assign(n, T(0));
+  s.screen.assign(n, ScreenGaussian<T>());
   s.radius_px.assign(n, 0);
-  s.footprint.assign(n, Eigen::Vector4i::Zero());
-  s.colour_clamped.assign(n, 0);
   const Eigen::Vector3d centre = cam.Centre();
   const int tiles_x = (W + o.tile_px - 1) / o.tile_px, tiles_y = (H + o.tile_px - 1) / o.tile_px;
   std::vector<Eigen::Vector4i> rect(n, Eigen::Vector4i::Zero());  // tile x0, y0, x1, y1 (exclusive)
@@ -171,20 +168,21 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
       if (x0 >= x1 || y0 >= y1) continue;
       rect[i] = Eigen::Vector4i(x0, y0, x1, y1);
       s.radius_px[i] = r;
-      s.footprint[i] = Eigen::Vector4i(static_cast<int>(std::ceil(p.uv.x() - r)), static_cast<int>(std::ceil(p.uv.y() - r)),
-                                       static_cast<int>(std::floor(p.uv.x() + r)) + 1,
-                                       static_cast<int>(std::floor(p.uv.y() + r)) + 1);
-      s.u[i] = T(p.uv.x());
-      s.v[i] = T(p.uv.y());
-      s.conic_a[i] = T(C / det);
-      s.conic_b[i] = T(-B / det);
-      s.conic_c[i] = T(A / det);
-      s.opacity[i] = T(p.opacity);
-      s.red[i] = T(p.rgb[0]);
-      s.green[i] = T(p.rgb[1]);
-      s.blue[i] = T(p.rgb[2]);
-      s.depth[i] = T(p.cam.z() - out.reference_depth_m);
-      s.colour_clamped[i] = p.clamped;
+      ScreenGaussian<T>& q = s.screen[i];
+      q.x0 = static_cast<int>(std::ceil(p.uv.x() - r));
+      q.y0 = static_cast<int>(std::ceil(p.uv.y() - r));
+      q.x1 = static_cast<int>(std::floor(p.uv.x() + r)) + 1;
+      q.y1 = static_cast<int>(std::floor(p.uv.y() + r)) + 1;
+      q.u = T(p.uv.x());
+      q.v = T(p.uv.y());
+      q.conic_a = T(C / det);
+      q.conic_b = T(-B / det);
+      q.conic_c = T(A / det);
+      q.opacity = T(p.opacity);
+      for (int c = 0; c < 3; ++c) q.rgb[c] = T(p.rgb[c]);
+      q.depth = T(p.cam.z() - out.reference_depth_m);
+      // alpha < min_alpha  <=>  power < log(min_alpha / opacity)
+      q.log_alpha_cut = o.min_alpha > 0 ? T(std::log(o.min_alpha / p.opacity)) : -std::numeric_limits<T>::infinity();
     }
   });
 
@@ -208,7 +206,8 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   }
   tbb::parallel_for(0, tiles, [&](int t) {
     std::sort(s.order.begin() + s.tile_begin[t], s.order.begin() + s.tile_end[t], [&](int a, int b) {
-      return s.depth[a] < s.depth[b] || (s.depth[a] == s.depth[b] && a < b);
+      const T da = s.screen[a].depth, db = s.screen[b].depth;
+      return da < db || (da == db && a < b);
     });
   });
 
@@ -221,32 +220,27 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   out.depth.assign(static_cast<std::size_t>(W) * H, T(0));
   s.final_transmittance.assign(static_cast<std::size_t>(W) * H, T(1));
   s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
-  s.log_alpha_cut.assign(n, T(0));
-  for (std::size_t i = 0; i < n; ++i) {
-    // alpha < min_alpha  <=>  power < log(min_alpha / opacity)
-    s.log_alpha_cut[i] = o.min_alpha > 0 && s.radius_px[i]
-                             ? T(std::log(o.min_alpha / static_cast<double>(s.opacity[i])))
-                             : -std::numeric_limits<T>::infinity();
-  }
   const T max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
   const int tp = o.tile_px;
+  std::atomic<std::size_t> total_blends{0};
   tbb::parallel_for(0, tiles, [&](int t) {
     const int tx0 = (t % tiles_x) * tp, ty0 = (t / tiles_x) * tp;
     const int tw = std::min(W - tx0, tp), th = std::min(H - ty0, tp);
     std::vector<T> trans(tp * tp, T(1)), r(tp * tp, T(0)), g(tp * tp, T(0)), b(tp * tp, T(0)), d(tp * tp, T(0));
     std::vector<int> last(tp * tp, 0);
     std::vector<std::uint8_t> done(tp * tp, 0);
+    std::size_t blends = 0;
     const int begin = s.tile_begin[t], end = s.tile_end[t];
     for (int k = begin; k < end; ++k) {
-      const int i = s.order[k];
-      const PixelBox box = FootprintInTile(s, i, tx0, ty0, tw, th);
-      const T ca = s.conic_a[i], cb = s.conic_b[i], cc = s.conic_c[i], op = s.opacity[i], cut = s.log_alpha_cut[i];
+      const ScreenGaussian<T>& q = s.screen[s.order[k]];
+      const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
+      const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;
       for (int py = box.y0; py < box.y1; ++py) {
-        const T dy = s.v[i] - T(ty0 + py);
+        const T dy = q.v - T(ty0 + py);
         for (int px = box.x0; px < box.x1; ++px) {
           const int lp = py * tp + px;
           if (done[lp]) continue;
-          const T dx = s.u[i] - T(tx0 + px);
+          const T dx = q.u - T(tx0 + px);
           const T power = T(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy;
           if (power > T(0) || power < cut) continue;
           const T alpha = std::min(max_alpha, op * BlendExp(power));
@@ -256,15 +250,17 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
             continue;
           }
           const T w = alpha * trans[lp];
-          r[lp] += w * s.red[i];
-          g[lp] += w * s.green[i];
-          b[lp] += w * s.blue[i];
-          d[lp] += w * s.depth[i];
+          r[lp] += w * q.rgb[0];
+          g[lp] += w * q.rgb[1];
+          b[lp] += w * q.rgb[2];
+          d[lp] += w * q.depth;
           trans[lp] = next;
           last[lp] = k - begin + 1;
+          ++blends;
         }
       }
     }
+    total_blends += blends;
     for (int py = 0; py < th; ++py) {
       for (int px = 0; px < tw; ++px) {
         const int lp = py * tp + px;
@@ -280,6 +276,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
       }
     }
   });
+  s.blends = total_blends;
   return out;
 }
 
@@ -333,18 +330,18 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
       }
     }
     for (int k = begin + max_last - 1; k >= begin; --k) {
-      const int i = s.order[k];
-      const PixelBox box = FootprintInTile(s, i, tx0, ty0, tw, th);
-      const T ca = s.conic_a[i], cb = s.conic_b[i], cc = s.conic_c[i], op = s.opacity[i], cut = s.log_alpha_cut[i];
-      const T col[3] = {s.red[i], s.green[i], s.blue[i]};
+      const ScreenGaussian<T>& q = s.screen[s.order[k]];
+      const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
+      const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;
+      const T* col = q.rgb;
       T g[10] = {T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0), T(0)};
       bool touched = false;
       for (int py = box.y0; py < box.y1; ++py) {
-        const T dy = s.v[i] - T(ty0 + py);
+        const T dy = q.v - T(ty0 + py);
         for (int px = box.x0; px < box.x1; ++px) {
           const int lp = py * tp + px;
           if (k - begin >= last[lp]) continue;
-          const T dx = s.u[i] - T(tx0 + px);
+          const T dx = q.u - T(tx0 + px);
           const T power = T(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy;
           if (power > T(0) || power < cut) continue;
           const T gauss = BlendExp(power);
@@ -359,10 +356,10 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
             d_alpha_i += (col[c] - rest[lp][c]) * dC[lp][c];
           }
           g[9] += w * dD[lp];
-          d_alpha_i = trans[lp] * (d_alpha_i + (s.depth[i] - rest_d[lp]) * dD[lp]) +
+          d_alpha_i = trans[lp] * (d_alpha_i + (q.depth - rest_d[lp]) * dD[lp]) +
                       dA[lp] * t_final[lp] * inv_one_minus;
           for (int c = 0; c < 3; ++c) rest[lp][c] = alpha * col[c] + (T(1) - alpha) * rest[lp][c];
-          rest_d[lp] = alpha * s.depth[i] + (T(1) - alpha) * rest_d[lp];
+          rest_d[lp] = alpha * q.depth + (T(1) - alpha) * rest_d[lp];
           touched = true;
           if (raw_alpha > max_alpha) continue;  // clamped: no gradient to opacity or shape
           g[5] += gauss * d_alpha_i;

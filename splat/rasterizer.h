@@ -31,19 +31,26 @@ struct RasterOptions {
   void Check() const;                  // throws Error("raster", field, ...)
 };
 
+// A projected Gaussian: everything the blending loops read about it, packed
+// into one cache line (in float), because they visit Gaussians in depth
+// order, i.e. at random places in memory.
+template <typename T>
+struct alignas(64) ScreenGaussian {
+  T u = 0, v = 0;                      // 2D mean [px]
+  T conic_a = 0, conic_b = 0, conic_c = 0;
+  T opacity = 0;
+  T rgb[3] = {0, 0, 0};
+  T depth = 0;                         // camera depth minus reference_depth [m]
+  T log_alpha_cut = 0;                 // power below this gives alpha < min_alpha
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // pixel box within the radius (half-open)
+};
+
 // What the forward pass keeps for the backward pass.
 template <typename T>
 struct RasterState {
   // Per Gaussian, after projection (invisible ones have radius 0).
-  std::vector<T> u, v;                 // 2D mean [px]
-  std::vector<T> conic_a, conic_b, conic_c;
-  std::vector<T> opacity;
-  std::vector<T> red, green, blue;
-  std::vector<T> depth;                // camera depth minus reference_depth [m]
+  std::vector<ScreenGaussian<T>> screen;
   std::vector<int> radius_px;
-  std::vector<Eigen::Vector4i> footprint;  // pixel box x0, y0, x1, y1 (half-open) within the radius
-  std::vector<T> log_alpha_cut;        // power below this gives alpha < min_alpha
-  std::vector<std::uint8_t> colour_clamped;  // bit c set: channel c clamped at 0
   // Per tile: Gaussian indices sorted front to back, as ranges into `order`.
   std::vector<int> order;
   std::vector<int> tile_begin, tile_end;
@@ -51,6 +58,7 @@ struct RasterState {
   // last Gaussian blended (0 when none).
   std::vector<T> final_transmittance;
   std::vector<int> contributors;
+  std::size_t blends = 0;  // Gaussian-pixel pairs composited (for throughput figures)
 };
 
 template <typename T>
