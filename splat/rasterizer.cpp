@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -186,7 +187,14 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
     }
   });
 
-  // 2. Bin into tiles (counting sort), then order each tile front to back.
+  // 2. Order the visible Gaussians front to back once (ties by index, so the
+  // order is deterministic), then bin them into tiles in that order with a
+  // counting sort: every tile's list comes out sorted.
+  std::vector<std::pair<T, int>> by_depth;
+  by_depth.reserve(n);
+  for (std::size_t i = 0; i < n; ++i)
+    if (s.radius_px[i]) by_depth.emplace_back(s.screen[i].depth, static_cast<int>(i));
+  tbb::parallel_sort(by_depth.begin(), by_depth.end());
   const int tiles = tiles_x * tiles_y;
   std::vector<int> count(tiles + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
@@ -199,17 +207,10 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   s.tile_end.assign(count.begin() + 1, count.end());
   s.order.assign(count.back(), 0);
   std::vector<int> fill(s.tile_begin);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!s.radius_px[i]) continue;
+  for (const auto& [depth, i] : by_depth) {
     for (int ty = rect[i][1]; ty < rect[i][3]; ++ty)
-      for (int tx = rect[i][0]; tx < rect[i][2]; ++tx) s.order[fill[ty * tiles_x + tx]++] = static_cast<int>(i);
+      for (int tx = rect[i][0]; tx < rect[i][2]; ++tx) s.order[fill[ty * tiles_x + tx]++] = i;
   }
-  tbb::parallel_for(0, tiles, [&](int t) {
-    std::sort(s.order.begin() + s.tile_begin[t], s.order.begin() + s.tile_end[t], [&](int a, int b) {
-      const T da = s.screen[a].depth, db = s.screen[b].depth;
-      return da < db || (da == db && a < b);
-    });
-  });
 
   // 3. Blend front to back, tiles in parallel. Within a tile the loop runs
   // over Gaussians (front to back) and, inside, only over the pixels of the
@@ -219,6 +220,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   out.alpha.assign(static_cast<std::size_t>(W) * H, T(0));
   out.depth.assign(static_cast<std::size_t>(W) * H, T(0));
   s.final_transmittance.assign(static_cast<std::size_t>(W) * H, T(1));
+  s.entry_blended.assign(s.order.size(), 0);
   s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
   const T max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
   const int tp = o.tile_px;
@@ -230,8 +232,12 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
     std::vector<int> last(tp * tp, 0);
     std::vector<std::uint8_t> done(tp * tp, 0);
     std::size_t blends = 0;
+    // Once every pixel of the tile is opaque the Gaussians behind change
+    // nothing: stop there (most of a dense tile's list).
+    int open_pixels = tw * th;
     const int begin = s.tile_begin[t], end = s.tile_end[t];
-    for (int k = begin; k < end; ++k) {
+    for (int k = begin; k < end && open_pixels > 0; ++k) {
+      const std::size_t blends_before = blends;
       const ScreenGaussian<T>& q = s.screen[s.order[k]];
       const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
       const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;
@@ -247,6 +253,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
           const T next = trans[lp] * (T(1) - alpha);
           if (next < min_t) {
             done[lp] = 1;
+            --open_pixels;
             continue;
           }
           const T w = alpha * trans[lp];
@@ -259,6 +266,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
           ++blends;
         }
       }
+      s.entry_blended[k] = blends != blends_before;
     }
     total_blends += blends;
     for (int py = 0; py < th; ++py) {
@@ -330,6 +338,7 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
       }
     }
     for (int k = begin + max_last - 1; k >= begin; --k) {
+      if (!s.entry_blended[k]) continue;  // touched no pixel going forwards
       const ScreenGaussian<T>& q = s.screen[s.order[k]];
       const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
       const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;

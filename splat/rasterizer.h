@@ -54,6 +54,7 @@ struct RasterState {
   // Per tile: Gaussian indices sorted front to back, as ranges into `order`.
   std::vector<int> order;
   std::vector<int> tile_begin, tile_end;
+  std::vector<std::uint8_t> entry_blended;  // per `order` entry: it blended at least one pixel
   // Per pixel: final transmittance and 1 + the tile-list position of the
   // last Gaussian blended (0 when none).
   std::vector<T> final_transmittance;
