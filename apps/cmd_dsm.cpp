@@ -21,6 +21,7 @@ struct ExportArgs {
   std::vector<double> bounds;  // min_easting min_northing max_easting max_northing
   double gsd_m = 0.5;
   int epsg = 0;
+  std::string depth = "expected";
 };
 
 void AddExport(CLI::App& dsm, Runner* runner) {
@@ -35,6 +36,10 @@ void AddExport(CLI::App& dsm, Runner* runner) {
   cmd->add_option("--bounds", a->bounds, "min_easting min_northing max_easting max_northing [m]")->expected(4);
   cmd->add_option("--gsd", a->gsd_m, "Grid spacing with --bounds [m]")->capture_default_str();
   cmd->add_option("--epsg", a->epsg, "UTM EPSG code (default: the AOI's zone)");
+  cmd->add_option("--depth", a->depth,
+                  "Height of a pixel: 'median' (where opacity reaches 0.5) or 'expected' (opacity-weighted mean)")
+      ->check(CLI::IsMember({"median", "expected"}))
+      ->capture_default_str();
   cmd->callback([runner, a] {
     *runner = [a] {
       const AoiCatalog catalog = ReadAoiCatalog(a->frame);
@@ -57,7 +62,9 @@ void AddExport(CLI::App& dsm, Runner* runner) {
         throw Error("dsm", a->frame, "has no truth grid: give --grid or --bounds/--gsd");
       }
       const GaussianCloud scene = ReadGaussiansPly(a->scene);
-      RasterizeDsm(scene, catalog.enu_origin, DsmExportOptions{}, &grid);
+      DsmExportOptions export_options;
+      export_options.median_depth = a->depth == "median";
+      RasterizeDsm(scene, catalog.enu_origin, export_options, &grid);
       WriteDsm(a->out, grid);
       std::size_t valid = 0;
       for (float v : grid.height_m) valid += std::isfinite(v);

@@ -189,13 +189,16 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   cam.width_px = W;
   cam.height_px = H;
   RasterOptions ro;
+  ro.median_depth = o.median_depth;
   const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
   grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
   for (int row = 0; row < H; ++row)
     for (int col = 0; col < W; ++col) {
       const size_t p = static_cast<size_t>(row) * W + col;
       if (r.alpha[p] < o.min_alpha) continue;
-      const double z_cam = r.depth[p] + r.reference_depth_m;
+      const float rel_depth = o.median_depth ? r.median_depth[p] : r.depth[p];
+      if (!std::isfinite(rel_depth)) continue;
+      const double z_cam = rel_depth + r.reference_depth_m;
       // The pixel's ray with unit camera-z, so that z_cam scales it to the hit.
       const double yn = (row - cam.cy) / cam.fy;
       const Eigen::Vector3d dir = cam.cam_from_world_rotation.transpose() *

@@ -42,10 +42,15 @@ void WriteDsm(const std::string& path, const DsmGrid& dsm);
 struct DsmExportOptions {
   double camera_height_m = 1.0e6;  // the nadir camera sits this far above: ~orthographic
   double min_alpha = 0.5;          // below this accumulated opacity a pixel is nodata
+  // The height of a pixel: the opacity-weighted expected depth, or with
+  // median_depth the depth where the accumulated opacity reaches 0.5 (faint
+  // floaters ignored). On JAX_068 the expected depth measured better
+  // (MAE 3.44 m against 3.66 m): its errors are opaque blobs, not faint ones.
+  bool median_depth = false;
 };
 
 // Rasterizes the scene (in the AOI's ENU frame with origin `enu_origin`) onto
-// `grid` (its data is replaced) by rendering expected depth from a nadir
+// `grid` (its data is replaced) by rendering median (or expected) depth from a nadir
 // camera whose pixels are the grid's pixels, then converting each hit back
 // to an ellipsoidal height. Rendered at 1e6 m the parallax of a 100 m tower
 // 200 m off-centre is 2 cm.

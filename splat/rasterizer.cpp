@@ -221,6 +221,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   out.depth.assign(static_cast<std::size_t>(W) * H, T(0));
   s.final_transmittance.assign(static_cast<std::size_t>(W) * H, T(1));
   s.entry_blended.assign(s.order.size(), 0);
+  if (o.median_depth) out.median_depth.assign(static_cast<std::size_t>(W) * H, std::numeric_limits<T>::quiet_NaN());
   s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
   const T max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
   const int tp = o.tile_px;
@@ -257,6 +258,9 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
             continue;
           }
           const T w = alpha * trans[lp];
+          if (o.median_depth && trans[lp] > T(0.5) && next <= T(0.5)) {
+            out.median_depth[static_cast<std::size_t>(ty0 + py) * W + (tx0 + px)] = q.depth;
+          }
           r[lp] += w * q.rgb[0];
           g[lp] += w * q.rgb[1];
           b[lp] += w * q.rgb[2];

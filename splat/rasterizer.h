@@ -27,6 +27,8 @@ struct RasterOptions {
   double near_m = 0.2;                 // Gaussians closer than this to the camera plane are culled [m]
   double sigma_extent = 3.0;           // screen radius in standard deviations
   int sh_degree = 1;                   // 0 or 1
+  // Also render the median depth (not differentiable; for DSMs and depth maps).
+  bool median_depth = false;
   Eigen::Vector3d background = Eigen::Vector3d::Zero();
   void Check() const;                  // throws Error("raster", field, ...)
 };
@@ -69,6 +71,11 @@ struct RenderOutput {
   std::vector<T> rgb;       // 3 per pixel, row-major
   std::vector<T> alpha;     // accumulated opacity, 1 - final transmittance
   std::vector<T> depth;     // expected depth (weighted mean) minus reference_depth_m; 0 where alpha is 0
+  // With RasterOptions::median_depth: the depth of the Gaussian at which the
+  // accumulated opacity first reaches 0.5, minus reference_depth_m; NaN where
+  // it never does. Unlike the expected depth it does not average a roof
+  // edge with the ground below, nor a surface with a faint floater above.
+  std::vector<T> median_depth;
   double reference_depth_m = 0;  // camera depth of the frame origin
   RasterState<T> state;
 };

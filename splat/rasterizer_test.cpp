@@ -204,5 +204,42 @@ TEST(Rasterizer, OpaqueGaussianCoversItsPixelAndGivesItsDepth) {
   EXPECT_NEAR(r.rgb[3 * mid], 0.8 * r.alpha[mid], 1e-3);
 }
 
+TEST(Rasterizer, MedianDepthIsWhereOpacityReachesOneHalf) {
+  // A faint wide floater (opacity 0.3) at 30 m above an opaque roof (0.95)
+  // at 5 m, seen from 40 m: the expected depth is pulled towards the floater,
+  // the median depth is the roof's. A third, lone faint Gaussian off to the
+  // side never reaches 0.5: no median depth there.
+  PinholeCamera cam = LookDownCamera(41.6, 32, 16, 40.0);
+  cam.cam_from_world_rotation << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * Eigen::Vector3d(0, 0, 40);
+  cam.cx = 7.5;
+  cam.cy = 7.5;
+  auto logit = [](double a) { return std::log(a / (1 - a)); };
+  GaussianCloudT<double> c;
+  c.resize(3);
+  const double heights[] = {30.0, 5.0, 5.0}, opacities[] = {0.3, 0.95, 0.3};
+  const Eigen::Vector3d centres[] = {{0, 0, 30}, {0, 0, 5}, {16, 0, 5}};
+  for (int i = 0; i < 3; ++i) {
+    c.means[i] = centres[i];
+    c.log_scales[i] = Eigen::Vector3d(std::log(3.0), std::log(3.0), std::log(0.01));
+    c.rotations[i] = Eigen::Vector4d(1, 0, 0, 0);
+    c.opacity_logits[i] = logit(opacities[i]);
+    c.sh[i].fill(0.0);
+    EXPECT_EQ(c.means[i].z(), heights[i]);
+  }
+  RasterOptions o;
+  EXPECT_TRUE(RenderGaussians(c, cam, o).median_depth.empty()) << "off unless asked for";
+  o.median_depth = true;
+  const RenderOutput<double> r = RenderGaussians(c, cam, o);
+  const std::size_t mid = 8 * 32 + 8, side = 8 * 32 + 24;
+  ASSERT_GT(r.alpha[mid], 0.5);
+  EXPECT_NEAR(r.median_depth[mid] + r.reference_depth_m, 35.0, 1e-9);
+  const double expected = r.depth[mid] + r.reference_depth_m;
+  EXPECT_GT(expected, 10.0 + 1.0);  // between the two, clearly off the roof
+  EXPECT_LT(expected, 35.0 - 1.0);
+  ASSERT_LT(r.alpha[side], 0.5);
+  EXPECT_TRUE(std::isnan(r.median_depth[side]));
+}
+
 }  // namespace
 }  // namespace skyfall
