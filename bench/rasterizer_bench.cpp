@@ -87,9 +87,10 @@ void BM_AppearanceForwardBackward(benchmark::State& state) {
   const Eigen::VectorXf embedding = model.image_embeddings.col(0);
   const std::vector<ColourAffine<float>> d_affine(cloud.size(), ColourAffine<float>::Constant(1e-3f));
   for (auto _ : state) {
-    const std::vector<ColourAffine<float>> affine = EvaluateAppearance(model, embedding, cloud);
+    AppearanceActivations<float> kept;
+    const std::vector<ColourAffine<float>> affine = EvaluateAppearance(model, embedding, cloud, &kept);
     AppearanceModel grad = model.ZerosLike();
-    const Eigen::VectorXf d_e = BackwardAppearance<float>(model, embedding, cloud, d_affine, &grad, nullptr);
+    const Eigen::VectorXf d_e = BackwardAppearance<float>(model, embedding, cloud, d_affine, &grad, nullptr, &kept);
     benchmark::DoNotOptimize(affine.data());
     benchmark::DoNotOptimize(d_e.data());
   }

@@ -33,10 +33,11 @@ Mat<T> BaseColours(const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n)
   return c;
 }
 
-// Forward activations of one block of Gaussians.
+// Forward activations of one block of Gaussians. ReLU masks are read off
+// h > 0 (equivalent to z > 0), so the pre-activations need not be kept.
 template <typename T>
 struct BlockActivations {
-  Mat<T> colour, z1, h1, z2, h2, out;
+  Mat<T> colour, h1, h2, out;
 };
 
 template <typename T>
@@ -47,12 +48,12 @@ BlockActivations<T> ForwardBlock(const AppearanceModelT<T>& m, const Vec<T>& fir
   act.colour = BaseColours(cloud, a, n);
   // The first layer is linear in the concatenated input [e; g; c], so the
   // image term is computed once per call, not once per Gaussian.
-  act.z1 = m.w1.middleCols(de, dg) * m.gaussian_embeddings.middleCols(a, n) + m.w1.rightCols(3) * act.colour;
-  act.z1.colwise() += first_layer_image_term;
-  act.h1 = act.z1.cwiseMax(T(0));
-  act.z2 = m.w2 * act.h1;
-  act.z2.colwise() += m.b2;
-  act.h2 = act.z2.cwiseMax(T(0));
+  act.h1 = m.w1.middleCols(de, dg) * m.gaussian_embeddings.middleCols(a, n) + m.w1.rightCols(3) * act.colour;
+  act.h1.colwise() += first_layer_image_term;
+  act.h1 = act.h1.cwiseMax(T(0));
+  act.h2 = m.w2 * act.h1;
+  act.h2.colwise() += m.b2;
+  act.h2 = act.h2.cwiseMax(T(0));
   act.out = m.w3 * act.h2;
   act.out.colwise() += m.b3;
   return act;
@@ -139,16 +140,26 @@ AppearanceModel InitAppearance(const AppearanceOptions& o, int images, std::size
 
 template <typename T>
 std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
-                                                const GaussianCloudT<T>& cloud) {
+                                                const GaussianCloudT<T>& cloud, AppearanceActivations<T>* keep) {
   CheckCloud(m, cloud);
   const Vec<T> image_term = ImageTerm(m, embedding);
   std::vector<ColourAffine<T>> affine(cloud.size());
-  tbb::parallel_for(std::size_t{0}, Blocks(cloud.size()), [&](std::size_t b) {
+  const std::size_t blocks = Blocks(cloud.size());
+  if (keep) {
+    keep->h1.assign(blocks, Mat<T>());
+    keep->h2.assign(blocks, Mat<T>());
+    keep->gaussians = cloud.size();
+  }
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
     const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
-    const BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
+    BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
     for (std::size_t k = 0; k < n; ++k) {
       affine[a + k] = act.out.col(k);
       affine[a + k].template head<3>().array() += T(1);
+    }
+    if (keep) {
+      keep->h1[b] = std::move(act.h1);
+      keep->h2[b] = std::move(act.h2);
     }
   });
   return affine;
@@ -157,8 +168,13 @@ std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, co
 template <typename T>
 Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding, const GaussianCloudT<T>& cloud,
                           const std::vector<ColourAffine<T>>& d_affine, AppearanceModelT<T>* grad,
-                          std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh) {
+                          std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh,
+                          const AppearanceActivations<T>* kept) {
   CheckCloud(m, cloud);
+  if (kept && kept->gaussians != cloud.size()) {
+    throw Error("appearance", "kept activations", "are for " + std::to_string(kept->gaussians) + " Gaussians, not " +
+                                                      std::to_string(cloud.size()));
+  }
   if (d_affine.size() != cloud.size()) throw Error("appearance", "d_affine", "size differs from the cloud");
   const int de = m.image_dim(), dg = m.gaussian_dim();
   const Vec<T> image_term = ImageTerm(m, embedding);
@@ -172,23 +188,25 @@ Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
   std::vector<Partial> partial(blocks);
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
     const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
-    // Recomputing the activations costs a third of the backward pass and
-    // saves keeping 1 kB per Gaussian between the passes.
-    const BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
+    BlockActivations<T> recomputed;
+    if (!kept) recomputed = ForwardBlock(m, image_term, cloud, a, n);
+    const Mat<T>& h1 = kept ? kept->h1[b] : recomputed.h1;
+    const Mat<T>& h2 = kept ? kept->h2[b] : recomputed.h2;
+    const Mat<T> colour = kept ? BaseColours(cloud, a, n) : recomputed.colour;
     Mat<T> d_out(6, n);
     for (std::size_t k = 0; k < n; ++k) d_out.col(k) = d_affine[a + k];
     Partial& p = partial[b];
-    p.w3 = d_out * act.h2.transpose();
+    p.w3 = d_out * h2.transpose();
     p.b3 = d_out.rowwise().sum();
-    const Mat<T> d_z2 = (m.w3.transpose() * d_out).cwiseProduct((act.z2.array() > T(0)).matrix().template cast<T>());
-    p.w2 = d_z2 * act.h1.transpose();
+    const Mat<T> d_z2 = (m.w3.transpose() * d_out).cwiseProduct((h2.array() > T(0)).matrix().template cast<T>());
+    p.w2 = d_z2 * h1.transpose();
     p.b2 = d_z2.rowwise().sum();
-    const Mat<T> d_z1 = (m.w2.transpose() * d_z2).cwiseProduct((act.z1.array() > T(0)).matrix().template cast<T>());
+    const Mat<T> d_z1 = (m.w2.transpose() * d_z2).cwiseProduct((h1.array() > T(0)).matrix().template cast<T>());
     p.b1 = d_z1.rowwise().sum();
     p.w1.setZero(m.w1.rows(), m.w1.cols());
     p.w1.leftCols(de) = p.b1 * embedding.transpose();
     p.w1.middleCols(de, dg) = d_z1 * m.gaussian_embeddings.middleCols(a, n).transpose();
-    p.w1.rightCols(3) = d_z1 * act.colour.transpose();
+    p.w1.rightCols(3) = d_z1 * colour.transpose();
     grad->gaussian_embeddings.middleCols(a, n) += m.w1.middleCols(de, dg).transpose() * d_z1;
     if (d_sh) {
       const Mat<T> d_colour = m.w1.rightCols(3).transpose() * d_z1;
@@ -247,14 +265,17 @@ int TypicalImage(const AppearanceModel& model, const std::vector<int>& images) {
 template struct AppearanceModelT<float>;
 template struct AppearanceModelT<double>;
 template std::vector<ColourAffine<float>> EvaluateAppearance(const AppearanceModelT<float>&, const Vec<float>&,
-                                                             const GaussianCloudT<float>&);
+                                                             const GaussianCloudT<float>&,
+                                                             AppearanceActivations<float>*);
 template std::vector<ColourAffine<double>> EvaluateAppearance(const AppearanceModelT<double>&, const Vec<double>&,
-                                                              const GaussianCloudT<double>&);
+                                                              const GaussianCloudT<double>&,
+                                                              AppearanceActivations<double>*);
 template Vec<float> BackwardAppearance(const AppearanceModelT<float>&, const Vec<float>&, const GaussianCloudT<float>&,
                                        const std::vector<ColourAffine<float>>&, AppearanceModelT<float>*,
-                                       std::vector<std::array<float, 12>>*);
+                                       std::vector<std::array<float, 12>>*, const AppearanceActivations<float>*);
 template Vec<double> BackwardAppearance(const AppearanceModelT<double>&, const Vec<double>&,
                                         const GaussianCloudT<double>&, const std::vector<ColourAffine<double>>&,
-                                        AppearanceModelT<double>*, std::vector<std::array<double, 12>>*);
+                                        AppearanceModelT<double>*, std::vector<std::array<double, 12>>*,
+                                        const AppearanceActivations<double>*);
 
 }  // namespace skyfall

@@ -61,23 +61,37 @@ using AppearanceModel = AppearanceModelT<float>;
 // A model for `images` images and `gaussians` Gaussians.
 AppearanceModel InitAppearance(const AppearanceOptions& options, int images, std::size_t gaussians, std::uint64_t seed);
 
+// The hidden activations of one evaluation, kept for the backward pass
+// (2 x hidden floats per Gaussian: 1 kB at the paper's sizes) so that it
+// need not recompute them.
+template <typename T>
+struct AppearanceActivations {
+  std::vector<Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>> h1, h2;  // per block of Gaussians
+  std::size_t gaussians = 0;
+};
+
 // The colour transform of every Gaussian for image embedding `embedding`
 // (a column of image_embeddings, or any vector of that size, e.g. their mean).
+// With `keep`, the activations are kept there for BackwardAppearance.
 template <typename T>
 std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& model,
                                                 const Eigen::Matrix<T, Eigen::Dynamic, 1>& embedding,
-                                                const GaussianCloudT<T>& cloud);
+                                                const GaussianCloudT<T>& cloud,
+                                                AppearanceActivations<T>* keep = nullptr);
 
 // Back-propagates dL/d(gamma, beta) through the MLP. Adds to `grad` (same
 // shapes as the model: weights, biases, the Gaussian embeddings) and returns
 // dL/d(embedding); adds dL/d(SH dc) through the MLP's colour input to `d_sh`.
+// `kept` (from EvaluateAppearance with the same model, embedding and cloud)
+// saves recomputing the forward pass.
 template <typename T>
 Eigen::Matrix<T, Eigen::Dynamic, 1> BackwardAppearance(const AppearanceModelT<T>& model,
                                                        const Eigen::Matrix<T, Eigen::Dynamic, 1>& embedding,
                                                        const GaussianCloudT<T>& cloud,
                                                        const std::vector<ColourAffine<T>>& d_affine,
                                                        AppearanceModelT<T>* grad,
-                                                       std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh);
+                                                       std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh,
+                                                       const AppearanceActivations<T>* kept = nullptr);
 
 // A plain 3DGS cloud whose SH colours render as the model does with
 // `embedding` (the embeddings and the MLP are then no longer needed).

@@ -197,6 +197,31 @@ TEST(Appearance, GradientsOfEmbeddingsAndBaseColourMatchFiniteDifferences) {
   EXPECT_GT(g.embedding.norm(), 1e-4);
 }
 
+TEST(Appearance, KeptActivationsGiveTheSameGradients) {
+  Scene s;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<ColourAffine<double>> d_affine(s.cloud.size());
+  for (auto& d : d_affine) d = ColourAffine<double>::NullaryExpr([&] { return u(rng); });
+  AppearanceActivations<double> kept;
+  const auto with_kept = EvaluateAppearance(s.model, s.embedding, s.cloud, &kept);
+  EXPECT_EQ(with_kept, EvaluateAppearance(s.model, s.embedding, s.cloud));
+  Model g_kept = s.model.ZerosLike(), g_recomputed = s.model.ZerosLike();
+  const Eigen::VectorXd e_kept = BackwardAppearance<double>(s.model, s.embedding, s.cloud, d_affine, &g_kept, nullptr, &kept);
+  const Eigen::VectorXd e_recomputed = BackwardAppearance<double>(s.model, s.embedding, s.cloud, d_affine, &g_recomputed, nullptr);
+  EXPECT_EQ(e_kept, e_recomputed);
+  EXPECT_EQ(g_kept.w1, g_recomputed.w1);
+  EXPECT_EQ(g_kept.w2, g_recomputed.w2);
+  EXPECT_EQ(g_kept.gaussian_embeddings, g_recomputed.gaussian_embeddings);
+  Cloud fewer = s.cloud;
+  fewer.resize(5);
+  Model m5 = s.model;
+  m5.gaussian_embeddings.conservativeResize(Eigen::NoChange, 5);
+  Model g5 = m5.ZerosLike();
+  std::vector<ColourAffine<double>> d5(d_affine.begin(), d_affine.begin() + 5);
+  EXPECT_THROW(BackwardAppearance<double>(m5, s.embedding, fewer, d5, &g5, nullptr, &kept), Error);
+}
+
 TEST(Appearance, ColourTransformGradientsOfTheRasterizerMatchFiniteDifferences) {
   Scene s;
   std::vector<ColourAffine<double>> affine = EvaluateAppearance(s.model, s.embedding, s.cloud);

@@ -545,9 +545,10 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     const TrainView& view = views[view_id];
     std::vector<ColourAffine<float>> affine;
     Eigen::VectorXf embedding;
+    AppearanceActivations<float> activations;
     if (appearance.enabled) {
       embedding = appearance.model.image_embeddings.col(view_id);
-      affine = EvaluateAppearance(appearance.model, embedding, cloud);
+      affine = EvaluateAppearance(appearance.model, embedding, cloud, &activations);
     }
     const std::vector<ColourAffine<float>>* colour_affine = appearance.enabled ? &affine : nullptr;
     const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
@@ -558,7 +559,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     if (appearance.enabled) {
       appearance_grad = appearance.model.ZerosLike();
       appearance_grad.image_embeddings.col(view_id) = BackwardAppearance(
-          appearance.model, embedding, cloud, g.d_colour_affine, &appearance_grad, &g.d.sh);
+          appearance.model, embedding, cloud, g.d_colour_affine, &appearance_grad, &g.d.sh, &activations);
     }
     if (o.lambda_opacity > 0 && it >= o.opacity_reg_from) {
       std::vector<float> d_op;
