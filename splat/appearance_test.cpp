@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "splat/raster_test_support.h"
 #include "splat/rasterizer.h"
 
 namespace skyfall {
@@ -85,21 +86,14 @@ Model RandomModel(int gaussians, std::uint64_t seed) {
   return m;
 }
 
-RasterOptions SmoothOptions() {
-  RasterOptions o;
-  o.min_alpha = 0.0;
-  o.min_transmittance = 0.0;
-  o.sigma_extent = 8.0;
-  o.background = Eigen::Vector3d(0.1, 0.2, 0.3);
-  return o;
-}
+using testing::SmoothRasterOptions;
 
 struct Scene {
   Cloud cloud = SmallCloud(12, 5);
   Model model = RandomModel(12, 6);
   Eigen::VectorXd embedding;
   PinholeCamera cam = TopCamera(40, 30.0);
-  RasterOptions raster = SmoothOptions();
+  RasterOptions raster = SmoothRasterOptions();
   std::vector<double> weights;
   Scene() {
     embedding = model.image_embeddings.col(1);

@@ -1,3 +1,4 @@
+#include "splat/raster_test_support.h"
 #include "splat/rasterizer.h"
 
 #include <gtest/gtest.h>
@@ -12,17 +13,7 @@ namespace {
 
 using Cloud = GaussianCloudT<double>;
 
-// Options that make the rendered image a smooth function of the parameters,
-// so central differences are meaningful: no alpha cut-off, no early stop, and
-// footprints wide enough that the tile cut-off is below 1e-14.
-RasterOptions SmoothOptions() {
-  RasterOptions o;
-  o.min_alpha = 0.0;
-  o.min_transmittance = 0.0;
-  o.sigma_extent = 8.0;
-  o.background = Eigen::Vector3d(0.2, 0.3, 0.4);
-  return o;
-}
+using testing::SmoothRasterOptions;
 
 // A camera looking down -z from `height_m` above the origin, like an orbit
 // or pseudo camera (FOV from the focal length and size).
@@ -129,7 +120,7 @@ TEST(Rasterizer, GradientsMatchFiniteDifferencesForANearCamera) {
   // 60-degree field of view, 40 m up: an orbit / pseudo camera.
   const PinholeCamera cam = LookDownCamera(41.6, 48, 40, 20.0, 0.8);
   const Cloud cloud = RandomCloud(6, 7.0, 3.0, 1);
-  CheckGradients(cloud, cam, SmoothOptions(), 1e-6, 2e-5, 1e-7);
+  CheckGradients(cloud, cam, SmoothRasterOptions(), 1e-6, 2e-5, 1e-7);
 }
 
 TEST(Rasterizer, GradientsMatchFiniteDifferencesForASatelliteCamera) {
@@ -138,7 +129,7 @@ TEST(Rasterizer, GradientsMatchFiniteDifferencesForASatelliteCamera) {
   const Cloud cloud = RandomCloud(5, 3.0, 1.5, 2);
   // The mean step must move the 6e5 m camera-frame depth by representable
   // amounts: 1e-5 m leaves ~1e-11 relative, ample in double.
-  CheckGradients(cloud, cam, SmoothOptions(), 1e-5, 1e-4, 1e-7);
+  CheckGradients(cloud, cam, SmoothRasterOptions(), 1e-5, 1e-4, 1e-7);
 }
 
 TEST(Rasterizer, GradientsAtExtremes) {
@@ -153,7 +144,7 @@ TEST(Rasterizer, GradientsAtExtremes) {
   const Eigen::Vector3d right = cam.cam_from_world_rotation.row(0).transpose();
   cloud.means[4] = cam.Centre() + 20.0 * forward - 10.5 * right;
   ASSERT_LT(cam.Project(cloud.means[4]).x(), 0.0);
-  CheckGradients(cloud, cam, SmoothOptions(), 1e-6, 5e-5, 1e-7);
+  CheckGradients(cloud, cam, SmoothRasterOptions(), 1e-6, 5e-5, 1e-7);
 }
 
 TEST(Rasterizer, GaussiansBehindTheCameraAreCulledWithZeroGradient) {
@@ -163,8 +154,8 @@ TEST(Rasterizer, GaussiansBehindTheCameraAreCulledWithZeroGradient) {
   cloud.means[1] = cam.Centre() - 5.0 * forward;  // behind the camera
   cloud.means[2] = cam.Centre() + 0.1 * forward;  // closer than the near plane
   const Weights w = RandomWeights(cam, 5);
-  const RenderOutput<double> r = RenderGaussians(cloud, cam, SmoothOptions());
-  const GaussianGradients<double> g = BackwardGaussians(cloud, cam, SmoothOptions(), r, w.rgb, w.alpha, w.depth);
+  const RenderOutput<double> r = RenderGaussians(cloud, cam, SmoothRasterOptions());
+  const GaussianGradients<double> g = BackwardGaussians(cloud, cam, SmoothRasterOptions(), r, w.rgb, w.alpha, w.depth);
   for (int i : {1, 2}) {
     EXPECT_EQ(r.state.radius_px[i], 0);
     EXPECT_EQ(g.d.means[i].norm(), 0.0);
@@ -176,7 +167,7 @@ TEST(Rasterizer, GaussiansBehindTheCameraAreCulledWithZeroGradient) {
 
 TEST(Rasterizer, EmptyCloudRendersTheBackground) {
   const PinholeCamera cam = LookDownCamera(41.6, 20, 10, 40.0);
-  const RenderOutput<float> r = RenderGaussians(GaussianCloudT<float>{}, cam, SmoothOptions());
+  const RenderOutput<float> r = RenderGaussians(GaussianCloudT<float>{}, cam, SmoothRasterOptions());
   EXPECT_FLOAT_EQ(r.rgb[0], 0.2f);
   EXPECT_FLOAT_EQ(r.rgb[2], 0.4f);
   EXPECT_EQ(r.alpha[0], 0.0f);
