@@ -46,12 +46,15 @@ void AddTrain(CLI::App& splat, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--appearance-image", opts->appearance_image,
                   "Training view whose appearance is fused into scene.ply (default: the most typical one)");
+  auto init_max_scale = std::make_shared<double>(0.0);
+  cmd->add_option("--init-max-scale", *init_max_scale, "Cap on the initial Gaussian size [m] (0 = none)")
+      ->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       ConsoleProgress progress;
-      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance}, progress);
+      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale}, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

@@ -114,8 +114,12 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
   SetAsideStaleCheckpoint(checkpoints, {{"appearance_model", job.options.appearance.enabled},
                                         {"resolution_downscale", job.downscale},
                                         {"depth_prior", job.depth_prior},
-                                        {"seed", job.options.seed}});
-  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours), views, checkpoints.string(),
+                                        {"seed", job.options.seed},
+                                        {"init_max_scale_m", job.init_max_scale_m}});
+  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours,
+                                                            job.init_max_scale_m > 0
+                                                                ? job.init_max_scale_m
+                                                                : std::numeric_limits<double>::infinity()), views, checkpoints.string(),
                                        progress, depth_prior.get());
   WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
   WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),

@@ -26,6 +26,7 @@ struct TrainJob {
   // Appearance model: "on", "off", or "auto" (on when the training views
   // were taken on more than one date).
   std::string appearance = "auto";
+  double init_max_scale_m = 0;  // cap on the initial Gaussian size (0 = none)
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes

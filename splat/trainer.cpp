@@ -427,7 +427,8 @@ void TrainOptions::Check() const {
 }
 
 GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
-                                   const std::vector<Eigen::Vector3f>& colours) {
+                                   const std::vector<Eigen::Vector3f>& colours, double max_scale_m) {
+  if (!(max_scale_m > 0)) throw Error("train", "init max scale", FormatDouble(max_scale_m) + " m must be > 0");
   if (points.empty()) throw Error("train", "init", "no SfM points to start from");
   GaussianCloud c;
   c.resize(points.size());
@@ -460,7 +461,7 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
         mean += std::sqrt(d2);
         ++n;
       }
-    const float scale = static_cast<float>(std::max(0.05, n ? mean / n : 1.0));
+    const float scale = static_cast<float>(std::min(max_scale_m, std::max(0.05, n ? mean / n : 1.0)));
     c.means[i] = points[i];
     c.log_scales[i] = Eigen::Vector3f::Constant(std::log(scale));
     c.rotations[i] = Eigen::Vector4f(1, 0, 0, 0);

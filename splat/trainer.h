@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -98,9 +99,11 @@ struct TrainResult {
 };
 
 // Gaussians at the SfM points: colour from the points, isotropic scale from
-// the mean distance to the 3 nearest neighbours, opacity 0.1.
+// the mean distance to the 3 nearest neighbours (at most `max_scale_m`),
+// opacity 0.1.
 GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
-                                   const std::vector<Eigen::Vector3f>& colours_01);
+                                   const std::vector<Eigen::Vector3f>& colours_01,
+                                   double max_scale_m = std::numeric_limits<double>::infinity());
 
 // Trains `cloud` on the views. With a non-empty `checkpoint_dir`, state is
 // saved there every checkpoint_interval iterations and a matching checkpoint

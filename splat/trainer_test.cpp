@@ -207,6 +207,17 @@ TEST(Trainer, UnknownAppearanceImageIsRefusedBeforeTraining) {
   }
 }
 
+TEST(Trainer, InitialScaleIsTheNeighbourDistanceUpToTheCap) {
+  const std::vector<Eigen::Vector3f> points = {{0, 0, 0}, {10, 0, 0}, {0, 10, 0}, {10, 10, 0}};
+  const std::vector<Eigen::Vector3f> grey(points.size(), Eigen::Vector3f::Constant(0.5f));
+  // Neighbours at 10, 10 and 14.1 m: mean 11.4 m.
+  const GaussianCloud free = InitializeFromPoints(points, grey);
+  EXPECT_NEAR(std::exp(free.log_scales[0].x()), (20.0 + std::sqrt(200.0)) / 3.0, 1e-4);
+  const GaussianCloud capped = InitializeFromPoints(points, grey, 1.5);
+  for (const auto& s : capped.log_scales) EXPECT_NEAR(std::exp(s.maxCoeff()), 1.5, 1e-5);
+  EXPECT_THROW(InitializeFromPoints(points, grey, 0.0), Error);
+}
+
 TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
   Fixture f;
   TrainView v;
