@@ -46,7 +46,7 @@ void AddTrain(CLI::App& splat, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--appearance-image", opts->appearance_image,
                   "Training view whose appearance is fused into scene.ply (default: the most typical one)");
-  auto init_max_scale = std::make_shared<double>(0.0);
+  auto init_max_scale = std::make_shared<double>(TrainJob{}.init_max_scale_m);
   cmd->add_option("--init-max-scale", *init_max_scale, "Cap on the initial Gaussian size [m] (0 = none)")
       ->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,

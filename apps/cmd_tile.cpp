@@ -49,6 +49,8 @@ void AddRunTileOptions(CLI::App* cmd, TileRunOptions* o) {
   cmd->add_option("--depth-prior", o->depth_prior, "'surface', 'none' or 'cmd:COMMAND' (see splat train)")
       ->capture_default_str();
   cmd->add_option("--appearance", o->appearance, "'auto', 'on' or 'off' (see splat train)")->capture_default_str();
+  cmd->add_option("--init-max-scale", o->init_max_scale_m, "Cap on the initial Gaussian size [m] (0 = none)")
+      ->capture_default_str();
 }
 
 void AddRunTile(CLI::App& app, Runner* runner) {

@@ -26,7 +26,14 @@ struct TrainJob {
   // Appearance model: "on", "off", or "auto" (on when the training views
   // were taken on more than one date).
   std::string appearance = "auto";
-  double init_max_scale_m = 0;  // cap on the initial Gaussian size (0 = none)
+  // Cap on the initial Gaussian size [m] (0 = none). SfM points are ~3.5 m
+  // apart on JAX_068, and at the paper's scaling learning rate (0.001) a
+  // Gaussian shrinks at most ~e-fold per 1000 steps: uncapped, the first
+  // thousands of steps render a DSM of 2-5 m blobs. Measured on JAX_068
+  // (1000 steps, half resolution): DSM MAE 3.51 m uncapped, 2.69 m at 1 m,
+  // 2.60 m at 0.75 m, 2.13 m at 0.4 m, but completeness 98.8 / 98.3 / 97.3 /
+  // 87.9 % and held-out PSNR 17.9 / 18.2 / 17.3 / 13.6 dB.
+  double init_max_scale_m = 1.0;
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes

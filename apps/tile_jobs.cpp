@@ -18,6 +18,7 @@
 
 #include "apps/commands.h"
 #include "apps/jobs.h"
+#include "core/format.h"
 #include "catalogs/aoi_catalog.h"
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
@@ -41,7 +42,8 @@ double PeakRssMb() {
 
 json OptionsJson(const TileRunOptions& o) {
   return {{"iterations", o.iterations}, {"resolution_downscale", o.downscale}, {"depth_prior", o.depth_prior},
-          {"appearance", o.appearance}};
+          {"appearance", o.appearance},
+          {"init_max_scale_m", o.init_max_scale_m}};
 }
 
 json StageJson(const StageReport& r) {
@@ -133,6 +135,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   job.downscale = options.downscale;
   job.depth_prior = options.depth_prior;
   job.appearance = options.appearance;
+  job.init_max_scale_m = options.init_max_scale_m;
   const TrainResult train = RunTrainJob(job, progress);
   StageReport splat = train.report;
   splat.stage = "splat";
@@ -219,6 +222,7 @@ std::vector<TileOutcome> RunTilesInParallel(const std::vector<std::string>& tile
     std::vector<std::string> args = {self, "-q", "run-tile", tile_dirs[k], "--iterations",
                                      std::to_string(options.iterations), "--resolution", std::to_string(options.downscale),
                                      "--depth-prior", options.depth_prior, "--appearance", options.appearance,
+                                     "--init-max-scale", FormatDouble(options.init_max_scale_m),
                                      "--threads", std::to_string(threads)};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/jobs.h"
 #include "core/stage.h"
 #include "merge/lod.h"
 #include "merge/seam.h"
@@ -17,6 +18,7 @@ struct TileRunOptions {
   int downscale = 2;                    // image downscale for training (SfM uses full resolution)
   std::string depth_prior = "surface";  // see `skyfall splat train --depth-prior`
   std::string appearance = "auto";      // see `skyfall splat train --appearance`
+  double init_max_scale_m = TrainJob{}.init_max_scale_m;  // see `skyfall splat train --init-max-scale`
   int threads = 0;                      // TBB threads in this tile (0 = all cores)
 };
 
