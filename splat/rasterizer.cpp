@@ -224,6 +224,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
   if (o.median_depth) out.median_depth.assign(static_cast<std::size_t>(W) * H, std::numeric_limits<T>::quiet_NaN());
   s.contributors.assign(static_cast<std::size_t>(W) * H, 0);
   const T max_alpha = T(o.max_alpha), min_t = T(o.min_transmittance);
+  const bool want_median = o.median_depth;
   const int tp = o.tile_px;
   std::atomic<std::size_t> total_blends{0};
   tbb::parallel_for(0, tiles, [&](int t) {
@@ -258,7 +259,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
             continue;
           }
           const T w = alpha * trans[lp];
-          if (o.median_depth && trans[lp] > T(0.5) && next <= T(0.5)) {
+          if (want_median && trans[lp] > T(0.5) && next <= T(0.5)) {
             out.median_depth[static_cast<std::size_t>(ty0 + py) * W + (tx0 + px)] = q.depth;
           }
           r[lp] += w * q.rgb[0];
