@@ -46,6 +46,10 @@ void AddTrain(CLI::App& splat, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--appearance-image", opts->appearance_image,
                   "Training view whose appearance is fused into scene.ply (default: the most typical one)");
+  cmd->add_option("--densify-from", opts->densify_from, "First densification step")->capture_default_str();
+  cmd->add_option("--densify-until", opts->densify_until, "Last step that adds Gaussians")->capture_default_str();
+  cmd->add_option("--opacity-reg-from", opts->opacity_reg_from, "First step of the entropy opacity term")
+      ->capture_default_str();
   auto init_max_scale = std::make_shared<double>(TrainJob{}.init_max_scale_m);
   cmd->add_option("--init-max-scale", *init_max_scale, "Cap on the initial Gaussian size [m] (0 = none)")
       ->capture_default_str();
