@@ -130,7 +130,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   TrainJob job;
   job.sfm_dir = sfm_dir.string();
   job.out_dir = (fs::path(tile_dir) / "splat").string();
-  ScaleScheduleTo(options.iterations, &job.options);
+  job.options.iterations = options.iterations;
   job.options.pseudo_interval = 4;
   job.downscale = options.downscale;
   job.depth_prior = options.depth_prior;

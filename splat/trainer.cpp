@@ -403,13 +403,6 @@ int DistinctAcquisitionDates(const std::vector<TrainView>& views) {
   return static_cast<int>(dates.size());
 }
 
-void ScaleScheduleTo(int iterations, TrainOptions* o) {
-  o->iterations = iterations;
-  o->densify_from = std::max(1, iterations / 20);
-  o->densify_until = static_cast<int>(0.7 * iterations);
-  o->opacity_reg_from = static_cast<int>(0.35 * iterations);
-}
-
 void TrainOptions::Check() const {
   auto need = [](bool ok, const char* field, double v) {
     if (!ok) throw Error("train", field, FormatDouble(v) + " is out of range");

@@ -98,13 +98,6 @@ struct TrainResult {
   StageReport report;
 };
 
-// Sets the densification window and the start of the entropy term to the
-// same fractions of `iterations` as the defaults are of 3000 steps (and the
-// paper's of 30k): densify from 5% to 70%, entropy from 35%. Without this a
-// 1000-step run would densify only from step 500 and apply the entropy term
-// on its last step alone.
-void ScaleScheduleTo(int iterations, TrainOptions* options);
-
 // Gaussians at the SfM points: colour from the points, isotropic scale from
 // the mean distance to the 3 nearest neighbours (at most `max_scale_m`),
 // opacity 0.1.

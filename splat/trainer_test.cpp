@@ -218,20 +218,6 @@ TEST(Trainer, InitialScaleIsTheNeighbourDistanceUpToTheCap) {
   EXPECT_THROW(InitializeFromPoints(points, grey, 0.0), Error);
 }
 
-TEST(Trainer, ScheduleScalesWithTheIterationCount) {
-  TrainOptions o;
-  ScaleScheduleTo(1000, &o);
-  EXPECT_EQ(o.iterations, 1000);
-  EXPECT_EQ(o.densify_from, 50);
-  EXPECT_EQ(o.densify_until, 700);
-  EXPECT_EQ(o.opacity_reg_from, 350);
-  ScaleScheduleTo(30000, &o);  // the paper's length: densification to 21000 as in the paper
-  EXPECT_EQ(o.densify_until, 21000);
-  ScaleScheduleTo(10, &o);
-  EXPECT_EQ(o.densify_from, 1);
-  EXPECT_NO_THROW(o.Check());
-}
-
 TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
   Fixture f;
   TrainView v;
