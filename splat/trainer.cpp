@@ -106,14 +106,6 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
   }
 }
 
-// Copies Gaussian `i` of `src` (cloud and moments) to the end of `dst`.
-void Append(GaussianCloud& dst, const GaussianCloud& src, std::size_t i) {
-  dst.means.push_back(src.means[i]);
-  dst.log_scales.push_back(src.log_scales[i]);
-  dst.rotations.push_back(src.rotations[i]);
-  dst.opacity_logits.push_back(src.opacity_logits[i]);
-  dst.sh.push_back(src.sh[i]);
-}
 
 Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
   const Eigen::Vector4f u = q.normalized();
@@ -151,9 +143,9 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
       const Eigen::Matrix3f R = RotationOf(c.rotations[i]);
       const Eigen::Vector3f s = c.log_scales[i].array().exp();
       for (int k = 0; k < 2; ++k) {
-        Append(out, c, i);
-        Append(m, adam.m, i);
-        Append(v, adam.v, i);
+        out.Append(c, i);
+        m.Append(adam.m, i);
+        v.Append(adam.v, i);
         source->push_back(i);
         const Eigen::Vector3f z(normal(rng), normal(rng), normal(rng));
         out.means.back() += R * (s.cwiseProduct(z));
@@ -164,14 +156,14 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
       ++added;  // two replace one
       continue;
     }
-    Append(out, c, i);
-    Append(m, adam.m, i);
-    Append(v, adam.v, i);
+    out.Append(c, i);
+    m.Append(adam.m, i);
+    v.Append(adam.v, i);
     source->push_back(i);
     if (hot) {  // clone
-      Append(out, c, i);
-      Append(m, adam.m, i);
-      Append(v, adam.v, i);
+      out.Append(c, i);
+      m.Append(adam.m, i);
+      v.Append(adam.v, i);
       source->push_back(i);
       ++added;
     }
