@@ -322,21 +322,34 @@ Checkpoint LoadCheckpoint(const std::string& path) {
   return ck;
 }
 
+// The colour transforms for `embedding`, or none without the appearance model.
+std::vector<ColourAffine<float>> AffineFor(const GaussianCloud& c, const AppearanceState& appearance,
+                                           const Eigen::VectorXf& embedding) {
+  if (!appearance.enabled) return {};
+  return EvaluateAppearance(appearance.model, embedding, c);
+}
+
+double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
+                const AppearanceState& appearance, const std::vector<ColourAffine<float>>& affine) {
+  return Psnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb);
+}
+
 // Held-out views have no embedding of their own: with the appearance model
 // they are rendered with the mean training embedding.
 double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                    const AppearanceState& appearance, const std::vector<int>& train_ids) {
-  std::vector<ColourAffine<float>> affine;
+  Eigen::VectorXf mean;
   if (appearance.enabled) {
-    Eigen::VectorXf mean = Eigen::VectorXf::Zero(appearance.model.image_dim());
+    mean = Eigen::VectorXf::Zero(appearance.model.image_dim());
     for (int j : train_ids) mean += appearance.model.image_embeddings.col(j);
-    affine = EvaluateAppearance(appearance.model, Eigen::VectorXf(mean / static_cast<float>(train_ids.size())), c);
+    mean /= static_cast<float>(train_ids.size());
   }
+  const std::vector<ColourAffine<float>> affine = AffineFor(c, appearance, mean);
   double sum = 0;
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
-    sum += Psnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb);
+    sum += ViewPsnr(c, v, raster, appearance, affine);
     ++n;
   }
   return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
@@ -358,11 +371,8 @@ double TrainingPsnr(const GaussianCloud& c, const std::vector<TrainView>& views,
                     const AppearanceState& appearance, const std::vector<int>& train_ids) {
   double sum = 0;
   for (int j : train_ids) {
-    std::vector<ColourAffine<float>> affine;
-    if (appearance.enabled) {
-      affine = EvaluateAppearance(appearance.model, Eigen::VectorXf(appearance.model.image_embeddings.col(j)), c);
-    }
-    sum += Psnr(RenderGaussians(c, views[j].camera, raster, appearance.enabled ? &affine : nullptr).rgb, views[j].rgb);
+    const Eigen::VectorXf embedding = appearance.enabled ? appearance.model.image_embeddings.col(j) : Eigen::VectorXf();
+    sum += ViewPsnr(c, views[j], raster, appearance, AffineFor(c, appearance, embedding));
   }
   return sum / static_cast<double>(train_ids.size());
 }
@@ -376,14 +386,16 @@ int AppearanceViewIndex(const TrainOptions& o, const std::vector<TrainView>& vie
   throw Error("train", "appearance_image", o.appearance_image + " is not a training view");
 }
 
+// The view the exported cloud is fused for; -1 without the appearance model.
 int ExportView(const AppearanceState& a, int fused_view, const std::vector<int>& train_ids) {
+  if (!a.enabled) return -1;
   return fused_view >= 0 ? fused_view : TypicalImage(a.model, train_ids);
 }
 
-GaussianCloud ExportCloud(const GaussianCloud& cloud, const AppearanceState& a, int fused_view,
-                          const std::vector<int>& train_ids) {
+// The plain 3DGS cloud to write: with the appearance model, fused for `view`.
+GaussianCloud ExportCloud(const GaussianCloud& cloud, const AppearanceState& a, int view) {
   if (!a.enabled) return cloud;
-  return FuseAppearance(a.model, a.model.image_embeddings.col(ExportView(a, fused_view, train_ids)), cloud);
+  return FuseAppearance(a.model, a.model.image_embeddings.col(view), cloud);
 }
 
 }  // namespace
@@ -614,14 +626,15 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count, appearance});
       if (o.keep_snapshots) {
         WriteGaussiansPly((fs::path(checkpoint_dir) / "snapshots" / ("scene_" + std::to_string(it) + ".ply")).string(),
-                          ExportCloud(cloud, appearance, fused_view, train_ids));
+                          ExportCloud(cloud, appearance, ExportView(appearance, fused_view, train_ids)));
       }
     }
     progress.Advance(static_cast<std::size_t>(it), "");
   }
   progress.End();
-  result.cloud = ExportCloud(cloud, appearance, fused_view, train_ids);
-  if (appearance.enabled) result.appearance_image = views[ExportView(appearance, fused_view, train_ids)].name;
+  const int export_view = ExportView(appearance, fused_view, train_ids);
+  result.cloud = ExportCloud(cloud, appearance, export_view);
+  if (export_view >= 0) result.appearance_image = views[export_view].name;
   result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
   if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
