@@ -25,7 +25,7 @@ struct RasterOptions {
   double min_transmittance = 1e-4;     // early termination of a pixel
   double dilation_px2 = 0.3;           // added to the 2D covariance diagonal (anti-aliasing) [px^2]
   double near_m = 0.2;                 // Gaussians closer than this to the camera plane are culled [m]
-  double sigma_extent = 3.0;           // screen radius in standard deviations
+  double sigma_extent = 3.0;           // blend within this many standard deviations (Mahalanobis)
   int sh_degree = 1;                   // 0 or 1
   // Also render the median depth (not differentiable; for DSMs and depth maps).
   bool median_depth = false;
@@ -44,13 +44,14 @@ struct alignas(64) ScreenGaussian {
   T rgb[3] = {0, 0, 0};
   T depth = 0;                         // camera depth minus reference_depth [m]
   T log_alpha_cut = 0;                 // power below this gives alpha < min_alpha
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // pixel box within the radius (half-open)
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // bounding box of the blending ellipse [px] (half-open)
 };
 
 // What the forward pass keeps for the backward pass.
 template <typename T>
 struct RasterState {
-  // Per Gaussian, after projection (invisible ones have radius 0).
+  // Per Gaussian, after projection: half the longer side of the pixel box
+  // (0 for a culled Gaussian).
   std::vector<ScreenGaussian<T>> screen;
   std::vector<int> radius_px;
   // Per tile: Gaussian indices sorted front to back, as ranges into `order`.
