@@ -53,12 +53,16 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   auto init_max_scale = std::make_shared<double>(TrainJob{}.init_max_scale_m);
   cmd->add_option("--init-max-scale", *init_max_scale, "Cap on the initial Gaussian size [m] (0 = none)")
       ->capture_default_str();
+  auto init_pieces = std::make_shared<int>(TrainJob{}.init_pieces);
+  cmd->add_option("--init-pieces", *init_pieces,
+                  "Up to this many capped Gaussians per SfM point, covering the space to its neighbours")
+      ->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       ConsoleProgress progress;
-      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale}, progress);
+      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale, *init_pieces}, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

@@ -51,6 +51,8 @@ void AddRunTileOptions(CLI::App* cmd, TileRunOptions* o) {
   cmd->add_option("--appearance", o->appearance, "'auto', 'on' or 'off' (see splat train)")->capture_default_str();
   cmd->add_option("--init-max-scale", o->init_max_scale_m, "Cap on the initial Gaussian size [m] (0 = none)")
       ->capture_default_str();
+  cmd->add_option("--init-pieces", o->init_pieces, "Up to this many capped Gaussians per SfM point (see splat train)")
+      ->capture_default_str();
 }
 
 void AddRunTile(CLI::App& app, Runner* runner) {

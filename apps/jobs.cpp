@@ -115,9 +115,10 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
                                         {"resolution_downscale", job.downscale},
                                         {"depth_prior", job.depth_prior},
                                         {"seed", job.options.seed},
-                                        {"init_max_scale_m", job.init_max_scale_m}});
+                                        {"init_max_scale_m", job.init_max_scale_m},
+                                        {"init_pieces", job.init_pieces}});
   const double init_cap_m = job.init_max_scale_m > 0 ? job.init_max_scale_m : std::numeric_limits<double>::infinity();
-  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m), views,
+  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m, job.init_pieces), views,
                                        checkpoints.string(), progress, depth_prior.get());
   WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
   WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),

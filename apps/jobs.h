@@ -34,6 +34,9 @@ struct TrainJob {
   // 2.60 m at 0.75 m, 2.13 m at 0.4 m, but completeness 98.8 / 98.3 / 97.3 /
   // 87.9 % and held-out PSNR 17.9 / 18.2 / 17.3 / 13.6 dB.
   double init_max_scale_m = 1.0;
+  // Up to this many capped Gaussians per SfM point, covering its
+  // neighbourhood (see InitializeFromPoints; 1 = one per point).
+  int init_pieces = 1;
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes

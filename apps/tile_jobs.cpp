@@ -43,7 +43,7 @@ double PeakRssMb() {
 json OptionsJson(const TileRunOptions& o) {
   return {{"iterations", o.iterations}, {"resolution_downscale", o.downscale}, {"depth_prior", o.depth_prior},
           {"appearance", o.appearance},
-          {"init_max_scale_m", o.init_max_scale_m}};
+          {"init_max_scale_m", o.init_max_scale_m}, {"init_pieces", o.init_pieces}};
 }
 
 json StageJson(const StageReport& r) {
@@ -136,6 +136,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   job.depth_prior = options.depth_prior;
   job.appearance = options.appearance;
   job.init_max_scale_m = options.init_max_scale_m;
+  job.init_pieces = options.init_pieces;
   const TrainResult train = RunTrainJob(job, progress);
   StageReport splat = train.report;
   splat.stage = "splat";
@@ -223,6 +224,7 @@ std::vector<TileOutcome> RunTilesInParallel(const std::vector<std::string>& tile
                                      std::to_string(options.iterations), "--resolution", std::to_string(options.downscale),
                                      "--depth-prior", options.depth_prior, "--appearance", options.appearance,
                                      "--init-max-scale", FormatDouble(options.init_max_scale_m),
+                                     "--init-pieces", std::to_string(options.init_pieces),
                                      "--threads", std::to_string(threads)};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());

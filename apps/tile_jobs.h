@@ -19,6 +19,7 @@ struct TileRunOptions {
   std::string depth_prior = "surface";  // see `skyfall splat train --depth-prior`
   std::string appearance = "auto";      // see `skyfall splat train --appearance`
   double init_max_scale_m = TrainJob{}.init_max_scale_m;  // see `skyfall splat train --init-max-scale`
+  int init_pieces = TrainJob{}.init_pieces;               // see `skyfall splat train --init-pieces`
   int threads = 0;                      // TBB threads in this tile (0 = all cores)
 };
 

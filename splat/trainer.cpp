@@ -219,7 +219,7 @@ struct Reader {
     const auto n = Get<std::uint64_t>();
     if (at + n * sizeof(V) > s.size()) throw Error("train", path, "checkpoint is truncated");
     std::vector<V> v(n);
-    std::memcpy(v.data(), s.data() + at, n * sizeof(V));
+    std::memcpy(static_cast<void*>(v.data()), s.data() + at, n * sizeof(V));  // Eigen fixed-size vectors are plain arrays
     at += n * sizeof(V);
     return v;
   }
@@ -430,19 +430,17 @@ void TrainOptions::Check() const {
   raster.Check();
 }
 
-GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
-                                   const std::vector<Eigen::Vector3f>& colours, double max_scale_m) {
-  if (!(max_scale_m > 0)) throw Error("train", "init max scale", FormatDouble(max_scale_m) + " m must be > 0");
-  if (points.empty()) throw Error("train", "init", "no SfM points to start from");
-  GaussianCloud c;
-  c.resize(points.size());
-  // Mean distance to the 3 nearest neighbours (brute force on a uniform grid
-  // of cells would be faster; SfM clouds are ~1e4 points).
+namespace {
+
+// Mean distance from each point to its 3 nearest neighbours (a sweep over
+// the points sorted by x; SfM clouds are ~1e4 points).
+std::vector<double> NeighbourDistances(const std::vector<Eigen::Vector3f>& points) {
   std::vector<std::size_t> order(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) order[i] = i;
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return points[a].x() < points[b].x(); });
   std::vector<std::size_t> rank(points.size());
   for (std::size_t k = 0; k < order.size(); ++k) rank[order[k]] = k;
+  std::vector<double> out(points.size(), 1.0);
   for (std::size_t i = 0; i < points.size(); ++i) {
     std::array<float, 3> best = {1e30f, 1e30f, 1e30f};
     // Sweep outwards in x until the x gap alone exceeds the third-best distance.
@@ -465,13 +463,46 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
         mean += std::sqrt(d2);
         ++n;
       }
-    const float scale = static_cast<float>(std::min(max_scale_m, std::max(0.05, n ? mean / n : 1.0)));
-    c.means[i] = points[i];
-    c.log_scales[i] = Eigen::Vector3f::Constant(std::log(scale));
-    c.rotations[i] = Eigen::Vector4f(1, 0, 0, 0);
-    c.opacity_logits[i] = static_cast<float>(InverseSigmoid(0.1));
-    c.sh[i].fill(0.0f);
-    for (int ch = 0; ch < 3; ++ch) c.sh[i][ch * 4] = static_cast<float>(ShDcFromColour(colours[i][ch]));
+    if (n) out[i] = mean / n;
+  }
+  return out;
+}
+
+}  // namespace
+
+GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<Eigen::Vector3f>& colours, double max_scale_m,
+                                   int max_pieces_per_point) {
+  if (!(max_scale_m > 0)) throw Error("train", "init max scale", FormatDouble(max_scale_m) + " m must be > 0");
+  if (max_pieces_per_point < 1 || max_pieces_per_point > 64) {
+    throw Error("train", "init pieces per point", std::to_string(max_pieces_per_point) + " is not in 1..64");
+  }
+  if (points.empty()) throw Error("train", "init", "no SfM points to start from");
+  const std::vector<double> spacing = NeighbourDistances(points);
+  std::mt19937 rng(12345);  // fixed: the same SfM points give the same start
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  GaussianCloud c;
+  auto add = [&](const Eigen::Vector3f& mean, float scale, const Eigen::Vector3f& colour) {
+    const std::size_t k = c.size();
+    c.resize(k + 1);
+    c.means[k] = mean;
+    c.log_scales[k] = Eigen::Vector3f::Constant(std::log(scale));
+    c.rotations[k] = Eigen::Vector4f(1, 0, 0, 0);
+    c.opacity_logits[k] = static_cast<float>(InverseSigmoid(0.1));
+    c.sh[k].fill(0.0f);
+    for (int ch = 0; ch < 3; ++ch) c.sh[k][ch * 4] = static_cast<float>(ShDcFromColour(colour[ch]));
+  };
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double d = std::max(0.05, spacing[i]);
+    const float scale = static_cast<float>(std::min(max_scale_m, d));
+    const double coverage = d / scale;  // > 1 where the cap bit
+    const int pieces = std::min<double>(max_pieces_per_point, std::ceil(coverage * coverage - 1e-9));
+    add(points[i], scale, colours[i]);
+    for (int k = 1; k < pieces; ++k) {
+      // Uniform over the disc of radius d/2 around the point.
+      const float r = static_cast<float>(0.5 * d) * std::sqrt(unit(rng)), phi = 6.2831853f * unit(rng);
+      add(points[i] + Eigen::Vector3f(r * std::cos(phi), r * std::sin(phi), 0.0f), scale, colours[i]);
+    }
   }
   return c;
 }

@@ -99,11 +99,16 @@ struct TrainResult {
 };
 
 // Gaussians at the SfM points: colour from the points, isotropic scale from
-// the mean distance to the 3 nearest neighbours (at most `max_scale_m`),
-// opacity 0.1.
+// the mean distance d to the 3 nearest neighbours (at most `max_scale_m`),
+// opacity 0.1. Where the cap leaves a point's Gaussian smaller than its
+// neighbourhood, up to `max_pieces_per_point` Gaussians of the capped size
+// share it: (d / cap)^2 of them, spread over a horizontal disc of radius d/2
+// at the point's height (ENU: z is up), so capped Gaussians still cover the
+// surface between sparse points. Deterministic.
 GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
                                    const std::vector<Eigen::Vector3f>& colours_01,
-                                   double max_scale_m = std::numeric_limits<double>::infinity());
+                                   double max_scale_m = std::numeric_limits<double>::infinity(),
+                                   int max_pieces_per_point = 1);
 
 // Trains `cloud` on the views. With a non-empty `checkpoint_dir`, state is
 // saved there every checkpoint_interval iterations and a matching checkpoint

@@ -218,6 +218,35 @@ TEST(Trainer, InitialScaleIsTheNeighbourDistanceUpToTheCap) {
   EXPECT_THROW(InitializeFromPoints(points, grey, 0.0), Error);
 }
 
+TEST(Trainer, CappedInitialGaussiansShareTheirPointsNeighbourhood) {
+  const std::vector<Eigen::Vector3f> points = {{0, 0, 2}, {10, 0, 2}, {0, 10, 2}, {10, 10, 7}};
+  const std::vector<Eigen::Vector3f> grey(points.size(), Eigen::Vector3f::Constant(0.5f));
+  const double spacing = (20.0 + std::sqrt(200.0 + 25.0)) / 3.0;  // mean of the 3 nearest, for point 0
+  // Uncapped or one piece: one Gaussian per point.
+  EXPECT_EQ(InitializeFromPoints(points, grey, 1e9, 16).size(), points.size());
+  EXPECT_EQ(InitializeFromPoints(points, grey, 1.5, 1).size(), points.size());
+  // Capped at 1.5 m: (11.5 / 1.5)^2 ~ 59 pieces wanted, 16 allowed.
+  const GaussianCloud c = InitializeFromPoints(points, grey, 1.5, 16);
+  ASSERT_EQ(c.size(), 4u * 16u);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    const Eigen::Vector3f& p = points[k / 16];
+    EXPECT_EQ(c.means[k].z(), p.z()) << "pieces stay at their point's height";
+    EXPECT_LE((c.means[k] - p).head<2>().norm(), 0.5 * 12.0) << k;
+    EXPECT_NEAR(std::exp(c.log_scales[k].maxCoeff()), 1.5, 1e-5);
+  }
+  // The pieces of point 0 spread over its disc, not clumped at the centre.
+  float reach = 0;
+  for (int k = 1; k < 16; ++k) reach = std::max(reach, (c.means[k] - points[0]).head<2>().norm());
+  EXPECT_GT(reach, 0.25 * spacing);
+  // Just enough pieces when the cap bites a little: (4.0 / 2.0)^2 = 4.
+  const std::vector<Eigen::Vector3f> pair = {{0, 0, 0}, {4, 0, 0}};
+  EXPECT_EQ(InitializeFromPoints(pair, {grey[0], grey[0]}, 2.0, 16).size(), 2u * 4u);
+  // Deterministic.
+  const GaussianCloud again = InitializeFromPoints(points, grey, 1.5, 16);
+  for (std::size_t k = 0; k < c.size(); ++k) EXPECT_EQ(again.means[k], c.means[k]);
+  EXPECT_THROW(InitializeFromPoints(points, grey, 1.5, 0), Error);
+}
+
 TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
   Fixture f;
   TrainView v;
