@@ -35,8 +35,12 @@ struct TrainJob {
   // 87.9 % and held-out PSNR 17.9 / 18.2 / 17.3 / 13.6 dB.
   double init_max_scale_m = 1.0;
   // Up to this many capped Gaussians per SfM point, covering its
-  // neighbourhood (see InitializeFromPoints; 1 = one per point).
-  int init_pieces = 1;
+  // neighbourhood (see InitializeFromPoints; 1 = one per point). The cap
+  // alone leaves gaps between the sparse points that training fills only
+  // slowly. JAX_068, whole run with the defaults: 1 piece MAE 2.70 m,
+  // completeness 98.5%, held-out PSNR 19.1 dB, 298 s; 16 pieces 2.28 m,
+  // 99.2%, 21.6 dB, 495 s.
+  int init_pieces = 16;
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes
