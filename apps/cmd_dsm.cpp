@@ -21,7 +21,7 @@ struct ExportArgs {
   std::vector<double> bounds;  // min_easting min_northing max_easting max_northing
   double gsd_m = 0.5;
   int epsg = 0;
-  std::string depth = "expected";
+  std::string depth = DsmExportOptions{}.median_depth ? "median" : "expected";
 };
 
 void AddExport(CLI::App& dsm, Runner* runner) {
