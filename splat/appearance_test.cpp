@@ -51,19 +51,6 @@ Cloud SmallCloud(int n, std::uint64_t seed) {
   return c;
 }
 
-GaussianCloud ToFloat(const Cloud& d) {
-  GaussianCloud c;
-  c.resize(d.size());
-  for (std::size_t i = 0; i < d.size(); ++i) {
-    c.means[i] = d.means[i].cast<float>();
-    c.log_scales[i] = d.log_scales[i].cast<float>();
-    c.rotations[i] = d.rotations[i].cast<float>();
-    c.opacity_logits[i] = static_cast<float>(d.opacity_logits[i]);
-    for (int k = 0; k < 12; ++k) c.sh[i][k] = static_cast<float>(d.sh[i][k]);
-  }
-  return c;
-}
-
 // A model in double with every layer random (the trained state, not the
 // identity start, so every weight has a gradient).
 Model RandomModel(int gaussians, std::uint64_t seed) {
@@ -87,6 +74,7 @@ Model RandomModel(int gaussians, std::uint64_t seed) {
 }
 
 using testing::SmoothRasterOptions;
+using testing::ToFloat;
 
 struct Scene {
   Cloud cloud = SmallCloud(12, 5);

@@ -18,4 +18,18 @@ inline RasterOptions SmoothRasterOptions() {
   return o;
 }
 
+// The same cloud in float (the precision training runs in).
+inline GaussianCloudT<float> ToFloat(const GaussianCloudT<double>& d) {
+  GaussianCloudT<float> c;
+  c.resize(d.size());
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    c.means[i] = d.means[i].cast<float>();
+    c.log_scales[i] = d.log_scales[i].cast<float>();
+    c.rotations[i] = d.rotations[i].cast<float>();
+    c.opacity_logits[i] = static_cast<float>(d.opacity_logits[i]);
+    for (int k = 0; k < 12; ++k) c.sh[i][k] = static_cast<float>(d.sh[i][k]);
+  }
+  return c;
+}
+
 }  // namespace skyfall::testing

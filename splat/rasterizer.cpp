@@ -116,6 +116,26 @@ inline int LaneStride(int tile_px) { return (tile_px + lanes::kLanes - 1) / lane
 template <typename T>
 using LaneInt = std::remove_reference_t<decltype(lanes::Mask<T>()[0])>;
 
+// Four pixels gx..gx+3 of one tile row against one Gaussian: their offsets
+// from its centre, its power there, and which of them it blends (inside its
+// pixel box, power in [cut, 0]). Shared by the forward and backward loops so
+// both blend exactly the same pixels.
+template <typename T>
+struct FootprintLanes {
+  lanes::Vec<T> dx, power;
+  lanes::Mask<T> blends;
+};
+template <typename T>
+inline FootprintLanes<T> LanesOfRow(const ScreenGaussian<T>& q, const PixelBox& box, int tx0, int gx, T dy,
+                                    T row_power, const lanes::Vec<T>& iota) {
+  FootprintLanes<T> f;
+  const lanes::Vec<T> px = iota + T(gx);
+  f.dx = (q.u - T(tx0 + gx)) - iota;
+  f.power = T(-0.5) * q.conic_a * f.dx * f.dx + row_power - q.conic_b * f.dx * dy;
+  f.blends = (px >= T(box.x0)) & (px < T(box.x1)) & (f.power <= T(0)) & (f.power >= q.log_alpha_cut);
+  return f;
+}
+
 template <typename T>
 void CheckAffine(const GaussianCloudT<T>& cloud, const std::vector<ColourAffine<T>>* affine) {
   if (affine && affine->size() != cloud.size()) {
@@ -261,7 +281,7 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
     for (int k = begin; k < end && open_pixels > 0; ++k) {
       const ScreenGaussian<T>& q = s.screen[s.order[k]];
       const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
-      const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;
+      const T cc = q.conic_c, op = q.opacity;
       const M position = lanes::Splat<M>(I(k - begin + 1));
       M any_blend = lanes::Splat<M>(I(0));
       for (int py = box.y0; py < box.y1; ++py) {
@@ -269,13 +289,10 @@ RenderOutput<T> RenderGaussians(const GaussianCloudT<T>& cloud, const PinholeCam
         const T row_power = T(-0.5) * cc * dy * dy;
         for (int gx = box.x0 - box.x0 % lanes::kLanes; gx < box.x1; gx += lanes::kLanes) {
           const int lp = py * stride + gx;
-          const V px = iota + T(gx);
-          const V dx = (q.u - T(tx0 + gx)) - iota;
-          const V power = T(-0.5) * ca * dx * dx + row_power - cb * dx * dy;
-          const M ok = (px >= T(box.x0)) & (px < T(box.x1)) & (power <= T(0)) & (power >= cut) &
-                       ~lanes::Load<M>(&done[lp]);
+          const FootprintLanes<T> f = LanesOfRow(q, box, tx0, gx, dy, row_power, iota);
+          const M ok = f.blends & ~lanes::Load<M>(&done[lp]);
           if (!lanes::Any(ok)) continue;
-          const V raw_alpha = op * lanes::Exp(power);
+          const V raw_alpha = op * lanes::Exp(f.power);
           const V alpha = lanes::Select(raw_alpha < max_alpha, raw_alpha, lanes::Splat<V>(max_alpha));
           const V tr = lanes::Load<V>(&trans[lp]);
           const V next = tr * (T(1) - alpha);
@@ -385,7 +402,7 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
       if (!s.entry_blended[k]) continue;  // touched no pixel going forwards
       const ScreenGaussian<T>& q = s.screen[s.order[k]];
       const PixelBox box = FootprintInTile(q, tx0, ty0, tw, th);
-      const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity, cut = q.log_alpha_cut;
+      const T ca = q.conic_a, cb = q.conic_b, cc = q.conic_c, op = q.opacity;
       const T* col = q.rgb;
       const M position = lanes::Splat<M>(I(k - begin));
       // Lane-wise sums of the screen-space gradient, reduced per Gaussian.
@@ -397,13 +414,11 @@ GaussianGradients<T> BackwardGaussians(const GaussianCloudT<T>& cloud, const Pin
         const T row_power = T(-0.5) * cc * dy * dy;
         for (int gx = box.x0 - box.x0 % lanes::kLanes; gx < box.x1; gx += lanes::kLanes) {
           const int lp = py * stride + gx;
-          const V px = iota + T(gx);
-          const V dx = (q.u - T(tx0 + gx)) - iota;
-          const V power = T(-0.5) * ca * dx * dx + row_power - cb * dx * dy;
-          const M ok = (px >= T(box.x0)) & (px < T(box.x1)) & (position < lanes::Load<M>(&last[lp])) &
-                       (power <= T(0)) & (power >= cut);
+          const FootprintLanes<T> f = LanesOfRow(q, box, tx0, gx, dy, row_power, iota);
+          const M ok = f.blends & (position < lanes::Load<M>(&last[lp]));
           if (!lanes::Any(ok)) continue;
-          const V gauss = lanes::Exp(power);
+          const V& dx = f.dx;
+          const V gauss = lanes::Exp(f.power);
           const V raw_alpha = op * gauss;
           const V alpha = lanes::Select(raw_alpha < max_alpha, raw_alpha, lanes::Splat<V>(max_alpha));
           const V inv_one_minus = T(1) / (T(1) - alpha);

@@ -210,15 +210,7 @@ TEST(Rasterizer, FloatKernelMatchesTheDoubleOne) {
   // ~1e3 pixels).
   const PinholeCamera cam = LookDownCamera(41.6, 45, 38, 20.0, 0.5);
   const Cloud cd = RandomCloud(30, 8.0, 1.5, 21);
-  GaussianCloudT<float> cf;
-  cf.resize(cd.size());
-  for (std::size_t i = 0; i < cd.size(); ++i) {
-    cf.means[i] = cd.means[i].cast<float>();
-    cf.log_scales[i] = cd.log_scales[i].cast<float>();
-    cf.rotations[i] = cd.rotations[i].cast<float>();
-    cf.opacity_logits[i] = static_cast<float>(cd.opacity_logits[i]);
-    for (int k = 0; k < 12; ++k) cf.sh[i][k] = static_cast<float>(cd.sh[i][k]);
-  }
+  const GaussianCloudT<float> cf = testing::ToFloat(cd);
   const RasterOptions o = SmoothRasterOptions();
   const Weights w = RandomWeights(cam, 3);
   const std::vector<float> wf_rgb(w.rgb.begin(), w.rgb.end()), wf_alpha(w.alpha.begin(), w.alpha.end()),
