@@ -92,14 +92,7 @@ Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeC
   return p;
 }
 
-// exp() of the blending loops: glibc's expf (FMA) measured faster here than
-// a hand-written polynomial, so both precisions use the library.
-template <typename T>
-inline T BlendExp(T x) {
-  return std::exp(x);
-}
-
-// The pixels of a tile inside a Gaussian's screen radius (tile-local,
+// The pixels of a tile inside a Gaussian's ellipse bounding box (tile-local,
 // half-open). Forward and backward use the same box, so the cut-off is
 // consistent between them.
 struct PixelBox {

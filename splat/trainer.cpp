@@ -106,7 +106,6 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
   }
 }
 
-
 Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
   const Eigen::Vector4f u = q.normalized();
   return Eigen::Quaternionf(u[0], u[1], u[2], u[3]).toRotationMatrix();
