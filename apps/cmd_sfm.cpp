@@ -41,4 +41,36 @@ void AddSfmCommand(CLI::App& app, Runner* runner) {
   });
 }
 
+void AddDenseCommand(CLI::App& app, Runner* runner) {
+  auto sfm = std::make_shared<std::string>();
+  auto opts = std::make_shared<DenseOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "dense", "Dense heights from an SfM folder (ground-space plane sweep, NCC, semi-global matching); writes "
+               "dense.ply and dense_report.json beside cameras.json");
+  cmd->add_option("--sfm", *sfm, "Folder written by `skyfall sfm`")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--cell", opts->cell_m, "Grid cell [m]")->capture_default_str();
+  cmd->add_option("--height-step", opts->height_step_m, "Sweep step [m]")->capture_default_str();
+  cmd->add_option("--window", opts->window_cells, "NCC window side [cells], odd")->capture_default_str();
+  cmd->add_option("--max-pairs", opts->max_pairs, "Image pairs used, most tie points first")->capture_default_str();
+  cmd->add_option("--p1", opts->sgm_p1, "SGM penalty for a one-step height change")->capture_default_str();
+  cmd->add_option("--p2", opts->sgm_p2, "SGM penalty for a larger height change")->capture_default_str();
+  cmd->add_option("--max-cost", opts->max_cost, "Cells matching worse than this get no height")->capture_default_str();
+  cmd->add_option("--fill-radius", opts->fill_radius_m, "Holes take the lowest height within this distance [m]")
+      ->capture_default_str();
+  cmd->callback([runner, sfm, opts] {
+    *runner = [sfm, opts] {
+      ConsoleProgress progress;
+      const DenseResult r = RunDenseJob(*opts, *sfm, progress);
+      if (r.report.status != StageStatus::kOk) {
+        spdlog::warn("dense: {}", r.report.message);
+        return kExitDegenerate;
+      }
+      const auto& m = r.report.metrics;
+      spdlog::info("dense: {}x{} cells x {} heights, {} pairs, {:.1f}% with a height; {:.1f} s -> {}/dense.ply", r.grid.nx,
+                   r.grid.ny, m.at("heights"), m.at("pairs"), 100.0 * m.at("valid_fraction"), r.report.seconds, *sfm);
+      return 0;
+    };
+  });
+}
+
 }  // namespace skyfall::cli

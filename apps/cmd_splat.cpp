@@ -57,12 +57,17 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   cmd->add_option("--init-pieces", *init_pieces,
                   "Up to this many capped Gaussians per SfM point, covering the space to its neighbours")
       ->capture_default_str();
+  auto init_points = std::make_shared<std::string>(TrainJob{}.init_points);
+  cmd->add_option("--init-points", *init_points,
+                  "Initial Gaussians from 'dense' (SFM/dense.ply of `skyfall dense`), 'sparse' (the tie points) or "
+                  "'auto' (dense when dense.ply exists)")
+      ->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       ConsoleProgress progress;
-      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale, *init_pieces}, progress);
+      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale, *init_pieces, *init_points}, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

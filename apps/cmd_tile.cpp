@@ -53,6 +53,9 @@ void AddRunTileOptions(CLI::App* cmd, TileRunOptions* o) {
       ->capture_default_str();
   cmd->add_option("--init-pieces", o->init_pieces, "Up to this many capped Gaussians per SfM point (see splat train)")
       ->capture_default_str();
+  cmd->add_option("--init-points", o->init_points,
+                  "'auto' or 'dense' (dense heights, the default stage) or 'sparse' (tie points only; no dense stage)")
+      ->capture_default_str();
 }
 
 void AddRunTile(CLI::App& app, Runner* runner) {

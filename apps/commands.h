@@ -18,6 +18,7 @@ void AddIngestCommand(CLI::App& app, Runner* runner);
 void AddRpcCommand(CLI::App& app, Runner* runner);
 void AddSynthCommand(CLI::App& app, Runner* runner);
 void AddSfmCommand(CLI::App& app, Runner* runner);
+void AddDenseCommand(CLI::App& app, Runner* runner);
 void AddSplatCommand(CLI::App& app, Runner* runner);
 void AddDsmCommand(CLI::App& app, Runner* runner);
 void AddReportCommand(CLI::App& app, Runner* runner);

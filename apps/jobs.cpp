@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <cstdio>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -12,6 +14,7 @@
 #include "sfm/export.h"
 #include "splat/dataset.h"
 #include "splat/ply.h"
+#include "tiler/raster.h"
 
 namespace skyfall::cli {
 namespace {
@@ -81,7 +84,92 @@ void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings
   WriteFileIfChanged(settings_path.string(), settings.dump(2) + "\n");
 }
 
+std::string DensePly(const HeightGrid& g) {
+  std::size_t count = 0;
+  for (float h : g.height_m) count += std::isfinite(h) ? 1 : 0;
+  std::string out = "ply\nformat ascii 1.0\ncomment skyfall dense heights, ENU metres, one point per " +
+                    std::to_string(g.cell_m) + " m cell\nelement vertex " + std::to_string(count) +
+                    "\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\n"
+                    "property uchar green\nproperty uchar blue\nproperty float matching_cost\nproperty uchar filled\nend_header\n";
+  char line[160];
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!std::isfinite(g.height_m[k])) continue;
+      std::snprintf(line, sizeof line, "%.3f %.3f %.3f %d %d %d %.4f %d\n", g.x0_m + i * g.cell_m,
+                    g.y0_m + j * g.cell_m, g.height_m[k], g.rgb[k][0], g.rgb[k][1], g.rgb[k][2], g.cost[k],
+                    g.filled[k]);
+      out += line;
+    }
+  return out;
+}
+
 }  // namespace
+
+bool DenseDone(const std::string& sfm_dir) {
+  const fs::path dir(sfm_dir);
+  try {
+    const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "dense_report.json").string()));
+    return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply");
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress) {
+  const fs::path dir(sfm_dir);
+  const std::string cameras_path = (dir / "cameras.json").string();
+  const std::string report_path = (dir / "sfm_report.json").string();
+  nlohmann::json cameras, sfm_report;
+  try {
+    cameras = nlohmann::json::parse(ReadTextFile(cameras_path));
+    sfm_report = nlohmann::json::parse(ReadTextFile(report_path));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("dense", sfm_dir, std::string("cameras.json or sfm_report.json is not valid JSON: ") + e.what());
+  }
+  std::vector<DenseView> views;
+  std::map<std::string, int> index;
+  for (const auto& [name, camera] : ReadCameras(cameras_path)) {
+    index[name] = static_cast<int>(views.size());
+    DenseView v;
+    v.name = name;
+    v.camera = camera;
+    views.push_back(std::move(v));
+  }
+  for (const nlohmann::json& im : cameras.at("images")) {
+    const auto it = index.find(im.value("name", std::string()));
+    if (it == index.end() || !im.value("used", true)) continue;
+    DenseView& v = views[it->second];
+    const std::string path = im.at("source_image").get<std::string>();
+    FloatImage pixels = ReadFloatImage(path);
+    if (pixels.width_px != v.camera.width_px || pixels.height_px != v.camera.height_px)
+      throw Error("dense", path, "size differs from cameras.json");
+    v.width_px = pixels.width_px;
+    v.height_px = pixels.height_px;
+    v.bands = pixels.bands;
+    v.pixels = std::move(pixels.values);
+  }
+  std::vector<DensePair> pairs;
+  for (const nlohmann::json& p : sfm_report.value("pairs", nlohmann::json::array())) {
+    const auto a = index.find(p.value("a", std::string())), b = index.find(p.value("b", std::string()));
+    if (a != index.end() && b != index.end()) pairs.push_back({a->second, b->second, p.value("verified", 0)});
+  }
+  std::vector<Eigen::Vector3f> points_f, colours;
+  ReadSfmPoints((dir / "points.ply").string(), &points_f, &colours);
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& p : points_f) points.push_back(p.cast<double>());
+
+  DenseResult r = RunDenseHeights(options, views, pairs, points, progress);
+  if (r.report.status == StageStatus::kOk) WriteFileAtomic((dir / "dense.ply").string(), DensePly(r.grid));
+  else fs::remove(dir / "dense.ply");  // an earlier run's heights must not outlive a failed rerun
+  nlohmann::json used = nlohmann::json::array();
+  for (const DensePair& p : r.pairs_used) used.push_back({{"a", views[p.a].name}, {"b", views[p.b].name}, {"verified", p.verified}});
+  const nlohmann::json doc = {{"status", ToString(r.report.status)}, {"message", r.report.message},
+                              {"seconds", r.report.seconds},      {"metrics", r.report.metrics},
+                              {"cell_m", r.grid.cell_m},          {"pairs", used}};
+  WriteFileAtomic((dir / "dense_report.json").string(), doc.dump(2) + "\n");
+  return r;
+}
 
 SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const std::string& out_dir,
                     bool colmap_images, Progress& progress) {
@@ -93,13 +181,29 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
 TrainResult RunTrainJob(TrainJob job, Progress& progress) {
   std::vector<Eigen::Vector3f> points, colours;
   ReadSfmPoints((fs::path(job.sfm_dir) / "points.ply").string(), &points, &colours);
+  const fs::path dense_path = fs::path(job.sfm_dir) / "dense.ply";
+  if (job.init_points != "auto" && job.init_points != "dense" && job.init_points != "sparse")
+    throw Error("splat", "--init-points", "'" + job.init_points + "' is not 'auto', 'dense' or 'sparse'");
+  if (job.init_points == "dense" && !fs::exists(dense_path))
+    throw Error("splat", dense_path.string(), "missing: run `skyfall dense --sfm " + job.sfm_dir +
+                                                  "` first, or train with --init-points sparse");
+  const bool dense = job.init_points == "dense" || (job.init_points == "auto" && fs::exists(dense_path));
+  const std::size_t tie_points = points.size();
+  if (dense) {
+    std::vector<Eigen::Vector3f> dense_points, dense_colours;
+    ReadSfmPoints(dense_path.string(), &dense_points, &dense_colours);
+    ThinToGrid(job.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
+  }
   const std::vector<TrainView> views = LoadTrainViews(job.sfm_dir, job.downscale);
-  spdlog::info("splat train: {} views ({} held out), {} SfM points, {} iterations", views.size(),
+  spdlog::info("splat train: {} views ({} held out), {} initial points ({}), {} iterations", views.size(),
                std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
-               points.size(), job.options.iterations);
+               points.size(),
+               dense ? fmt::format("dense heights thinned to {} m, and tie points in their holes", job.init_spacing_m)
+                     : fmt::format("{} tie points", tie_points),
+               job.options.iterations);
   std::unique_ptr<DepthPrior> depth_prior;
   if (job.depth_prior == "surface") {
-    depth_prior = std::make_unique<SurfaceDepthPrior>(points, 2.0);
+    depth_prior = std::make_unique<SurfaceDepthPrior>(points, dense ? 2.0 * job.init_spacing_m : 2.0);
   } else if (job.depth_prior.rfind("cmd:", 0) == 0) {
     fs::create_directories(fs::path(job.out_dir) / "pseudo");
     depth_prior = std::make_unique<CommandDepthPrior>(job.depth_prior.substr(4), (fs::path(job.out_dir) / "pseudo").string());
@@ -116,9 +220,11 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
                                         {"depth_prior", job.depth_prior},
                                         {"seed", job.options.seed},
                                         {"init_max_scale_m", job.init_max_scale_m},
-                                        {"init_pieces", job.init_pieces}});
+                                        {"init_pieces", job.init_pieces},
+                                        {"init_points", dense ? "dense" : "sparse"},
+                                        {"init_spacing_m", job.init_spacing_m}});
   const double init_cap_m = job.init_max_scale_m > 0 ? job.init_max_scale_m : std::numeric_limits<double>::infinity();
-  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m, job.init_pieces), views,
+  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m, dense ? 1 : job.init_pieces), views,
                                        checkpoints.string(), progress, depth_prior.get());
   WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
   WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),

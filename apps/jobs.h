@@ -7,6 +7,7 @@
 
 #include "core/aoi.h"
 #include "core/stage.h"
+#include "sfm/dense.h"
 #include "sfm/sfm.h"
 #include "splat/trainer.h"
 
@@ -16,6 +17,14 @@ namespace skyfall::cli {
 // and the COLMAP model under out_dir.
 SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const std::string& out_dir,
                     bool colmap_images, Progress& progress);
+
+// Dense heights for an SfM folder (cameras.json, points.ply and the pairs of
+// sfm_report.json); writes dense.ply (one point per cell with a height:
+// x y z red green blue matching_cost filled) and dense_report.json (last).
+DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress);
+
+// True when `sfm_dir` holds a finished dense stage.
+bool DenseDone(const std::string& sfm_dir);
 
 struct TrainJob {
   std::string sfm_dir;                  // written by RunSfmJob / `skyfall sfm`
@@ -41,6 +50,12 @@ struct TrainJob {
   // completeness 98.5%, held-out PSNR 19.1 dB, 298 s; 16 pieces 2.28 m,
   // 99.2%, 21.6 dB, 495 s.
   int init_pieces = 16;
+  // Where the initial Gaussians come from: "dense" (dense.ply of `skyfall
+  // dense`, thinned to init_spacing_m, plus the tie points in its holes),
+  // "sparse" (the tie points of points.ply) or "auto" (dense when dense.ply
+  // exists). The depth prior's surface is fitted to the same points.
+  std::string init_points = "auto";
+  double init_spacing_m = 1.0;  // [m] one dense point per cell of this size
 };
 
 // Trains (resuming from out_dir/checkpoints when possible), then writes

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddRpcCommand(app, &runner);
   skyfall::cli::AddSynthCommand(app, &runner);
   skyfall::cli::AddSfmCommand(app, &runner);
+  skyfall::cli::AddDenseCommand(app, &runner);
   skyfall::cli::AddSplatCommand(app, &runner);
   skyfall::cli::AddDsmCommand(app, &runner);
   skyfall::cli::AddReportCommand(app, &runner);

@@ -43,7 +43,7 @@ double PeakRssMb() {
 json OptionsJson(const TileRunOptions& o) {
   return {{"iterations", o.iterations}, {"resolution_downscale", o.downscale}, {"depth_prior", o.depth_prior},
           {"appearance", o.appearance},
-          {"init_max_scale_m", o.init_max_scale_m}, {"init_pieces", o.init_pieces}};
+          {"init_max_scale_m", o.init_max_scale_m}, {"init_pieces", o.init_pieces}, {"init_points", o.init_points}};
 }
 
 json StageJson(const StageReport& r) {
@@ -91,6 +91,14 @@ bool SfmDone(const fs::path& sfm_dir) {
   }
 }
 
+StageReport ReusedStage(const std::string& stage, const std::string& what) {
+  StageReport reused;
+  reused.stage = stage;
+  reused.status = StageStatus::kSkipped;
+  reused.message = "reused " + what + " of an earlier run";
+  return reused;
+}
+
 }  // namespace
 
 StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, Progress& progress) {
@@ -111,11 +119,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   std::vector<StageReport> stages;
   const fs::path sfm_dir = fs::path(tile_dir) / "sfm";
   if (SfmDone(sfm_dir)) {
-    StageReport reused;
-    reused.stage = "sfm";
-    reused.status = StageStatus::kSkipped;
-    reused.message = "reused the finished SfM of an earlier run";
-    stages.push_back(reused);
+    stages.push_back(ReusedStage("sfm", "the finished SfM"));
   } else {
     const AoiCatalog catalog = ReadAoiCatalog((fs::path(tile_dir) / "aoi.json").string());
     const SfmResult sfm = RunSfmJob(SfmOptions{}, catalog, sfm_dir.string(), false, progress);
@@ -125,6 +129,15 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
       report.message = spec.id + ": " + sfm.report.message;
       report.seconds = clock.Seconds();
       return WriteTileReport(tile_dir, spec, options, report, stages);
+    }
+  }
+  if (options.init_points != "sparse") {
+    if (DenseDone(sfm_dir.string())) {
+      stages.push_back(ReusedStage("dense", "the finished dense heights"));
+    } else {
+      const DenseResult dense = RunDenseJob(DenseOptions{}, sfm_dir.string(), progress);
+      stages.push_back(dense.report);
+      if (dense.report.status != StageStatus::kOk) progress.Warn(spec.id + ": " + dense.report.message);
     }
   }
   TrainJob job;
@@ -137,6 +150,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
   job.appearance = options.appearance;
   job.init_max_scale_m = options.init_max_scale_m;
   job.init_pieces = options.init_pieces;
+  job.init_points = options.init_points;
   const TrainResult train = RunTrainJob(job, progress);
   StageReport splat = train.report;
   splat.stage = "splat";
@@ -225,6 +239,7 @@ std::vector<TileOutcome> RunTilesInParallel(const std::vector<std::string>& tile
                                      "--depth-prior", options.depth_prior, "--appearance", options.appearance,
                                      "--init-max-scale", FormatDouble(options.init_max_scale_m),
                                      "--init-pieces", std::to_string(options.init_pieces),
+                                     "--init-points", options.init_points,
                                      "--threads", std::to_string(threads)};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());

@@ -20,6 +20,7 @@ struct TileRunOptions {
   std::string appearance = "auto";      // see `skyfall splat train --appearance`
   double init_max_scale_m = TrainJob{}.init_max_scale_m;  // see `skyfall splat train --init-max-scale`
   int init_pieces = TrainJob{}.init_pieces;               // see `skyfall splat train --init-pieces`
+  std::string init_points = TrainJob{}.init_points;       // see `skyfall splat train --init-points`; "sparse" skips the dense stage
   int threads = 0;                      // TBB threads in this tile (0 = all cores)
 };
 

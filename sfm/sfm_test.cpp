@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "catalogs/aoi_catalog.h"
+#include "sfm/dense.h"
 #include "sfm/export.h"
 #include "synth/synth.h"
 #include "tests/test_support.h"
@@ -90,6 +91,65 @@ TEST(Sfm, RecoversTheSyntheticCamerasAndSurface) {
               r.points.size(), median_dz, 100 * within_1m, r.after.median_px);
   EXPECT_LT(median_dz, 0.3);
   EXPECT_GT(within_1m, 0.8);
+}
+
+TEST(Sfm, DenseHeightsFollowTheSyntheticSurface) {
+  const SyntheticAoi s = MakeSyntheticAoi(6);
+  NullProgress progress;
+  const SfmResult sfm = RunSfm(SfmOptions{}, s.catalog, progress);
+  ASSERT_EQ(sfm.report.status, StageStatus::kOk) << sfm.report.message;
+  std::vector<DenseView> views;
+  for (const SfmImage& im : sfm.images) {
+    DenseView v;
+    v.name = im.name;
+    v.camera = im.camera;
+    FloatImage pixels = ReadFloatImage(im.path);
+    v.width_px = pixels.width_px;
+    v.height_px = pixels.height_px;
+    v.bands = pixels.bands;
+    v.pixels = std::move(pixels.values);
+    views.push_back(std::move(v));
+  }
+  std::vector<DensePair> pairs;
+  for (const PairStats& p : sfm.pairs) pairs.push_back({p.a, p.b, p.verified});
+  std::vector<Eigen::Vector3d> points;
+  for (const SfmPoint& p : sfm.points) points.push_back(p.enu_m);
+  const DenseResult r = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  ASSERT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+
+  const EnuFrame frame(s.catalog.enu_origin);
+  const HeightGrid& g = r.grid;
+  // Measured (not filled) cells over the AOI (the grid spans the tie points, which reach beyond it
+  // into the image margins that fewer views see).
+  std::vector<double> dz;
+  std::size_t aoi_cells = 0;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const float h = g.height_m[g.Index(i, j)];
+      const GeodeticPoint geo =
+          frame.GeodeticFromEnu({g.x0_m + i * g.cell_m, g.y0_m + j * g.cell_m, std::isfinite(h) ? h : 0.0});
+      const Eigen::Vector2d en = UtmFromGeodetic(UtmZoneFromEpsg(s.scene.epsg), geo.lon_deg, geo.lat_deg);
+      const double x = en.x() - s.scene.utm_easting0_m, y = en.y() - s.scene.utm_northing0_m;
+      if (x < 0 || y < 0 || x > 128 || y > 128) continue;
+      ++aoi_cells;
+      if (std::isfinite(h) && !g.filled[g.Index(i, j)]) dz.push_back(std::abs(geo.height_m - s.scene.city.HeightAt(x, y)));
+    }
+  std::sort(dz.begin(), dz.end());
+  const double valid = static_cast<double>(dz.size()) / static_cast<double>(aoi_cells);
+  const double median_dz = dz.at(dz.size() / 2);
+  const double within_1m = static_cast<double>(std::lower_bound(dz.begin(), dz.end(), 1.0) - dz.begin()) / dz.size();
+  std::printf("[figures] synthetic dense heights: %d x %d cells, %.0f pairs, %.1f%% of the AOI with a height, median |dz| %.3f m, "
+              "%.1f%% within 1 m, %.1f s\n",
+              g.nx, g.ny, r.report.metrics.at("pairs"), 100 * valid, median_dz, 100 * within_1m, r.report.seconds);
+  // Tolerances: a height step is 0.25 m and the truth is sampled at the cell
+  // centre while the cell's window spans 2.5 m, so walls blur over a window;
+  // tie points already reach median 0.3 m (RecoversTheSyntheticCamerasAndSurface).
+  // Coverage: cells beside walls are hidden from most of the 6 views and
+  // flat roofs give NCC nothing to correlate, so they are left to the fill
+  // (measured 72% with the defaults).
+  EXPECT_LT(median_dz, 0.3);
+  EXPECT_GT(within_1m, 0.85);
+  EXPECT_GT(valid, 0.6);
 }
 
 TEST(Sfm, Jax068MeetsTheTargets) {

@@ -3,6 +3,9 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <cmath>
+#include <cstdint>
+#include <set>
 #include <sstream>
 
 #include "core/atomic_file.h"
@@ -45,6 +48,28 @@ PinholeCamera DownscaledCamera(const PinholeCamera& camera, int s) {
   c.width_px = camera.width_px / s;
   c.height_px = camera.height_px / s;
   return c;
+}
+
+void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
+                const std::vector<Eigen::Vector3f>& dense_colours, const std::vector<Eigen::Vector3f>& extra,
+                const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
+                std::vector<Eigen::Vector3f>* colours) {
+  if (!(spacing_m > 0)) throw Error("splat", "init spacing", std::to_string(spacing_m) + " m must be > 0");
+  if (dense.size() != dense_colours.size() || extra.size() != extra_colours.size())
+    throw Error("splat", "init points", "points and colours differ in number");
+  std::set<std::pair<std::int64_t, std::int64_t>> taken;
+  std::vector<Eigen::Vector3f> out_points, out_colours;
+  auto add_if_free = [&](const Eigen::Vector3f& p, const Eigen::Vector3f& c) {
+    const auto cell = std::make_pair(static_cast<std::int64_t>(std::floor(p.x() / spacing_m)),
+                                     static_cast<std::int64_t>(std::floor(p.y() / spacing_m)));
+    if (!taken.insert(cell).second) return;
+    out_points.push_back(p);
+    out_colours.push_back(c);
+  };
+  for (std::size_t k = 0; k < dense.size(); ++k) add_if_free(dense[k], dense_colours[k]);
+  for (std::size_t k = 0; k < extra.size(); ++k) add_if_free(extra[k], extra_colours[k]);
+  *points = std::move(out_points);
+  *colours = std::move(out_colours);
 }
 
 std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& path) {

@@ -19,6 +19,14 @@ std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale)
 void ReadSfmPoints(const std::string& path, std::vector<Eigen::Vector3f>* points,
                    std::vector<Eigen::Vector3f>* colours_01);
 
+// Initial points from dense heights: the first dense point in each
+// spacing_m x spacing_m cell (horizontal), then every extra point (tie
+// points) whose cell no dense point reached, so holes keep their tie points.
+void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
+                const std::vector<Eigen::Vector3f>& dense_colours, const std::vector<Eigen::Vector3f>& extra,
+                const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
+                std::vector<Eigen::Vector3f>* colours);
+
 // Cameras of cameras.json (used images), by name, for rendering.
 std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& cameras_json);
 

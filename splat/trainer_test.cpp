@@ -247,6 +247,30 @@ TEST(Trainer, CappedInitialGaussiansShareTheirPointsNeighbourhood) {
   EXPECT_THROW(InitializeFromPoints(points, grey, 1.5, 0), Error);
 }
 
+TEST(Trainer, DenseInitKeepsOnePointPerCellAndTiePointsInItsHoles) {
+  // Dense points every 0.5 m over x in [0, 4), y in [0, 2); tie points at
+  // (1.2, 0.3) (a cell the dense points fill) and (6.5, 0.5) (a hole).
+  std::vector<Eigen::Vector3f> dense, dense_rgb;
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 8; ++i) {
+      dense.emplace_back(0.5f * i, 0.5f * j, 1.0f);
+      dense_rgb.emplace_back(0.2f, 0.2f, 0.2f);
+    }
+  const std::vector<Eigen::Vector3f> ties = {{1.2f, 0.3f, 5.0f}, {6.5f, 0.5f, 3.0f}};
+  const std::vector<Eigen::Vector3f> ties_rgb(2, Eigen::Vector3f::Constant(0.9f));
+  std::vector<Eigen::Vector3f> points, colours;
+  ThinToGrid(1.0, dense, dense_rgb, ties, ties_rgb, &points, &colours);
+  ASSERT_EQ(points.size(), 4u * 2u + 1u);  // 4 x 2 one-metre cells, plus the hole's tie point
+  EXPECT_EQ(points.back(), ties[1]);
+  EXPECT_EQ(colours.back(), ties_rgb[1]);
+  for (std::size_t k = 0; k + 1 < points.size(); ++k) EXPECT_EQ(points[k].z(), 1.0f) << "a dense cell kept its tie point";
+  // Output may alias an input (the job thins the tie points in place).
+  std::vector<Eigen::Vector3f> same = ties, same_rgb = ties_rgb;
+  ThinToGrid(1.0, dense, dense_rgb, same, same_rgb, &same, &same_rgb);
+  EXPECT_EQ(same.size(), points.size());
+  EXPECT_THROW(ThinToGrid(0.0, dense, dense_rgb, ties, ties_rgb, &points, &colours), Error);
+}
+
 TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
   Fixture f;
   TrainView v;

@@ -19,7 +19,7 @@ TEST(Cli, VersionAndHelpOnEveryCommand) {
   const CommandResult v = RunCommand(Skyfall() + " --version", dir);
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_EQ(v.out.rfind("skyfall 0.", 0), 0u) << v.out;
-  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "splat train", "splat render", "dsm export", "dsm compare", "report", "tile", "run-tile", "merge", "run"}) {
+  for (const char* cmd : {"", "ingest", "rpc", "rpc project", "rpc localize", "rpc check", "synth", "sfm", "dense", "splat train", "splat render", "dsm export", "dsm compare", "report", "tile", "run-tile", "merge", "run"}) {
     const CommandResult h = RunCommand(Skyfall() + " " + cmd + " --help", dir);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -124,6 +124,18 @@ TEST(Cli, SynthIngestSfmChain) {
   const auto report = nlohmann::json::parse(std::ifstream(dir / "sfm" / "sfm_report.json"));
   EXPECT_EQ(report["status"], "ok");
   EXPECT_EQ(report["num_images_used"], 3);
+
+  // Dense heights; an SfM folder without its files is named in the error.
+  const CommandResult dense = RunCommand(Skyfall() + " dense --sfm " + (dir / "sfm").string(), dir);
+  ASSERT_EQ(dense.exit_code, 0) << dense.err;
+  const auto dense_report = nlohmann::json::parse(std::ifstream(dir / "sfm" / "dense_report.json"));
+  EXPECT_EQ(dense_report["status"], "ok");
+  EXPECT_GT(dense_report["metrics"]["valid_fraction"].get<double>(), 0.3);
+  EXPECT_TRUE(fs::exists(dir / "sfm" / "dense.ply"));
+  fs::create_directories(dir / "empty_sfm");
+  const CommandResult no_sfm = RunCommand(Skyfall() + " dense --sfm " + (dir / "empty_sfm").string(), dir);
+  EXPECT_EQ(no_sfm.exit_code, 1);
+  EXPECT_NE(no_sfm.err.find("cameras.json"), std::string::npos) << no_sfm.err;
 
   // Training and rendering on the SfM result. 30 steps cannot grow 1 m
   // Gaussians over the gaps between this small scene's tie points, so the

@@ -1,0 +1,497 @@
+#include "sfm/dense.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "core/error.h"
+
+namespace skyfall {
+
+void DenseOptions::Check() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
+  };
+  positive(cell_m, "cell_m");
+  positive(height_step_m, "height_step_m");
+  positive(cost_truncation, "cost_truncation");
+  positive(min_std, "min_std");
+  positive(max_cost, "max_cost");
+  positive(max_median_deviation_m, "max_median_deviation_m");
+  if (!(fill_radius_m > 0)) throw Error("dense", "fill_radius_m", "must be > 0");
+  if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
+  if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
+  if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
+  if (window_cells < 3 || window_cells % 2 == 0) throw Error("dense", "window_cells", "must be odd and >= 3");
+  if (max_pairs < 1) throw Error("dense", "max_pairs", "must be >= 1");
+  if (!(min_pair_angle_deg >= 0 && max_pair_angle_deg > min_pair_angle_deg))
+    throw Error("dense", "max_pair_angle_deg", "must exceed min_pair_angle_deg >= 0");
+  if (!(sgm_p1 >= 0 && sgm_p2 >= sgm_p1)) throw Error("dense", "sgm_p2", "must be >= sgm_p1 >= 0");
+}
+
+namespace {
+
+constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+
+// Minimum over the (2r+1)^2 square around each cell, ignoring NaN (NaN
+// where the square holds no finite value); separable, rows then columns.
+std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r) {
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<float> rows(h.size()), out(h.size());
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      float m = inf;
+      for (int a = std::max(0, i - r); a <= std::min(nx - 1, i + r); ++a) {
+        const float x = h[static_cast<std::size_t>(j) * nx + a];
+        if (x < m) m = x;  // false for NaN
+      }
+      rows[static_cast<std::size_t>(j) * nx + i] = m;
+    }
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      float m = inf;
+      for (int b = std::max(0, j - r); b <= std::min(ny - 1, j + r); ++b) m = std::min(m, rows[static_cast<std::size_t>(b) * nx + i]);
+      out[static_cast<std::size_t>(j) * nx + i] = std::isfinite(m) ? m : kNan;
+    }
+  return out;
+}
+
+
+// Grey level of a view scaled so that its 99th percentile is 1: NCC ignores
+// the scale, but min_std is then the same threshold for every sensor range.
+struct GreyImage {
+  int width = 0, height = 0;
+  std::vector<float> values;
+};
+
+GreyImage ToGrey(const DenseView& v) {
+  GreyImage g;
+  g.width = v.width_px;
+  g.height = v.height_px;
+  const std::size_t n = static_cast<std::size_t>(g.width) * g.height;
+  g.values.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    float sum = 0;
+    for (int b = 0; b < v.bands; ++b) sum += v.pixels[k * v.bands + b];
+    g.values[k] = sum / static_cast<float>(v.bands);
+  }
+  std::vector<float> sorted = g.values;
+  const std::size_t p99 = std::min(n - 1, static_cast<std::size_t>(0.99 * static_cast<double>(n)));
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(p99), sorted.end());
+  const float scale = sorted[p99] > 0 ? 1.0f / sorted[p99] : 1.0f;
+  for (float& x : g.values) x *= scale;
+  return g;
+}
+
+using Projection = Eigen::Matrix<double, 3, 4>;
+
+Projection ProjectionOf(const PinholeCamera& c) {
+  Projection rt;
+  rt.leftCols<3>() = c.cam_from_world_rotation;
+  rt.col(3) = c.cam_from_world_translation;
+  return c.K() * rt;
+}
+
+// The image sampled (bilinearly) at every grid cell lifted to height h;
+// NaN where the cell projects outside the image.
+void WarpToGrid(const GreyImage& image, const Projection& P, const HeightGrid& grid, double height_m, float* out) {
+  const double max_u = image.width - 1, max_v = image.height - 1;
+  for (int j = 0; j < grid.ny; ++j) {
+    const double y = grid.y0_m + j * grid.cell_m;
+    // The projection is linear in x along a row: start and step.
+    const Eigen::Vector3d row0 = P * Eigen::Vector4d(grid.x0_m, y, height_m, 1.0);
+    const Eigen::Vector3d step = P.col(0) * grid.cell_m;
+    float* dst = out + static_cast<std::size_t>(j) * grid.nx;
+    for (int i = 0; i < grid.nx; ++i) {
+      const Eigen::Vector3d h = row0 + step * i;
+      const double u = h.x() / h.z(), v = h.y() / h.z();
+      if (!(u >= 0 && v >= 0 && u <= max_u && v <= max_v)) {
+        dst[i] = kNan;
+        continue;
+      }
+      const int u0 = std::min(static_cast<int>(u), image.width - 2), v0 = std::min(static_cast<int>(v), image.height - 2);
+      const float fu = static_cast<float>(u - u0), fv = static_cast<float>(v - v0);
+      const float* p = image.values.data() + static_cast<std::size_t>(v0) * image.width + u0;
+      const float top = p[0] + fu * (p[1] - p[0]);
+      const float bottom = p[image.width] + fu * (p[image.width + 1] - p[image.width]);
+      dst[i] = top + fv * (bottom - top);
+    }
+  }
+}
+
+// Sum over a (2r+1)^2 window, zero outside the grid; two separable passes of
+// direct sums (no running sums, whose float error would drift along a row).
+void BoxSum(const std::vector<float>& in, int nx, int ny, int r, std::vector<float>& tmp, std::vector<float>& out) {
+  for (int j = 0; j < ny; ++j) {
+    const float* src = in.data() + static_cast<std::size_t>(j) * nx;
+    float* dst = tmp.data() + static_cast<std::size_t>(j) * nx;
+    for (int i = 0; i < nx; ++i) {
+      float s = 0;
+      for (int k = std::max(0, i - r); k <= std::min(nx - 1, i + r); ++k) s += src[k];
+      dst[i] = s;
+    }
+  }
+  for (int j = 0; j < ny; ++j) {
+    float* dst = out.data() + static_cast<std::size_t>(j) * nx;
+    std::fill(dst, dst + nx, 0.0f);
+    for (int k = std::max(0, j - r); k <= std::min(ny - 1, j + r); ++k) {
+      const float* src = tmp.data() + static_cast<std::size_t>(k) * nx;
+      for (int i = 0; i < nx; ++i) dst[i] += src[i];
+    }
+  }
+}
+
+// Window statistics of one warped image: mean and variance over the
+// (2r+1)^2 window, or NaN mean where the window leaves the image. Computed
+// once per image and height and shared by every pair the image is in.
+struct WindowStats {
+  std::vector<float> values;  // the warped image, 0 outside
+  std::vector<float> mean, var;
+};
+
+class WindowFilter {
+ public:
+  explicit WindowFilter(std::size_t cells) : a_(cells), b_(cells), tmp_(cells), sum_(cells) {}
+
+  void Stats(const std::vector<float>& warped, int nx, int ny, int r, WindowStats& out) {
+    const std::size_t n = warped.size();
+    out.values.resize(n);
+    out.mean.resize(n);
+    out.var.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const bool valid = std::isfinite(warped[k]);
+      out.values[k] = valid ? warped[k] : 0.0f;
+      a_[k] = out.values[k] * out.values[k];
+      b_[k] = valid ? 1.0f : 0.0f;
+    }
+    BoxSum(out.values, nx, ny, r, tmp_, out.mean);
+    BoxSum(a_, nx, ny, r, tmp_, out.var);
+    BoxSum(b_, nx, ny, r, tmp_, sum_);
+    const float count = static_cast<float>((2 * r + 1) * (2 * r + 1));
+    for (std::size_t k = 0; k < n; ++k) {
+      const float m = out.mean[k] / count;
+      out.var[k] = out.var[k] / count - m * m;
+      out.mean[k] = sum_[k] >= count - 0.5f ? m : kNan;
+    }
+  }
+
+  // Adds min(1 - NCC, truncation) of two images to `cost_sum` per cell; a
+  // window not wholly inside both images, or flat in either, adds the
+  // truncation (it says nothing about the height).
+  void AddPairCost(const WindowStats& a, const WindowStats& b, int nx, int ny, const DenseOptions& o,
+                   std::vector<float>& cost_sum) {
+    const std::size_t n = a.values.size();
+    for (std::size_t k = 0; k < n; ++k) a_[k] = a.values[k] * b.values[k];
+    const int r = o.window_cells / 2;
+    BoxSum(a_, nx, ny, r, tmp_, sum_);
+    const float inv_count = 1.0f / static_cast<float>(o.window_cells * o.window_cells);
+    const float min_var = static_cast<float>(o.min_std * o.min_std);
+    const float trunc = static_cast<float>(o.cost_truncation);
+    for (std::size_t k = 0; k < n; ++k) {
+      float c = trunc;
+      if (std::isfinite(a.mean[k]) && std::isfinite(b.mean[k]) && a.var[k] > min_var && b.var[k] > min_var) {
+        const float ncc = (sum_[k] * inv_count - a.mean[k] * b.mean[k]) / std::sqrt(a.var[k] * b.var[k]);
+        c = std::min(1.0f - ncc, trunc);
+      }
+      cost_sum[k] += c;
+    }
+  }
+
+ private:
+  std::vector<float> a_, b_, tmp_, sum_;
+};
+
+// One SGM direction (dx, dy) added into `total`. Cells along a row are
+// independent when dy != 0 (their predecessors are in the previous row), and
+// rows are independent when dy == 0, so both parallelize without changing
+// the result.
+void AddSgmDirection(const std::vector<float>& cost, int nx, int ny, int nh, float p1, float p2, int dx, int dy,
+                     std::vector<float>& total) {
+  const std::size_t row_len = static_cast<std::size_t>(nx) * nh;
+  auto update = [&](const float* prev, const float* c, float* out) {
+    float prev_min = prev[0];
+    for (int d = 1; d < nh; ++d) prev_min = std::min(prev_min, prev[d]);
+    const float jump = prev_min + p2;
+    for (int d = 0; d < nh; ++d) {
+      float best = std::min(prev[d], jump);
+      if (d > 0) best = std::min(best, prev[d - 1] + p1);
+      if (d + 1 < nh) best = std::min(best, prev[d + 1] + p1);
+      out[d] = c[d] + best - prev_min;
+    }
+  };
+  if (dy == 0) {
+    tbb::parallel_for(0, ny, [&](int j) {
+      std::vector<float> a(nh), b(nh);
+      const int i0 = dx > 0 ? 0 : nx - 1;
+      for (int s = 0; s < nx; ++s) {
+        const int i = i0 + s * dx;
+        const std::size_t cell = static_cast<std::size_t>(j) * nx + i;
+        const float* c = cost.data() + cell * nh;
+        if (s == 0) std::copy(c, c + nh, b.data());
+        else update(a.data(), c, b.data());
+        float* t = total.data() + cell * nh;
+        for (int d = 0; d < nh; ++d) t[d] += b[d];
+        std::swap(a, b);
+      }
+    });
+    return;
+  }
+  std::vector<float> prev(row_len), cur(row_len);
+  const int j0 = dy > 0 ? 0 : ny - 1;
+  for (int s = 0; s < ny; ++s) {
+    const int j = j0 + s * dy;
+    tbb::parallel_for(0, nx, [&](int i) {
+      const std::size_t cell = static_cast<std::size_t>(j) * nx + i;
+      const float* c = cost.data() + cell * nh;
+      float* out = cur.data() + static_cast<std::size_t>(i) * nh;
+      const int pi = i - dx;
+      if (s == 0 || pi < 0 || pi >= nx) std::copy(c, c + nh, out);
+      else update(prev.data() + static_cast<std::size_t>(pi) * nh, c, out);
+      float* t = total.data() + cell * nh;
+      for (int d = 0; d < nh; ++d) t[d] += out[d];
+    });
+    std::swap(prev, cur);
+  }
+}
+
+float Median3x3(const std::vector<float>& h, int nx, int ny, int i, int j) {
+  float v[9];
+  int n = 0;
+  for (int b = std::max(0, j - 1); b <= std::min(ny - 1, j + 1); ++b)
+    for (int a = std::max(0, i - 1); a <= std::min(nx - 1, i + 1); ++a) {
+      const float x = h[static_cast<std::size_t>(b) * nx + a];
+      if (std::isfinite(x)) v[n++] = x;
+    }
+  if (n == 0) return kNan;
+  std::nth_element(v, v + n / 2, v + n);
+  return v[n / 2];
+}
+
+double Percentile(std::vector<double> values, double p) {
+  const std::size_t k = std::min(values.size() - 1, static_cast<std::size_t>(p * static_cast<double>(values.size())));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells) {
+  if (h.size() != static_cast<std::size_t>(nx) * ny)
+    throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
+  if (radius_cells < 1) throw Error("dense", "fill radius", std::to_string(radius_cells) + " cells must be >= 1");
+  std::vector<std::uint8_t> filled(h.size(), 0);
+  const std::vector<float> measured = h;
+  // Each pass fills what a square of this radius reaches; the radius
+  // doubles until every cell with a measured cell anywhere is filled.
+  for (int r = radius_cells;; r *= 2) {
+    const std::vector<float> low = MinFilter(measured, nx, ny, r);
+    bool open = false;
+    for (std::size_t k = 0; k < h.size(); ++k) {
+      if (std::isfinite(h[k])) continue;
+      if (std::isfinite(low[k])) {
+        h[k] = low[k];
+        filled[k] = 1;
+      } else {
+        open = true;
+      }
+    }
+    if (!open || r > nx + ny) break;
+  }
+  return filled;
+}
+
+std::vector<float> AggregateSgm(const std::vector<float>& cost, int nx, int ny, int heights, float p1, float p2) {
+  if (cost.size() != static_cast<std::size_t>(nx) * ny * heights)
+    throw Error("dense", "cost", "volume size " + std::to_string(cost.size()) + " is not nx*ny*heights");
+  std::vector<float> total(cost.size(), 0.0f);
+  static constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}};
+  for (const auto& d : kDirections) AddSgmDirection(cost, nx, ny, heights, p1, p2, d[0], d[1], total);
+  return total;
+}
+
+std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector<DenseView>& views,
+                                        const std::vector<DensePair>& pairs, const Eigen::Vector3d& centre) {
+  std::vector<DensePair> kept;
+  for (const DensePair& p : pairs) {
+    if (p.a < 0 || p.b < 0 || p.a >= static_cast<int>(views.size()) || p.b >= static_cast<int>(views.size()) || p.a == p.b)
+      throw Error("dense", "pairs", "pair (" + std::to_string(p.a) + ", " + std::to_string(p.b) + ") names no two views");
+    if (p.verified < o.min_pair_matches) continue;
+    const Eigen::Vector3d ra = (views[p.a].camera.Centre() - centre).normalized();
+    const Eigen::Vector3d rb = (views[p.b].camera.Centre() - centre).normalized();
+    const double angle_deg = std::acos(std::clamp(ra.dot(rb), -1.0, 1.0)) * 180.0 / M_PI;
+    if (angle_deg >= o.min_pair_angle_deg && angle_deg <= o.max_pair_angle_deg) kept.push_back(p);
+  }
+  std::stable_sort(kept.begin(), kept.end(), [](const DensePair& x, const DensePair& y) { return x.verified > y.verified; });
+  if (kept.size() > static_cast<std::size_t>(o.max_pairs)) kept.resize(o.max_pairs);
+  return kept;
+}
+
+DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
+                            const std::vector<Eigen::Vector3d>& points, Progress& progress) {
+  o.Check();
+  Stopwatch clock;
+  DenseResult result;
+  result.report.stage = "dense";
+  for (const DenseView& v : views)
+    if (v.width_px < 2 || v.height_px < 2 || v.bands < 1 ||
+        v.pixels.size() != static_cast<std::size_t>(v.width_px) * v.height_px * v.bands)
+      throw Error("dense", v.name, "pixel buffer does not match " + std::to_string(v.width_px) + "x" +
+                                       std::to_string(v.height_px) + "x" + std::to_string(v.bands));
+  auto degenerate = [&](const std::string& why) {
+    result.report.status = StageStatus::kDegenerate;
+    result.report.message = why;
+    result.report.seconds = clock.Seconds();
+    return result;
+  };
+  if (points.size() < 3) return degenerate("fewer than 3 tie points: no extent or height range to sweep");
+
+  // Grid and sweep range from the tie points.
+  Eigen::Vector3d lo = points[0], hi = points[0], centre = Eigen::Vector3d::Zero();
+  std::vector<double> z;
+  for (const auto& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+    centre += p;
+    z.push_back(p.z());
+  }
+  centre /= static_cast<double>(points.size());
+  const double z_lo = Percentile(z, o.height_percentile) - o.height_margin_m;
+  const double z_hi = Percentile(z, 1.0 - o.height_percentile) + o.height_margin_m;
+  const int nh = static_cast<int>(std::ceil((z_hi - z_lo) / o.height_step_m)) + 1;
+  if (nh > o.max_heights)
+    throw Error("dense", "height range", "tie points span " + std::to_string(z_hi - z_lo) + " m: " + std::to_string(nh) +
+                                             " heights exceed max_heights " + std::to_string(o.max_heights));
+  HeightGrid& g = result.grid;
+  g.cell_m = o.cell_m;
+  g.x0_m = lo.x();
+  g.y0_m = lo.y();
+  g.nx = static_cast<int>(std::floor((hi.x() - lo.x()) / o.cell_m)) + 1;
+  g.ny = static_cast<int>(std::floor((hi.y() - lo.y()) / o.cell_m)) + 1;
+  const std::size_t cells = static_cast<std::size_t>(g.nx) * g.ny;
+
+  result.pairs_used = SelectDensePairs(o, views, pairs, centre);
+  if (result.pairs_used.empty()) return degenerate("no image pair has enough tie points at a usable intersection angle");
+  std::vector<int> used_views;
+  for (const DensePair& p : result.pairs_used) {
+    used_views.push_back(p.a);
+    used_views.push_back(p.b);
+  }
+  std::sort(used_views.begin(), used_views.end());
+  used_views.erase(std::unique(used_views.begin(), used_views.end()), used_views.end());
+  std::vector<int> slot(views.size(), -1);
+  std::vector<GreyImage> grey;
+  std::vector<Projection> projection;
+  for (int v : used_views) {
+    slot[v] = static_cast<int>(grey.size());
+    grey.push_back(ToGrey(views[v]));
+    projection.push_back(ProjectionOf(views[v].camera));
+  }
+
+  // Cost volume, cell-major so SGM reads each cell's heights contiguously.
+  std::vector<float> cost(cells * nh);
+  progress.Begin("dense: sweeping heights", nh);
+  std::atomic<int> done{0};
+  const float inv_pairs = 1.0f / static_cast<float>(result.pairs_used.size());
+  tbb::parallel_for(0, nh, [&](int d) {
+    const double height = z_lo + d * o.height_step_m;
+    WindowFilter filter(cells);
+    std::vector<float> warped(cells);
+    std::vector<WindowStats> stats(grey.size());
+    for (std::size_t k = 0; k < grey.size(); ++k) {
+      WarpToGrid(grey[k], projection[k], g, height, warped.data());
+      filter.Stats(warped, g.nx, g.ny, o.window_cells / 2, stats[k]);
+    }
+    std::vector<float> sum(cells, 0.0f);
+    for (const DensePair& p : result.pairs_used)
+      filter.AddPairCost(stats[slot[p.a]], stats[slot[p.b]], g.nx, g.ny, o, sum);
+    for (std::size_t k = 0; k < cells; ++k) cost[k * nh + d] = sum[k] * inv_pairs;
+    progress.Advance(++done, "");
+  });
+  progress.End();
+
+  progress.Begin("dense: semi-global matching", 0);
+  const std::vector<float> total =
+      AggregateSgm(cost, g.nx, g.ny, nh, static_cast<float>(o.sgm_p1), static_cast<float>(o.sgm_p2));
+  progress.End();
+
+  // Best height per cell, refined by a parabola through its neighbours.
+  g.height_m.assign(cells, kNan);
+  g.cost.assign(cells, static_cast<float>(o.cost_truncation));
+  std::size_t low_cost = 0;
+  for (std::size_t k = 0; k < cells; ++k) {
+    const float* s = total.data() + k * nh;
+    const int best = static_cast<int>(std::min_element(s, s + nh) - s);
+    g.cost[k] = cost[k * nh + best];
+    if (g.cost[k] > o.max_cost) continue;
+    ++low_cost;
+    double offset = 0;
+    if (best > 0 && best + 1 < nh) {
+      const double curvature = s[best - 1] - 2.0 * s[best] + s[best + 1];
+      if (curvature > 0) offset = std::clamp(0.5 * (s[best - 1] - s[best + 1]) / curvature, -0.5, 0.5);
+    }
+    g.height_m[k] = static_cast<float>(z_lo + (best + offset) * o.height_step_m);
+  }
+  // Speckle: isolated heights far from their neighbourhood's median.
+  std::vector<float> filtered = g.height_m;
+  std::size_t speckles = 0;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!std::isfinite(g.height_m[k])) continue;
+      if (std::abs(g.height_m[k] - Median3x3(g.height_m, g.nx, g.ny, i, j)) > o.max_median_deviation_m) {
+        filtered[k] = kNan;
+        ++speckles;
+      }
+    }
+  g.height_m = std::move(filtered);
+  std::size_t measured = 0;
+  for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
+  g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny,
+                                                std::max(1, static_cast<int>(std::lround(o.fill_radius_m / o.cell_m))))
+                          : std::vector<std::uint8_t>(cells, 0);
+
+  // Colour from the most nadir view that sees the cell.
+  std::vector<int> by_elevation(views.size());
+  std::iota(by_elevation.begin(), by_elevation.end(), 0);
+  auto elevation = [&](int v) { return (views[v].camera.Centre() - centre).normalized().z(); };
+  std::sort(by_elevation.begin(), by_elevation.end(), [&](int a, int b) { return elevation(a) > elevation(b); });
+  g.rgb.assign(cells, {0, 0, 0});
+  std::size_t valid = 0;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!std::isfinite(g.height_m[k])) continue;
+      ++valid;
+      const Eigen::Vector3d world(g.x0_m + i * g.cell_m, g.y0_m + j * g.cell_m, g.height_m[k]);
+      for (int v : by_elevation) {
+        const DenseView& view = views[v];
+        const Eigen::Vector2d px = view.camera.Project(world);
+        const int u = static_cast<int>(std::lround(px.x())), w = static_cast<int>(std::lround(px.y()));
+        if (u < 0 || w < 0 || u >= view.width_px || w >= view.height_px) continue;
+        const float* p = view.pixels.data() + (static_cast<std::size_t>(w) * view.width_px + u) * view.bands;
+        for (int b = 0; b < 3; ++b)
+          g.rgb[k][b] = static_cast<std::uint8_t>(std::clamp(p[std::min(b, view.bands - 1)], 0.0f, 255.0f));
+        break;
+      }
+    }
+
+  StageReport& r = result.report;
+  r.metrics["cells"] = static_cast<double>(cells);
+  r.metrics["heights"] = nh;
+  r.metrics["height_min_m"] = z_lo;
+  r.metrics["height_max_m"] = z_hi;
+  r.metrics["pairs"] = static_cast<double>(result.pairs_used.size());
+  r.metrics["views"] = static_cast<double>(used_views.size());
+  r.metrics["valid_fraction"] = static_cast<double>(measured) / static_cast<double>(cells);
+  r.metrics["filled_fraction"] = static_cast<double>(valid - measured) / static_cast<double>(cells);
+  r.metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(low_cost) / static_cast<double>(cells);
+  r.metrics["rejected_speckle_fraction"] = static_cast<double>(speckles) / static_cast<double>(cells);
+  r.seconds = clock.Seconds();
+  return result;
+}
+
+}  // namespace skyfall

@@ -1,0 +1,104 @@
+// Dense heights for satellite views: a plane sweep in ground space. Each
+// image is warped onto a horizontal grid at every candidate height; image
+// pairs score each height with windowed normalized cross-correlation (so a
+// change of gain and offset between dates costs nothing); the pair costs are
+// averaged after truncation (an occluded pair adds the same constant at every
+// height, so it does not bias the choice) and semi-global matching
+// regularizes the cost volume before the best height per cell is taken.
+// This is what s2p does per pair in rectified image space; in ground space
+// the pairs share one volume and the result is directly a height field.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/pinhole.h"
+#include "core/stage.h"
+
+namespace skyfall {
+
+struct DenseOptions {
+  double cell_m = 0.5;              // ground sampling of the height grid [m]
+  double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
+  double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
+  double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
+  int max_heights = 600;            // refuse sweeps longer than this (memory: cells x heights x 4 bytes)
+  int window_cells = 5;             // NCC window side [cells], odd
+  int max_pairs = 200;              // pairs kept, most verified tie points first
+  int min_pair_matches = 50;        // verified tie points for a pair to be considered
+  double min_pair_angle_deg = 4.0;  // below, heights are too weakly constrained
+  double max_pair_angle_deg = 40.0; // above, the views differ too much to correlate
+  double cost_truncation = 0.8;     // per-pair cost (1 - NCC) is capped here
+  double min_std = 0.004;           // window standard deviation (of the normalized image) below which NCC is undefined
+  double sgm_p1 = 0.06;             // SGM penalty for a one-step height change between cells [cost units]
+  double sgm_p2 = 2.0;              // SGM penalty for a larger change (walls)
+  double max_cost = 0.55;           // cells whose matching cost at the chosen height exceeds this get no height
+  double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
+  // A cell without a height takes the lowest measured height within
+  // fill_radius_m (a square; doubled until something is in reach): most
+  // holes are ground that walls hide from most views, bordered by roof on
+  // one side and ground on the other, and filling them from the roof would
+  // put roofs in courtyards. Filled cells are flagged.
+  bool fill_holes = true;
+  double fill_radius_m = 5.0;
+  void Check() const;               // throws Error("dense", field, ...)
+};
+
+// One view: its camera in the frame of the grid (ENU) and its pixels.
+struct DenseView {
+  std::string name;
+  PinholeCamera camera;
+  int width_px = 0, height_px = 0;
+  int bands = 0;
+  std::vector<float> pixels;  // `bands` values per pixel, row-major, any radiometric range
+};
+
+// A candidate pair (indices into the views) with its verified tie points.
+struct DensePair {
+  int a = 0, b = 0;
+  int verified = 0;
+};
+
+// A height field on a regular ENU grid: cell (i, j) is centred at
+// (x0_m + i * cell_m, y0_m + j * cell_m); i grows east, j north.
+struct HeightGrid {
+  double x0_m = 0, y0_m = 0, cell_m = 0;
+  int nx = 0, ny = 0;
+  std::vector<float> height_m;                  // ENU up [m]; NaN where there is no answer
+  std::vector<float> cost;                      // matching cost at that height [0, cost_truncation]
+  std::vector<std::uint8_t> filled;             // 1 where the height was filled in, not measured
+  std::vector<std::array<std::uint8_t, 3>> rgb; // colour of the surface (0 where no height)
+  std::size_t Index(int i, int j) const { return static_cast<std::size_t>(j) * nx + i; }
+};
+
+struct DenseResult {
+  HeightGrid grid;
+  std::vector<DensePair> pairs_used;
+  StageReport report;
+};
+
+// The grid covers the tie points' horizontal extent; their heights set the
+// sweep range. Status "degenerate" when no pair qualifies.
+DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<DenseView>& views,
+                            const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& tie_points_enu_m,
+                            Progress& progress);
+
+// The pairs the sweep would use: qualifying pairs by decreasing verified count.
+std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::vector<DenseView>& views,
+                                        const std::vector<DensePair>& pairs, const Eigen::Vector3d& scene_centre_enu_m);
+
+// Fills every NaN cell of `height_m` (nx x ny) with the lowest finite height
+// within `radius_cells` (Chebyshev), doubling the radius for cells still
+// out of reach; returns a per-cell flag of what was filled. All-NaN input
+// stays NaN.
+std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells);
+
+// Semi-global matching over a cost volume laid out cell-major
+// (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over
+// 8 directions). Exposed for its tests.
+std::vector<float> AggregateSgm(const std::vector<float>& cost, int nx, int ny, int heights, float p1, float p2);
+
+}  // namespace skyfall
