@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the main job, `skyfall run`, on
 # the built-in default scene: a synthetic satellite city written by
-# `skyfall synth` (ingest -> tile -> per-tile SfM + splat training -> merge
+# `skyfall synth` (ingest -> tile -> per-tile SfM, dense heights, splat training -> merge
 # with LOD -> DSM export and comparison with the city's truth).
 # Give a DFC2019 root as the first argument to run on real data instead
 # (e.g. ../shared/data/dfc2019). Output goes to ./out/ (or $2). Reruns resume.
