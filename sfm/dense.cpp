@@ -23,6 +23,7 @@ void DenseOptions::Check() const {
   positive(max_cost, "max_cost");
   positive(max_median_deviation_m, "max_median_deviation_m");
   if (!(fill_radius_m > 0)) throw Error("dense", "fill_radius_m", "must be > 0");
+  if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
@@ -279,15 +280,16 @@ double Percentile(std::vector<double> values, double p) {
 
 }  // namespace
 
-std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells) {
+std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells,
+                                             int max_radius_cells) {
   if (h.size() != static_cast<std::size_t>(nx) * ny)
     throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
   if (radius_cells < 1) throw Error("dense", "fill radius", std::to_string(radius_cells) + " cells must be >= 1");
   std::vector<std::uint8_t> filled(h.size(), 0);
   const std::vector<float> measured = h;
   // Each pass fills what a square of this radius reaches; the radius
-  // doubles until every cell with a measured cell anywhere is filled.
-  for (int r = radius_cells;; r *= 2) {
+  // doubles up to the largest reach.
+  for (int r = std::min(radius_cells, max_radius_cells);; r = std::min(2 * r, max_radius_cells)) {
     const std::vector<float> low = MinFilter(measured, nx, ny, r);
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
@@ -299,7 +301,7 @@ std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int 
         open = true;
       }
     }
-    if (!open || r > nx + ny) break;
+    if (!open || r >= max_radius_cells || r > nx + ny) break;
   }
   return filled;
 }
@@ -450,8 +452,9 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   g.height_m = std::move(filtered);
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
-  g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny,
-                                                std::max(1, static_cast<int>(std::lround(o.fill_radius_m / o.cell_m))))
+  auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
+  g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny, cells_of(o.fill_radius_m),
+                                                cells_of(o.max_fill_reach_m))
                           : std::vector<std::uint8_t>(cells, 0);
 
   // Colour from the most nadir view that sees the cell.

@@ -44,6 +44,10 @@ struct DenseOptions {
   // put roofs in courtyards. Filled cells are flagged.
   bool fill_holes = true;
   double fill_radius_m = 5.0;
+  // Cells further than this from every measured cell stay empty: beyond
+  // the area the views share there is nothing to fill from, and filling it
+  // would only add Gaussians to train.
+  double max_fill_reach_m = 20.0;
   void Check() const;               // throws Error("dense", field, ...)
 };
 
@@ -90,11 +94,12 @@ DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<Dense
 std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::vector<DenseView>& views,
                                         const std::vector<DensePair>& pairs, const Eigen::Vector3d& scene_centre_enu_m);
 
-// Fills every NaN cell of `height_m` (nx x ny) with the lowest finite height
-// within `radius_cells` (Chebyshev), doubling the radius for cells still
-// out of reach; returns a per-cell flag of what was filled. All-NaN input
-// stays NaN.
-std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells);
+// Fills NaN cells of `height_m` (nx x ny) with the lowest finite height
+// within `radius_cells` (Chebyshev), doubling the radius for cells still out
+// of reach while it stays within `max_radius_cells`; returns a per-cell flag
+// of what was filled. Cells out of every reach (all-NaN input) stay NaN.
+std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells,
+                                             int max_radius_cells);
 
 // Semi-global matching over a cost volume laid out cell-major
 // (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over

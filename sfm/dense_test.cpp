@@ -80,7 +80,7 @@ TEST(Dense, HolesTakeTheLowestHeightWithinReach) {
     for (int i = 0; i < nx; ++i) h[j * nx + i] = i < 3 ? 10.0f : i < 6 ? nan : 0.0f;
   h[1 * nx + 0] = nan;
   const std::vector<float> before = h;
-  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, nx, ny, 3);
+  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, nx, ny, 3, 100);
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
       const std::size_t k = static_cast<std::size_t>(j) * nx + i;
@@ -98,16 +98,24 @@ TEST(Dense, HolesOutOfReachAreFilledAsTheReachGrows) {
   // middle needs the doubled reach, which sees both ends and takes 1 m.
   const float nan = std::nanf("");
   std::vector<float> h = {5, nan, nan, nan, nan, nan, nan, nan, 1};
-  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, 9, 1, 1);
+  std::vector<float> capped = h;
+  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, 9, 1, 1, 100);
   EXPECT_EQ(h[1], 5.0f);
   EXPECT_EQ(h[7], 1.0f);
   EXPECT_EQ(h[4], 1.0f);
   for (int i = 1; i < 8; ++i) EXPECT_EQ(filled[i], 1) << i;
+  // With the reach capped at 2 cells, the cells 3 and more away stay empty.
+  const std::vector<std::uint8_t> near = FillHolesFromBelow(capped, 9, 1, 1, 2);
+  for (int i = 1; i < 8; ++i) {
+    const bool reachable = i <= 2 || i >= 6;
+    EXPECT_EQ(near[i], reachable ? 1 : 0) << i;
+    EXPECT_EQ(std::isfinite(capped[i]), reachable) << i;
+  }
   std::vector<float> empty(6, nan);
-  FillHolesFromBelow(empty, 3, 2, 1);
+  FillHolesFromBelow(empty, 3, 2, 1, 100);
   for (float x : empty) EXPECT_TRUE(std::isnan(x));
-  EXPECT_THROW(FillHolesFromBelow(empty, 4, 2, 1), Error);
-  EXPECT_THROW(FillHolesFromBelow(empty, 3, 2, 0), Error);
+  EXPECT_THROW(FillHolesFromBelow(empty, 4, 2, 1, 100), Error);
+  EXPECT_THROW(FillHolesFromBelow(empty, 3, 2, 0, 100), Error);
 }
 
 TEST(Dense, OptionsNameTheBadField) {
