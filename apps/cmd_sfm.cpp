@@ -5,6 +5,7 @@
 #include "apps/console.h"
 #include "apps/jobs.h"
 #include "catalogs/aoi_catalog.h"
+#include "catalogs/tile_catalog.h"
 #include "sfm/sfm.h"
 
 namespace skyfall::cli {
@@ -44,10 +45,13 @@ void AddSfmCommand(CLI::App& app, Runner* runner) {
 void AddDenseCommand(CLI::App& app, Runner* runner) {
   auto sfm = std::make_shared<std::string>();
   auto opts = std::make_shared<DenseOptions>();
+  auto tile = std::make_shared<std::string>();
   CLI::App* cmd = app.add_subcommand(
       "dense", "Dense heights from an SfM folder (ground-space plane sweep, NCC, semi-global matching); writes "
                "dense.ply and dense_report.json beside cameras.json");
   cmd->add_option("--sfm", *sfm, "Folder written by `skyfall sfm`")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--tile", *tile, "tile.json whose extent clips the grid (run-tile passes its own)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--cell", opts->cell_m, "Grid cell [m]")->capture_default_str();
   cmd->add_option("--height-step", opts->height_step_m, "Sweep step [m]")->capture_default_str();
   cmd->add_option("--window", opts->window_cells, "NCC window side [cells], odd")->capture_default_str();
@@ -55,12 +59,23 @@ void AddDenseCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--p1", opts->sgm_p1, "SGM penalty for a one-step height change")->capture_default_str();
   cmd->add_option("--p2", opts->sgm_p2, "SGM penalty for a larger height change")->capture_default_str();
   cmd->add_option("--max-cost", opts->max_cost, "Cells matching worse than this get no height")->capture_default_str();
+  cmd->add_flag("--visibility-pass,!--no-visibility-pass", opts->visibility_pass,
+                "Second sweep scoring each height only with the pairs that see it")
+      ->capture_default_str();
+  cmd->add_option("--visibility-tolerance", opts->visibility_tolerance_m,
+                  "First-surface error allowed before a point counts as hidden [m]")
+      ->capture_default_str();
+  cmd->add_option("--visibility-prior", opts->visibility_prior_pairs,
+                  "Pairs of truncation cost added to each height's mean in the second sweep")
+      ->capture_default_str();
   cmd->add_option("--fill-radius", opts->fill_radius_m, "Holes take the lowest height within this distance [m]")
       ->capture_default_str();
-  cmd->callback([runner, sfm, opts] {
-    *runner = [sfm, opts] {
+  cmd->callback([runner, sfm, opts, tile] {
+    *runner = [sfm, opts, tile] {
       ConsoleProgress progress;
-      const DenseResult r = RunDenseJob(*opts, *sfm, progress);
+      std::optional<GroundBox> extent;
+      if (!tile->empty()) extent = ReadTileSpec(*tile).extent;
+      const DenseResult r = RunDenseJob(*opts, *sfm, progress, extent);
       if (r.report.status != StageStatus::kOk) {
         spdlog::warn("dense: {}", r.report.message);
         return kExitDegenerate;

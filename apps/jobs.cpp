@@ -106,48 +106,52 @@ std::string DensePly(const HeightGrid& g) {
 
 }  // namespace
 
-bool DenseDone(const std::string& sfm_dir) {
+namespace {
+
+nlohmann::json ExtentJson(const std::optional<GroundBox>& extent) {
+  if (!extent) return nullptr;
+  return {{"min_east_m", extent->min_m.x()}, {"min_north_m", extent->min_m.y()},
+          {"max_east_m", extent->max_m.x()}, {"max_north_m", extent->max_m.y()}};
+}
+
+}  // namespace
+
+bool DenseDone(const std::string& sfm_dir, const std::optional<GroundBox>& extent_enu_m) {
   const fs::path dir(sfm_dir);
   try {
     const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "dense_report.json").string()));
-    return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply");
+    return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply") &&
+           doc.value("extent_enu_m", nlohmann::json()) == ExtentJson(extent_enu_m);
   } catch (const std::exception&) {
     return false;
   }
 }
 
-DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress) {
+DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
+                        const std::optional<GroundBox>& extent_enu_m) {
   const fs::path dir(sfm_dir);
-  const std::string cameras_path = (dir / "cameras.json").string();
   const std::string report_path = (dir / "sfm_report.json").string();
-  nlohmann::json cameras, sfm_report;
-  try {
-    cameras = nlohmann::json::parse(ReadTextFile(cameras_path));
-    sfm_report = nlohmann::json::parse(ReadTextFile(report_path));
-  } catch (const nlohmann::json::exception& e) {
-    throw Error("dense", sfm_dir, std::string("cameras.json or sfm_report.json is not valid JSON: ") + e.what());
-  }
   std::vector<DenseView> views;
   std::map<std::string, int> index;
-  for (const auto& [name, camera] : ReadCameras(cameras_path)) {
-    index[name] = static_cast<int>(views.size());
+  for (CameraEntry& entry : ReadCameraEntries((dir / "cameras.json").string())) {
+    FloatImage pixels = ReadFloatImage(entry.source_image);
+    if (pixels.width_px != entry.camera.width_px || pixels.height_px != entry.camera.height_px)
+      throw Error("dense", entry.source_image, "size differs from cameras.json");
+    index[entry.name] = static_cast<int>(views.size());
     DenseView v;
-    v.name = name;
-    v.camera = camera;
-    views.push_back(std::move(v));
-  }
-  for (const nlohmann::json& im : cameras.at("images")) {
-    const auto it = index.find(im.value("name", std::string()));
-    if (it == index.end() || !im.value("used", true)) continue;
-    DenseView& v = views[it->second];
-    const std::string path = im.at("source_image").get<std::string>();
-    FloatImage pixels = ReadFloatImage(path);
-    if (pixels.width_px != v.camera.width_px || pixels.height_px != v.camera.height_px)
-      throw Error("dense", path, "size differs from cameras.json");
+    v.name = std::move(entry.name);
+    v.camera = entry.camera;
     v.width_px = pixels.width_px;
     v.height_px = pixels.height_px;
     v.bands = pixels.bands;
     v.pixels = std::move(pixels.values);
+    views.push_back(std::move(v));
+  }
+  nlohmann::json sfm_report;
+  try {
+    sfm_report = nlohmann::json::parse(ReadTextFile(report_path));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("dense", report_path, std::string("not valid JSON: ") + e.what());
   }
   std::vector<DensePair> pairs;
   for (const nlohmann::json& p : sfm_report.value("pairs", nlohmann::json::array())) {
@@ -159,14 +163,15 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
   std::vector<Eigen::Vector3d> points;
   for (const auto& p : points_f) points.push_back(p.cast<double>());
 
-  DenseResult r = RunDenseHeights(options, views, pairs, points, progress);
+  DenseResult r = RunDenseHeights(options, views, pairs, points, progress, extent_enu_m);
   if (r.report.status == StageStatus::kOk) WriteFileAtomic((dir / "dense.ply").string(), DensePly(r.grid));
   else fs::remove(dir / "dense.ply");  // an earlier run's heights must not outlive a failed rerun
   nlohmann::json used = nlohmann::json::array();
   for (const DensePair& p : r.pairs_used) used.push_back({{"a", views[p.a].name}, {"b", views[p.b].name}, {"verified", p.verified}});
   const nlohmann::json doc = {{"status", ToString(r.report.status)}, {"message", r.report.message},
                               {"seconds", r.report.seconds},      {"metrics", r.report.metrics},
-                              {"cell_m", r.grid.cell_m},          {"pairs", used}};
+                              {"cell_m", r.grid.cell_m},          {"extent_enu_m", ExtentJson(extent_enu_m)},
+                              {"pairs", used}};
   WriteFileAtomic((dir / "dense_report.json").string(), doc.dump(2) + "\n");
   return r;
 }

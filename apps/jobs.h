@@ -3,6 +3,7 @@
 // atomically, so `skyfall splat train` and `skyfall run-tile` behave alike.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "core/aoi.h"
@@ -21,10 +22,12 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
 // Dense heights for an SfM folder (cameras.json, points.ply and the pairs of
 // sfm_report.json); writes dense.ply (one point per cell with a height:
 // x y z red green blue matching_cost filled) and dense_report.json (last).
-DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress);
+// `extent_enu_m` clips the grid (a tile's extent, in the SfM frame).
+DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
+                        const std::optional<GroundBox>& extent_enu_m = std::nullopt);
 
-// True when `sfm_dir` holds a finished dense stage.
-bool DenseDone(const std::string& sfm_dir);
+// True when `sfm_dir` holds a finished dense stage over the same extent.
+bool DenseDone(const std::string& sfm_dir, const std::optional<GroundBox>& extent_enu_m);
 
 struct TrainJob {
   std::string sfm_dir;                  // written by RunSfmJob / `skyfall sfm`

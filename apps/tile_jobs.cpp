@@ -132,10 +132,10 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
     }
   }
   if (options.init_points != "sparse") {
-    if (DenseDone(sfm_dir.string())) {
+    if (DenseDone(sfm_dir.string(), spec.extent)) {
       stages.push_back(ReusedStage("dense", "the finished dense heights"));
     } else {
-      const DenseResult dense = RunDenseJob(DenseOptions{}, sfm_dir.string(), progress);
+      const DenseResult dense = RunDenseJob(DenseOptions{}, sfm_dir.string(), progress, spec.extent);
       stages.push_back(dense.report);
       if (dense.report.status != StageStatus::kOk) progress.Warn(spec.id + ": " + dense.report.message);
     }

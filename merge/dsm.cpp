@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/stats.h"
 #include "splat/rasterizer.h"
 #include "tiler/dfc2019.h"
 #include "tiler/geo.h"
@@ -73,13 +74,6 @@ double Ncc(const DsmGrid& pred, const DsmGrid& truth, int dx, int dy, int* overl
   const double va = saa - sa * sa / n, vb = sbb - sb * sb / n, cov = sab - sa * sb / n;
   if (va <= 0 || vb <= 0) return -2.0;
   return cov / std::sqrt(va * vb);
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  return v[mid];
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "core/error.h"
+#include "core/stats.h"
 
 namespace skyfall {
 
@@ -24,6 +25,8 @@ void DenseOptions::Check() const {
   positive(max_median_deviation_m, "max_median_deviation_m");
   if (!(fill_radius_m > 0)) throw Error("dense", "fill_radius_m", "must be > 0");
   if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
+  if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
+  if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
@@ -61,7 +64,6 @@ std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r)
   return out;
 }
 
-
 // Grey level of a view scaled so that its 99th percentile is 1: NCC ignores
 // the scale, but min_std is then the same threshold for every sensor range.
 struct GreyImage {
@@ -80,10 +82,8 @@ GreyImage ToGrey(const DenseView& v) {
     for (int b = 0; b < v.bands; ++b) sum += v.pixels[k * v.bands + b];
     g.values[k] = sum / static_cast<float>(v.bands);
   }
-  std::vector<float> sorted = g.values;
-  const std::size_t p99 = std::min(n - 1, static_cast<std::size_t>(0.99 * static_cast<double>(n)));
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(p99), sorted.end());
-  const float scale = sorted[p99] > 0 ? 1.0f / sorted[p99] : 1.0f;
+  const float p99 = Quantile(g.values, 0.99);
+  const float scale = p99 > 0 ? 1.0f / p99 : 1.0f;
   for (float& x : g.values) x *= scale;
   return g;
 }
@@ -182,9 +182,11 @@ class WindowFilter {
 
   // Adds min(1 - NCC, truncation) of two images to `cost_sum` per cell; a
   // window not wholly inside both images, or flat in either, adds the
-  // truncation (it says nothing about the height).
+  // truncation (it says nothing about the height). With visibility masks,
+  // only cells both views see take part, and `count` counts them.
   void AddPairCost(const WindowStats& a, const WindowStats& b, int nx, int ny, const DenseOptions& o,
-                   std::vector<float>& cost_sum) {
+                   std::vector<float>& cost_sum, const std::uint8_t* visible_a = nullptr,
+                   const std::uint8_t* visible_b = nullptr, std::vector<float>* count = nullptr) {
     const std::size_t n = a.values.size();
     for (std::size_t k = 0; k < n; ++k) a_[k] = a.values[k] * b.values[k];
     const int r = o.window_cells / 2;
@@ -197,6 +199,10 @@ class WindowFilter {
       if (std::isfinite(a.mean[k]) && std::isfinite(b.mean[k]) && a.var[k] > min_var && b.var[k] > min_var) {
         const float ncc = (sum_[k] * inv_count - a.mean[k] * b.mean[k]) / std::sqrt(a.var[k] * b.var[k]);
         c = std::min(1.0f - ncc, trunc);
+      }
+      if (visible_a) {
+        if (!visible_a[k] || !visible_b[k]) continue;
+        (*count)[k] += 1.0f;
       }
       cost_sum[k] += c;
     }
@@ -272,13 +278,149 @@ float Median3x3(const std::vector<float>& h, int nx, int ny, int i, int j) {
   return v[n / 2];
 }
 
-double Percentile(std::vector<double> values, double p) {
-  const std::size_t k = std::min(values.size() - 1, static_cast<std::size_t>(p * static_cast<double>(values.size())));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
+// What the sweeps of one run share: the grid, the heights and the views.
+struct Sweep {
+  const DenseOptions& o;
+  const HeightGrid& grid;  // geometry only
+  double z_lo = 0;
+  int nh = 0;
+  const std::vector<DensePair>& pairs;
+  const std::vector<int>& slot;  // view index -> index into grey / projection
+  const std::vector<GreyImage>& grey;
+  const std::vector<Projection>& projection;
+  std::size_t Cells() const { return static_cast<std::size_t>(grid.nx) * grid.ny; }
+  double Height(int d) const { return z_lo + d * o.height_step_m; }
+};
+
+// The cost volume, cell-major so SGM reads each cell's heights
+// contiguously: per cell and height, the mean truncated pair cost. With
+// `seen_above` (per view slot and cell, the height above which the view
+// sees the cell), a pair counts only where both its views see the point,
+// and a point no pair sees costs the truncation.
+std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
+                              const std::string& label, Progress& progress) {
+  const HeightGrid& g = s.grid;
+  const std::size_t cells = s.Cells();
+  const int nh = s.nh;
+  std::vector<float> cost(cells * nh);
+  progress.Begin(label, nh);
+  std::atomic<int> done{0};
+  const float trunc = static_cast<float>(s.o.cost_truncation);
+  tbb::parallel_for(0, nh, [&](int d) {
+    const double height = s.Height(d);
+    WindowFilter filter(cells);
+    std::vector<float> warped(cells);
+    std::vector<WindowStats> stats(s.grey.size());
+    for (std::size_t k = 0; k < s.grey.size(); ++k) {
+      WarpToGrid(s.grey[k], s.projection[k], g, height, warped.data());
+      filter.Stats(warped, g.nx, g.ny, s.o.window_cells / 2, stats[k]);
+    }
+    std::vector<float> sum(cells, 0.0f);
+    if (!seen_above) {
+      for (const DensePair& p : s.pairs) filter.AddPairCost(stats[s.slot[p.a]], stats[s.slot[p.b]], g.nx, g.ny, s.o, sum);
+      const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
+      for (std::size_t k = 0; k < cells; ++k) cost[k * nh + d] = sum[k] * inv_pairs;
+    } else {
+      std::vector<std::vector<std::uint8_t>> visible(s.grey.size(), std::vector<std::uint8_t>(cells));
+      for (std::size_t v = 0; v < s.grey.size(); ++v)
+        for (std::size_t k = 0; k < cells; ++k) visible[v][k] = height >= (*seen_above)[v][k] ? 1 : 0;
+      std::vector<float> count(cells, 0.0f);
+      for (const DensePair& p : s.pairs) {
+        const int a = s.slot[p.a], b = s.slot[p.b];
+        filter.AddPairCost(stats[a], stats[b], g.nx, g.ny, s.o, sum, visible[a].data(), visible[b].data(), &count);
+      }
+      const float prior = static_cast<float>(s.o.visibility_prior_pairs);
+      for (std::size_t k = 0; k < cells; ++k) {
+        const float n = count[k] + prior;
+        cost[k * nh + d] = n > 0 ? (sum[k] + prior * trunc) / n : trunc;
+      }
+    }
+    progress.Advance(++done, "");
+  });
+  progress.End();
+  return cost;
+}
+
+// Heights chosen from a cost volume: SGM, the best height per cell refined
+// by a parabola through its neighbours, cells matching worse than max_cost
+// and speckles (far from their 3x3 median) left NaN.
+struct CellHeights {
+  std::vector<float> height_m, cost;
+  std::size_t low_cost = 0, speckles = 0;
+};
+
+CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress& progress) {
+  const HeightGrid& g = s.grid;
+  const DenseOptions& o = s.o;
+  const std::size_t cells = s.Cells();
+  const int nh = s.nh;
+  progress.Begin("dense: semi-global matching", 0);
+  const std::vector<float> total =
+      AggregateSgm(cost, g.nx, g.ny, nh, static_cast<float>(o.sgm_p1), static_cast<float>(o.sgm_p2));
+  progress.End();
+  CellHeights out;
+  out.height_m.assign(cells, kNan);
+  out.cost.assign(cells, static_cast<float>(o.cost_truncation));
+  for (std::size_t k = 0; k < cells; ++k) {
+    const float* t = total.data() + k * nh;
+    const int best = static_cast<int>(std::min_element(t, t + nh) - t);
+    out.cost[k] = cost[k * nh + best];
+    if (out.cost[k] > o.max_cost) continue;
+    ++out.low_cost;
+    double offset = 0;
+    if (best > 0 && best + 1 < nh) {
+      const double curvature = t[best - 1] - 2.0 * t[best] + t[best + 1];
+      if (curvature > 0) offset = std::clamp(0.5 * (t[best - 1] - t[best + 1]) / curvature, -0.5, 0.5);
+    }
+    out.height_m[k] = static_cast<float>(s.z_lo + (best + offset) * o.height_step_m);
+  }
+  std::vector<float> filtered = out.height_m;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!std::isfinite(out.height_m[k])) continue;
+      if (std::abs(out.height_m[k] - Median3x3(out.height_m, g.nx, g.ny, i, j)) > o.max_median_deviation_m) {
+        filtered[k] = kNan;
+        ++out.speckles;
+      }
+    }
+  out.height_m = std::move(filtered);
+  return out;
 }
 
 }  // namespace
+
+std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
+                                const Eigen::Vector3d& to_camera, double floor_m) {
+  if (surface_m.size() != static_cast<std::size_t>(g.nx) * g.ny)
+    throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
+  const float lowest = -std::numeric_limits<float>::infinity();
+  std::vector<float> out(surface_m.size(), lowest);
+  const double horizontal = to_camera.head<2>().norm();
+  if (!(horizontal > 1e-9 * to_camera.norm()) || !(to_camera.z() > 0)) return out;  // straight down: nothing hides
+  float top = lowest;
+  for (float h : surface_m)
+    if (std::isfinite(h)) top = std::max(top, h);
+  if (!std::isfinite(top)) return out;
+  // March toward the camera one cell at a time; the ray rises `rise` per step.
+  const double step_i = to_camera.x() / horizontal, step_j = to_camera.y() / horizontal;
+  const double rise = g.cell_m * to_camera.z() / horizontal;
+  tbb::parallel_for(0, g.ny, [&](int j) {
+    for (int i = 0; i < g.nx; ++i) {
+      float best = lowest;
+      for (int t = 1;; ++t) {
+        const double drop = t * rise;
+        if (top - drop <= best || top - drop < floor_m) break;  // nothing further can hide the cell
+        const int a = static_cast<int>(std::lround(i + t * step_i)), b = static_cast<int>(std::lround(j + t * step_j));
+        if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) break;
+        const float h = surface_m[g.Index(a, b)];
+        if (std::isfinite(h)) best = std::max(best, static_cast<float>(h - drop));
+      }
+      out[g.Index(i, j)] = best;
+    }
+  });
+  return out;
+}
 
 std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells,
                                              int max_radius_cells) {
@@ -333,7 +475,8 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector
 }
 
 DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
-                            const std::vector<Eigen::Vector3d>& points, Progress& progress) {
+                            const std::vector<Eigen::Vector3d>& all_points, Progress& progress,
+                            const std::optional<GroundBox>& extent) {
   o.Check();
   Stopwatch clock;
   DenseResult result;
@@ -349,20 +492,33 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     result.report.seconds = clock.Seconds();
     return result;
   };
-  if (points.size() < 3) return degenerate("fewer than 3 tie points: no extent or height range to sweep");
+  std::vector<Eigen::Vector3d> points;
+  for (const Eigen::Vector3d& p : all_points)
+    if (!extent || extent->Contains(p.x(), p.y())) points.push_back(p);
+  if (points.size() < 3)
+    return degenerate(std::to_string(points.size()) + " tie points" + (extent ? " inside the tile extent" : "") +
+                      ": fewer than 3, no extent or height range to sweep");
 
-  // Grid and sweep range from the tie points.
-  Eigen::Vector3d lo = points[0], hi = points[0], centre = Eigen::Vector3d::Zero();
+  // Grid: the tie points' horizontal box, clipped to the extent; sweep
+  // range: the heights of the tie points inside.
+  Eigen::Vector2d lo = all_points[0].head<2>(), hi = lo;
+  for (const auto& p : all_points) {
+    lo = lo.cwiseMin(p.head<2>());
+    hi = hi.cwiseMax(p.head<2>());
+  }
+  if (extent) {
+    lo = lo.cwiseMax(extent->min_m);
+    hi = hi.cwiseMin(extent->max_m);
+  }
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   std::vector<double> z;
   for (const auto& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
     centre += p;
     z.push_back(p.z());
   }
   centre /= static_cast<double>(points.size());
-  const double z_lo = Percentile(z, o.height_percentile) - o.height_margin_m;
-  const double z_hi = Percentile(z, 1.0 - o.height_percentile) + o.height_margin_m;
+  const double z_lo = Quantile(z, o.height_percentile) - o.height_margin_m;
+  const double z_hi = Quantile(z, 1.0 - o.height_percentile) + o.height_margin_m;
   const int nh = static_cast<int>(std::ceil((z_hi - z_lo) / o.height_step_m)) + 1;
   if (nh > o.max_heights)
     throw Error("dense", "height range", "tie points span " + std::to_string(z_hi - z_lo) + " m: " + std::to_string(nh) +
@@ -393,66 +549,36 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     projection.push_back(ProjectionOf(views[v].camera));
   }
 
-  // Cost volume, cell-major so SGM reads each cell's heights contiguously.
-  std::vector<float> cost(cells * nh);
-  progress.Begin("dense: sweeping heights", nh);
-  std::atomic<int> done{0};
-  const float inv_pairs = 1.0f / static_cast<float>(result.pairs_used.size());
-  tbb::parallel_for(0, nh, [&](int d) {
-    const double height = z_lo + d * o.height_step_m;
-    WindowFilter filter(cells);
-    std::vector<float> warped(cells);
-    std::vector<WindowStats> stats(grey.size());
-    for (std::size_t k = 0; k < grey.size(); ++k) {
-      WarpToGrid(grey[k], projection[k], g, height, warped.data());
-      filter.Stats(warped, g.nx, g.ny, o.window_cells / 2, stats[k]);
-    }
-    std::vector<float> sum(cells, 0.0f);
-    for (const DensePair& p : result.pairs_used)
-      filter.AddPairCost(stats[slot[p.a]], stats[slot[p.b]], g.nx, g.ny, o, sum);
-    for (std::size_t k = 0; k < cells; ++k) cost[k * nh + d] = sum[k] * inv_pairs;
-    progress.Advance(++done, "");
-  });
-  progress.End();
-
-  progress.Begin("dense: semi-global matching", 0);
-  const std::vector<float> total =
-      AggregateSgm(cost, g.nx, g.ny, nh, static_cast<float>(o.sgm_p1), static_cast<float>(o.sgm_p2));
-  progress.End();
-
-  // Best height per cell, refined by a parabola through its neighbours.
-  g.height_m.assign(cells, kNan);
-  g.cost.assign(cells, static_cast<float>(o.cost_truncation));
-  std::size_t low_cost = 0;
-  for (std::size_t k = 0; k < cells; ++k) {
-    const float* s = total.data() + k * nh;
-    const int best = static_cast<int>(std::min_element(s, s + nh) - s);
-    g.cost[k] = cost[k * nh + best];
-    if (g.cost[k] > o.max_cost) continue;
-    ++low_cost;
-    double offset = 0;
-    if (best > 0 && best + 1 < nh) {
-      const double curvature = s[best - 1] - 2.0 * s[best] + s[best + 1];
-      if (curvature > 0) offset = std::clamp(0.5 * (s[best - 1] - s[best + 1]) / curvature, -0.5, 0.5);
-    }
-    g.height_m[k] = static_cast<float>(z_lo + (best + offset) * o.height_step_m);
+  auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
+  const Sweep sweep{o, g, z_lo, nh, result.pairs_used, slot, grey, projection};
+  std::vector<float> cost = CostVolume(sweep, nullptr, "dense: sweeping heights", progress);
+  CellHeights first = PickHeights(sweep, cost, progress);
+  std::size_t visibility_changed = 0;
+  if (o.visibility_pass) {
+    // The first surface, holes filled, tells which views each candidate
+    // point is hidden from; the second sweep scores each height only with
+    // the pairs that see it there.
+    std::vector<float> surface = first.height_m;
+    FillHolesFromBelow(surface, g.nx, g.ny, cells_of(o.fill_radius_m), cells_of(o.max_fill_reach_m));
+    std::vector<std::vector<float>> seen_above(grey.size());
+    tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int k) {
+      const Eigen::Vector3d to_camera = views[used_views[k]].camera.Centre() - centre;
+      seen_above[k] = VisibleAbove(g, surface, to_camera, z_lo);
+      for (float& h : seen_above[k]) h -= static_cast<float>(o.visibility_tolerance_m);
+    });
+    cost = CostVolume(sweep, &seen_above, "dense: sweeping heights the views see", progress);
+    CellHeights second = PickHeights(sweep, cost, progress);
+    for (std::size_t k = 0; k < cells; ++k)
+      if (std::isfinite(second.height_m[k]) && std::isfinite(first.height_m[k]) &&
+          std::abs(second.height_m[k] - first.height_m[k]) > 1.0f)
+        ++visibility_changed;
+    first = std::move(second);
   }
-  // Speckle: isolated heights far from their neighbourhood's median.
-  std::vector<float> filtered = g.height_m;
-  std::size_t speckles = 0;
-  for (int j = 0; j < g.ny; ++j)
-    for (int i = 0; i < g.nx; ++i) {
-      const std::size_t k = g.Index(i, j);
-      if (!std::isfinite(g.height_m[k])) continue;
-      if (std::abs(g.height_m[k] - Median3x3(g.height_m, g.nx, g.ny, i, j)) > o.max_median_deviation_m) {
-        filtered[k] = kNan;
-        ++speckles;
-      }
-    }
-  g.height_m = std::move(filtered);
+  g.height_m = std::move(first.height_m);
+  g.cost = std::move(first.cost);
+  const std::size_t low_cost = first.low_cost, speckles = first.speckles;
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
-  auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
   g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny, cells_of(o.fill_radius_m),
                                                 cells_of(o.max_fill_reach_m))
                           : std::vector<std::uint8_t>(cells, 0);
@@ -493,6 +619,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["filled_fraction"] = static_cast<double>(valid - measured) / static_cast<double>(cells);
   r.metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(low_cost) / static_cast<double>(cells);
   r.metrics["rejected_speckle_fraction"] = static_cast<double>(speckles) / static_cast<double>(cells);
+  r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.seconds = clock.Seconds();
   return result;
 }

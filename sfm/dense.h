@@ -12,11 +12,13 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/pinhole.h"
 #include "core/stage.h"
+#include "core/tile.h"
 
 namespace skyfall {
 
@@ -48,6 +50,18 @@ struct DenseOptions {
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.
   double max_fill_reach_m = 20.0;
+  // A second sweep that scores each height of a cell only with the pairs
+  // whose two views see that point, judged against the first sweep's
+  // surface (holes filled): beside a wall half the views see the ground and
+  // the other half the wall, and averaging them all favours the roof.
+  bool visibility_pass = true;
+  // A point counts as seen when the first surface rises at most this much
+  // above the ray toward the camera [m]: the first surface's own error.
+  double visibility_tolerance_m = 1.0;
+  // Heights seen by few pairs get a noisy mean whose chance minima would
+  // win: the mean is taken as if this many more pairs had added the
+  // truncation cost.
+  double visibility_prior_pairs = 2.0;
   void Check() const;               // throws Error("dense", field, ...)
 };
 
@@ -84,11 +98,14 @@ struct DenseResult {
   StageReport report;
 };
 
-// The grid covers the tie points' horizontal extent; their heights set the
-// sweep range. Status "degenerate" when no pair qualifies.
+// The grid covers the tie points' horizontal extent, clipped to
+// `extent_enu_m` when given (a tile's core plus overlap: the views' margins
+// beyond it are another tile's work); the heights of the tie points inside
+// set the sweep range. Status "degenerate" when fewer than 3 tie points lie
+// inside or no pair qualifies.
 DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<DenseView>& views,
                             const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& tie_points_enu_m,
-                            Progress& progress);
+                            Progress& progress, const std::optional<GroundBox>& extent_enu_m = std::nullopt);
 
 // The pairs the sweep would use: qualifying pairs by decreasing verified count.
 std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::vector<DenseView>& views,
@@ -100,6 +117,15 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::
 // of what was filled. Cells out of every reach (all-NaN input) stay NaN.
 std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells,
                                              int max_radius_cells);
+
+// Per cell of `grid`, the height above which a point on the cell's vertical
+// is seen from a camera in direction `to_camera` (ENU, from the scene; an
+// orthographic approximation, fine for satellites): the highest point of
+// `surface_m` (nx x ny, NaN = unknown, ignored) along the ray, less the
+// ray's rise to it. -infinity where nothing hides the cell; the march stops
+// once the ray is below `floor_m` (heights below it are never asked).
+std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>& surface_m,
+                                const Eigen::Vector3d& to_camera, double floor_m);
 
 // Semi-global matching over a cost volume laid out cell-major
 // (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over

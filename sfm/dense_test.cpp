@@ -204,5 +204,63 @@ TEST(Dense, TooLittleInputIsDegenerateAndBadBuffersNameTheView) {
   }
 }
 
+TEST(Dense, ABuildingHidesTheGroundBehindItFromObliqueViewsOnly) {
+  // 40 x 10 cells of 1 m; a 10 m high block over columns 20-24, ground at 0.
+  HeightGrid g;
+  g.cell_m = 1.0;
+  g.nx = 40;
+  g.ny = 10;
+  std::vector<float> surface(static_cast<std::size_t>(g.nx) * g.ny, 0.0f);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 20; i < 25; ++i) surface[g.Index(i, j)] = 10.0f;
+  // A camera to the east, 45 deg off nadir: the ray rises 1 m per metre east.
+  const std::vector<float> east = VisibleAbove(g, surface, Eigen::Vector3d(1, 0, 1), -5.0);
+  const int j = 5;
+  // West of the block, a point at column i is seen above 10 - (20 - i): the
+  // wall's top edge, one metre lower per metre further away.
+  for (int i = 10; i < 20; ++i) EXPECT_FLOAT_EQ(east[g.Index(i, j)], 10.0f - static_cast<float>(20 - i)) << i;
+  // The roof is seen above the roof (its own eastern neighbours, one step lower).
+  EXPECT_FLOAT_EQ(east[g.Index(22, j)], 9.0f);
+  // East of the block nothing hides the ground from an eastern camera.
+  for (int i = 25; i < 39; ++i) EXPECT_LE(east[g.Index(i, j)], -1.0f) << i;
+  // Far enough west the wall is below the ground: seen.
+  EXPECT_LT(east[g.Index(5, j)], 0.0f);
+  // Straight down nothing hides anything; unknown cells (NaN) hide nothing.
+  for (float h : VisibleAbove(g, surface, Eigen::Vector3d(0, 0, 1), -5.0)) EXPECT_TRUE(std::isinf(h) && h < 0);
+  std::vector<float> unknown = surface;
+  for (int i = 20; i < 25; ++i) unknown[g.Index(i, j)] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_LE(VisibleAbove(g, unknown, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], -1.0f);
+  EXPECT_THROW(VisibleAbove(g, std::vector<float>(7), Eigen::Vector3d(1, 0, 1), 0.0), Error);
+}
+
+TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {
+  NullProgress progress;
+  const std::vector<DenseView> views = {FlatView("v0", LookingDown(0, 0)), FlatView("v1", LookingDown(20, 90))};
+  // Four tie points inside a 20 m box, one far outside and 50 m higher.
+  const std::vector<Eigen::Vector3d> points = {{0, 0, 0}, {10, 0, 1}, {0, 10, 2}, {10, 10, 1}, {60, 60, 50}};
+  GroundBox extent;
+  extent.min_m = {-5, -5};
+  extent.max_m = {15, 12};
+  const DenseResult all = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress);
+  const DenseResult clipped = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress, extent);
+  ASSERT_EQ(clipped.report.status, StageStatus::kOk) << clipped.report.message;
+  const HeightGrid& g = clipped.grid;
+  // The grid starts at the tie points' corner (inside the extent) and stops at the extent.
+  EXPECT_DOUBLE_EQ(g.x0_m, 0.0);
+  EXPECT_DOUBLE_EQ(g.y0_m, 0.0);
+  EXPECT_LE(g.x0_m + (g.nx - 1) * g.cell_m, extent.max_m.x());
+  EXPECT_LE(g.y0_m + (g.ny - 1) * g.cell_m, extent.max_m.y());
+  EXPECT_GT(g.x0_m + g.nx * g.cell_m, extent.max_m.x());
+  EXPECT_GT(all.grid.nx, 100);  // unclipped, the outlier at 60 m widens the grid
+  // The sweep covers the inside heights (0-2 m plus the margin), not the outlier's 50 m.
+  EXPECT_LT(clipped.report.metrics.at("height_max_m"), 2.0 + DenseOptions{}.height_margin_m + 1e-9);
+  EXPECT_GT(all.report.metrics.at("height_max_m"), 40.0);
+  // Fewer than 3 tie points inside is degenerate, and says where it looked.
+  extent.max_m = {5, 5};
+  const DenseResult tiny = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress, extent);
+  EXPECT_EQ(tiny.report.status, StageStatus::kDegenerate);
+  EXPECT_NE(tiny.report.message.find("inside the tile extent"), std::string::npos) << tiny.report.message;
+}
+
 }  // namespace
 }  // namespace skyfall

@@ -5,15 +5,10 @@
 #include <cmath>
 #include <numeric>
 
+#include "core/stats.h"
+
 namespace skyfall {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  return v[mid];
-}
 
 Eigen::Vector3d AtHeight(const Ray& ray, double height_m) {
   return ray.origin + ((height_m - ray.origin.z()) / ray.direction.z()) * ray.direction;

@@ -72,18 +72,24 @@ void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
   *colours = std::move(out_colours);
 }
 
-std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& path) {
+std::vector<CameraEntry> ReadCameraEntries(const std::string& path) {
   json doc;
   try {
     doc = json::parse(ReadTextFile(path));
   } catch (const json::exception& e) {
     throw Error("splat", path, std::string("not valid JSON: ") + e.what());
   }
-  std::vector<std::pair<std::string, PinholeCamera>> out;
+  std::vector<CameraEntry> out;
   try {
     for (const json& im : doc.at("images")) {
       if (!im.value("used", true)) continue;
-      out.emplace_back(im.at("name").get<std::string>(), CameraFromJson(im));
+      CameraEntry e;
+      e.name = im.at("name").get<std::string>();
+      e.camera = CameraFromJson(im);
+      e.source_image = im.value("source_image", std::string());
+      e.held_out = im.value("split", std::string("train")) == "test";
+      e.acquisition_time = im.value("acquisition_time", std::string());
+      out.push_back(std::move(e));
     }
   } catch (const json::exception& e) {
     throw Error("splat", path, std::string("bad camera entry: ") + e.what());
@@ -91,22 +97,27 @@ std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string
   return out;
 }
 
+std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& path) {
+  std::vector<std::pair<std::string, PinholeCamera>> out;
+  for (CameraEntry& e : ReadCameraEntries(path)) out.emplace_back(std::move(e.name), e.camera);
+  return out;
+}
+
 std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale) {
   if (downscale < 1) throw Error("splat", "resolution", "downscale factor must be >= 1");
   const std::string path = (fs::path(sfm_dir) / "cameras.json").string();
-  const json doc = json::parse(ReadTextFile(path));
   std::vector<TrainView> views;
-  for (const json& im : doc.at("images")) {
-    if (!im.value("used", true)) continue;
+  for (const CameraEntry& entry : ReadCameraEntries(path)) {
+    if (entry.source_image.empty()) throw Error("splat", path, "image '" + entry.name + "' has no source_image");
     TrainView v;
-    v.name = im.at("name");
-    v.held_out = im.value("split", std::string("train")) == "test";
-    v.acquisition_time = im.value("acquisition_time", std::string());
-    const PinholeCamera full = CameraFromJson(im);
+    v.name = entry.name;
+    v.held_out = entry.held_out;
+    v.acquisition_time = entry.acquisition_time;
+    const PinholeCamera& full = entry.camera;
     v.camera = DownscaledCamera(full, downscale);
-    const FloatImage img = ReadFloatImage(im.at("source_image").get<std::string>());
+    const FloatImage img = ReadFloatImage(entry.source_image);
     if (img.width_px != full.width_px || img.height_px != full.height_px) {
-      throw Error("splat", im.at("source_image").get<std::string>(), "size differs from cameras.json");
+      throw Error("splat", entry.source_image, "size differs from cameras.json");
     }
     const int w = v.camera.width_px, h = v.camera.height_px;
     v.rgb.assign(3 * static_cast<size_t>(w) * h, 0.0f);

@@ -27,6 +27,19 @@ void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
                 const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
                 std::vector<Eigen::Vector3f>* colours);
 
+// One used image of cameras.json.
+struct CameraEntry {
+  std::string name;
+  PinholeCamera camera;
+  std::string source_image;      // the pixels the camera describes
+  bool held_out = false;         // "split": "test"
+  std::string acquisition_time;  // empty when unknown
+};
+
+// The used images of cameras.json, in file order; throws Error naming the
+// file for invalid JSON or an entry without a camera or source image.
+std::vector<CameraEntry> ReadCameraEntries(const std::string& cameras_json);
+
 // Cameras of cameras.json (used images), by name, for rendering.
 std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& cameras_json);
 
