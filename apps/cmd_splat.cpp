@@ -62,12 +62,28 @@ void AddTrain(CLI::App& splat, Runner* runner) {
                   "Initial Gaussians from 'dense' (SFM/dense.ply of `skyfall dense`), 'sparse' (the tie points) or "
                   "'auto' (dense when dense.ply exists)")
       ->capture_default_str();
+  auto densify = std::make_shared<std::string>(TrainJob{}.densify);
+  cmd->add_option("--densify", *densify,
+                  "Clone, split and prune during training: 'on', 'off', or 'auto' (off when starting from dense "
+                  "heights)")
+      ->capture_default_str();
   cmd->add_flag("--snapshots", opts->keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {
     *runner = [=] {
       ConsoleProgress progress;
-      const TrainResult r = RunTrainJob({*sfm, *out, *opts, *downscale, *prior, *appearance, *init_max_scale, *init_pieces, *init_points}, progress);
+      TrainJob job;
+      job.sfm_dir = *sfm;
+      job.out_dir = *out;
+      job.options = *opts;
+      job.downscale = *downscale;
+      job.depth_prior = *prior;
+      job.appearance = *appearance;
+      job.init_max_scale_m = *init_max_scale;
+      job.init_pieces = *init_pieces;
+      job.init_points = *init_points;
+      job.densify = *densify;
+      const TrainResult r = RunTrainJob(job, progress);
       const double psnr = r.series.empty() ? NAN : r.series.back().psnr_test_db;
       spdlog::info("splat train: {} Gaussians, held-out PSNR {:.2f} dB, {:.1f} s -> {}", r.cloud.size(), psnr,
                    r.report.seconds, *out);

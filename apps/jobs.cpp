@@ -114,14 +114,41 @@ nlohmann::json ExtentJson(const std::optional<GroundBox>& extent) {
           {"max_east_m", extent->max_m.x()}, {"max_north_m", extent->max_m.y()}};
 }
 
+// Every setting that changes the heights: a finished stage is reused only
+// when they all match.
+nlohmann::json DenseOptionsJson(const DenseOptions& o) {
+  return {{"cell_m", o.cell_m},
+          {"height_step_m", o.height_step_m},
+          {"height_margin_m", o.height_margin_m},
+          {"height_percentile", o.height_percentile},
+          {"window_cells", o.window_cells},
+          {"max_pairs", o.max_pairs},
+          {"min_pair_matches", o.min_pair_matches},
+          {"min_pair_angle_deg", o.min_pair_angle_deg},
+          {"max_pair_angle_deg", o.max_pair_angle_deg},
+          {"cost_truncation", o.cost_truncation},
+          {"min_std", o.min_std},
+          {"sgm_p1", o.sgm_p1},
+          {"sgm_p2", o.sgm_p2},
+          {"max_cost", o.max_cost},
+          {"max_median_deviation_m", o.max_median_deviation_m},
+          {"fill_holes", o.fill_holes},
+          {"fill_radius_m", o.fill_radius_m},
+          {"max_fill_reach_m", o.max_fill_reach_m},
+          {"visibility_pass", o.visibility_pass},
+          {"visibility_tolerance_m", o.visibility_tolerance_m},
+          {"visibility_prior_pairs", o.visibility_prior_pairs}};
+}
+
 }  // namespace
 
-bool DenseDone(const std::string& sfm_dir, const std::optional<GroundBox>& extent_enu_m) {
+bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m) {
   const fs::path dir(sfm_dir);
   try {
     const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "dense_report.json").string()));
     return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply") &&
-           doc.value("extent_enu_m", nlohmann::json()) == ExtentJson(extent_enu_m);
+           doc.value("extent_enu_m", nlohmann::json()) == ExtentJson(extent_enu_m) &&
+           doc.value("options", nlohmann::json()) == DenseOptionsJson(options);
   } catch (const std::exception&) {
     return false;
   }
@@ -171,7 +198,7 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
   const nlohmann::json doc = {{"status", ToString(r.report.status)}, {"message", r.report.message},
                               {"seconds", r.report.seconds},      {"metrics", r.report.metrics},
                               {"cell_m", r.grid.cell_m},          {"extent_enu_m", ExtentJson(extent_enu_m)},
-                              {"pairs", used}};
+                              {"options", DenseOptionsJson(options)}, {"pairs", used}};
   WriteFileAtomic((dir / "dense_report.json").string(), doc.dump(2) + "\n");
   return r;
 }
@@ -199,13 +226,18 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
     ReadSfmPoints(dense_path.string(), &dense_points, &dense_colours);
     ThinToGrid(job.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
   }
+  if (job.densify != "auto" && job.densify != "on" && job.densify != "off")
+    throw Error("splat", "--densify", "'" + job.densify + "' is not 'auto', 'on' or 'off'");
+  const bool densify = job.densify == "on" || (job.densify == "auto" && !dense);
+  if (!densify) job.options.densify_from = job.options.iterations + 1;  // never reached
   const std::vector<TrainView> views = LoadTrainViews(job.sfm_dir, job.downscale);
-  spdlog::info("splat train: {} views ({} held out), {} initial points ({}), {} iterations", views.size(),
+  spdlog::info("splat train: {} views ({} held out), {} initial points ({}), {} iterations, densification {}",
+               views.size(),
                std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
                points.size(),
                dense ? fmt::format("dense heights thinned to {} m, and tie points in their holes", job.init_spacing_m)
                      : fmt::format("{} tie points", tie_points),
-               job.options.iterations);
+               job.options.iterations, densify ? "on" : "off");
   std::unique_ptr<DepthPrior> depth_prior;
   if (job.depth_prior == "surface") {
     depth_prior = std::make_unique<SurfaceDepthPrior>(points, dense ? 2.0 * job.init_spacing_m : 2.0);
@@ -227,7 +259,8 @@ TrainResult RunTrainJob(TrainJob job, Progress& progress) {
                                         {"init_max_scale_m", job.init_max_scale_m},
                                         {"init_pieces", job.init_pieces},
                                         {"init_points", dense ? "dense" : "sparse"},
-                                        {"init_spacing_m", job.init_spacing_m}});
+                                        {"init_spacing_m", job.init_spacing_m},
+                                        {"densify", densify}});
   const double init_cap_m = job.init_max_scale_m > 0 ? job.init_max_scale_m : std::numeric_limits<double>::infinity();
   const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m, dense ? 1 : job.init_pieces), views,
                                        checkpoints.string(), progress, depth_prior.get());

@@ -132,7 +132,7 @@ StageReport RunTile(const std::string& tile_dir, const TileRunOptions& options, 
     }
   }
   if (options.init_points != "sparse") {
-    if (DenseDone(sfm_dir.string(), spec.extent)) {
+    if (DenseDone(sfm_dir.string(), DenseOptions{}, spec.extent)) {
       stages.push_back(ReusedStage("dense", "the finished dense heights"));
     } else {
       const DenseResult dense = RunDenseJob(DenseOptions{}, sfm_dir.string(), progress, spec.extent);

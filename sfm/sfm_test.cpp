@@ -166,7 +166,8 @@ TEST(Sfm, DenseHeightsFollowTheSyntheticSurface) {
   // tie points already reach median 0.3 m (RecoversTheSyntheticCamerasAndSurface).
   // Coverage: cells beside walls are hidden from most of the 6 views and
   // flat roofs give NCC nothing to correlate, so they are left to the fill
-  // (measured 72% with one pass).
+  // (measured 72% with one pass, 66% with the visibility pass, whose prior
+  // of 2 truncated pairs weighs more against this scene's 10 pairs).
   EXPECT_LT(with.median_dz, 0.3);
   EXPECT_GT(with.within_1m, 0.85);
   EXPECT_GT(with.valid, 0.6);

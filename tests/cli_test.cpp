@@ -132,6 +132,10 @@ TEST(Cli, SynthIngestSfmChain) {
   EXPECT_EQ(dense_report["status"], "ok");
   EXPECT_GT(dense_report["metrics"]["valid_fraction"].get<double>(), 0.3);
   EXPECT_TRUE(fs::exists(dir / "sfm" / "dense.ply"));
+  // The report records what produced the heights, so that run-tile reuses them only for the same settings.
+  EXPECT_TRUE(dense_report["extent_enu_m"].is_null());
+  EXPECT_EQ(dense_report["options"]["visibility_pass"], true);
+  EXPECT_EQ(dense_report["options"]["cell_m"], 0.5);
   fs::create_directories(dir / "empty_sfm");
   const CommandResult no_sfm = RunCommand(Skyfall() + " dense --sfm " + (dir / "empty_sfm").string(), dir);
   EXPECT_EQ(no_sfm.exit_code, 1);
@@ -149,6 +153,14 @@ TEST(Cli, SynthIngestSfmChain) {
   const auto train_report = nlohmann::json::parse(std::ifstream(dir / "splat" / "train_report.json"));
   EXPECT_EQ(train_report["series"].back()["iteration"], 30);
   EXPECT_TRUE(fs::exists(dir / "splat" / "checkpoints" / "checkpoint.bin"));
+  // dense.ply is there, so training started from it, without densification (--densify auto).
+  const auto settings = nlohmann::json::parse(std::ifstream(dir / "splat" / "checkpoints" / "settings.json"));
+  EXPECT_EQ(settings["init_points"], "dense");
+  EXPECT_EQ(settings["densify"], false);
+  const CommandResult bad_densify = RunCommand(Skyfall() + " splat train --sfm " + (dir / "sfm").string() + " --out " +
+                                                   (dir / "splat_bad").string() + " --densify maybe", dir);
+  EXPECT_EQ(bad_densify.exit_code, 1);
+  EXPECT_NE(bad_densify.err.find("--densify"), std::string::npos) << bad_densify.err;
   const CommandResult render = RunCommand(Skyfall() + " splat render --scene " + splat + "/scene.ply --cameras " +
                                               (dir / "sfm" / "cameras.json").string() + " --out " +
                                               (dir / "render").string() + " --resolution 2", dir);
