@@ -9,6 +9,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "sfm/export.h"
@@ -109,9 +110,7 @@ std::string DensePly(const HeightGrid& g) {
 namespace {
 
 nlohmann::json ExtentJson(const std::optional<GroundBox>& extent) {
-  if (!extent) return nullptr;
-  return {{"min_east_m", extent->min_m.x()}, {"min_north_m", extent->min_m.y()},
-          {"max_east_m", extent->max_m.x()}, {"max_north_m", extent->max_m.y()}};
+  return extent ? BoxToJson(*extent) : nlohmann::json();
 }
 
 // Every setting that changes the heights: a finished stage is reused only

@@ -330,10 +330,7 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   WriteLod(out_dir, lod);
 
   // Seam metric on a city DSM rendered from the merged scene.
-  const json& b = index.at("bounds");
-  GroundBox bounds;
-  bounds.min_m = {b.at("min_east_m").get<double>(), b.at("min_north_m").get<double>()};
-  bounds.max_m = {b.at("max_east_m").get<double>(), b.at("max_north_m").get<double>()};
+  const GroundBox bounds = BoxFromJson(index.at("bounds"));
   DsmGrid city = GridCovering(bounds, summary.enu_origin, summary.epsg, options.seam_gsd_m);
   RasterizeDsm(stitched.cloud, summary.enu_origin, DsmExportOptions{}, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);

@@ -7,7 +7,6 @@
 #include "core/error.h"
 
 namespace skyfall {
-namespace {
 
 using json = nlohmann::json;
 
@@ -22,6 +21,8 @@ GroundBox BoxFromJson(const json& j) {
   b.max_m = {j.at("max_east_m").get<double>(), j.at("max_north_m").get<double>()};
   return b;
 }
+
+namespace {
 
 }  // namespace
 

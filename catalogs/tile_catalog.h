@@ -1,6 +1,7 @@
 // tile.json (one tile's spec) and tiles.json (the index of a city's tiles).
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "core/tile.h"
@@ -8,6 +9,11 @@
 namespace skyfall {
 
 inline constexpr const char* kTileSchema = "skyfall.tile/1";
+
+// A ground box as {min_east_m, min_north_m, max_east_m, max_north_m}; the
+// reader throws nlohmann::json::exception for a missing field.
+nlohmann::json BoxToJson(const GroundBox& box);
+GroundBox BoxFromJson(const nlohmann::json& box);
 
 std::string TileSpecToJson(const TileSpec& tile);
 // Throws Error("catalog", subject, ...) naming the missing or bad field.

@@ -279,8 +279,7 @@ nlohmann::json IndexJson(const TilePlan& plan) {
           {"city", plan.city},
           {"enu_origin", {{"lon_deg", plan.enu_origin.lon_deg}, {"lat_deg", plan.enu_origin.lat_deg},
                           {"height_m", plan.enu_origin.height_m}}},
-          {"bounds", {{"min_east_m", plan.bounds.min_m.x()}, {"min_north_m", plan.bounds.min_m.y()},
-                      {"max_east_m", plan.bounds.max_m.x()}, {"max_north_m", plan.bounds.max_m.y()}}},
+          {"bounds", BoxToJson(plan.bounds)},
           {"grid", {{"cols", plan.grid.cols}, {"rows", plan.grid.rows}, {"tile_m", plan.grid.tile_m},
                     {"overlap_m", plan.grid.overlap_m}}},
           {"tiles", tiles}};
