@@ -195,14 +195,14 @@ class WindowFilter {
     const float min_var = static_cast<float>(o.min_std * o.min_std);
     const float trunc = static_cast<float>(o.cost_truncation);
     for (std::size_t k = 0; k < n; ++k) {
+      if (visible_a) {
+        if (!visible_a[k] || !visible_b[k]) continue;  // a hidden point: no NCC to compute
+        (*count)[k] += 1.0f;
+      }
       float c = trunc;
       if (std::isfinite(a.mean[k]) && std::isfinite(b.mean[k]) && a.var[k] > min_var && b.var[k] > min_var) {
         const float ncc = (sum_[k] * inv_count - a.mean[k] * b.mean[k]) / std::sqrt(a.var[k] * b.var[k]);
         c = std::min(1.0f - ncc, trunc);
-      }
-      if (visible_a) {
-        if (!visible_a[k] || !visible_b[k]) continue;
-        (*count)[k] += 1.0f;
       }
       cost_sum[k] += c;
     }
