@@ -48,14 +48,7 @@ void AddExport(CLI::App& dsm, Runner* runner) {
       if (!a->grid_txt.empty()) {
         grid = GridOfDsmTxt(ParseDsmTxt(ReadTextFile(a->grid_txt), a->grid_txt), grid.epsg);
       } else if (!a->bounds.empty()) {
-        if (!(a->bounds[2] > a->bounds[0] && a->bounds[3] > a->bounds[1]) || !(a->gsd_m > 0)) {
-          throw Error("dsm", "--bounds", "needs min < max on both axes and --gsd > 0");
-        }
-        grid.gsd_m = a->gsd_m;
-        grid.width_px = static_cast<int>(std::ceil((a->bounds[2] - a->bounds[0]) / a->gsd_m));
-        grid.height_px = static_cast<int>(std::ceil((a->bounds[3] - a->bounds[1]) / a->gsd_m));
-        grid.upper_left_easting_m = a->bounds[0];
-        grid.upper_left_northing_m = a->bounds[3];
+        grid = GridOfBounds(a->bounds[0], a->bounds[1], a->bounds[2], a->bounds[3], a->gsd_m, grid.epsg, "--bounds");
       } else if (catalog.truth) {
         grid = GridOfTruth(*catalog.truth);
       } else {
@@ -97,22 +90,7 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
         throw Error("dsm", a->gt_txt, "a _DSM.txt grid carries no CRS: give --epsg (DFC2019 JAX is 32617)");
       }
       const DsmGrid truth = ReadDsm(a->gt, a->gt_txt, a->epsg);
-      DsmGrid pred = ReadDsm(a->pred);
-      // Crop/resample to the truth grid: nearest pixel centre, same GSD expected.
-      if (std::abs(pred.gsd_m - truth.gsd_m) > 1e-6) {
-        throw Error("dsm", a->pred, "GSD " + std::to_string(pred.gsd_m) + " differs from the truth's " +
-                                        std::to_string(truth.gsd_m) + "; export on the truth grid");
-      }
-      DsmGrid cropped = truth;
-      for (int r = 0; r < truth.height_px; ++r)
-        for (int c = 0; c < truth.width_px; ++c) {
-          const double e = truth.upper_left_easting_m + (c + 0.5) * truth.gsd_m;
-          const double n = truth.upper_left_northing_m - (r + 0.5) * truth.gsd_m;
-          const int pc = static_cast<int>(std::floor((e - pred.upper_left_easting_m) / pred.gsd_m));
-          const int pr = static_cast<int>(std::floor((pred.upper_left_northing_m - n) / pred.gsd_m));
-          cropped.height_m[static_cast<size_t>(r) * truth.width_px + c] =
-              pc >= 0 && pr >= 0 && pc < pred.width_px && pr < pred.height_px ? pred.At(pc, pr) : NAN;
-        }
+      const DsmGrid cropped = SampleOnGrid(ReadDsm(a->pred), truth, a->pred);
       std::vector<float> cls;
       if (!a->cls.empty()) cls = ReadFloatBand(a->cls).values;
       const DsmComparison r = CompareDsm(cropped, truth, a->cls.empty() ? nullptr : &cls, *opts);

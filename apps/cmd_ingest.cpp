@@ -40,7 +40,7 @@ nlohmann::json Summary(const IngestArgs& args, const IngestResult& result) {
           {"aois", aois}};
 }
 
-int RunIngestCommand(IngestArgs& args) {
+int IngestAndReport(IngestArgs& args) {
   args.options.verify_pixels = !args.no_verify;
   ConsoleProgress progress;
   const IngestResult result = RunIngest(args.options, args.root, args.out, progress);
@@ -77,7 +77,7 @@ void AddIngestCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--height-margin-m", args->options.height_margin_m,
                   "Margin added to the truth/JSON height range [m]")
       ->capture_default_str();
-  cmd->callback([runner, args] { *runner = [args] { return RunIngestCommand(*args); }; });
+  cmd->callback([runner, args] { *runner = [args] { return IngestAndReport(*args); }; });
 }
 
 }  // namespace skyfall::cli

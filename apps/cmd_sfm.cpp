@@ -3,7 +3,7 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
-#include "apps/jobs.h"
+#include "pipeline/stage_jobs.h"
 #include "catalogs/aoi_catalog.h"
 #include "catalogs/tile_catalog.h"
 #include "sfm/sfm.h"

@@ -5,7 +5,10 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
-#include "apps/tile_jobs.h"
+#include "apps/run_flags.h"
+#include "pipeline/exit_codes.h"
+#include "pipeline/merge_tiles.h"
+#include "pipeline/tile_run.h"
 #include "catalogs/aoi_catalog.h"
 #include "tiler/tiling.h"
 
@@ -43,57 +46,47 @@ void AddTile(CLI::App& app, Runner* runner) {
   });
 }
 
-void AddRunTileOptions(CLI::App* cmd, TileRunOptions* o) {
-  cmd->add_option("--iterations", o->iterations, "Splat training steps")->capture_default_str();
-  cmd->add_option("--resolution", o->downscale, "Training image downscale factor")->capture_default_str();
-  cmd->add_option("--depth-prior", o->depth_prior, "'surface', 'none' or 'cmd:COMMAND' (see splat train)")
-      ->capture_default_str();
-  cmd->add_option("--appearance", o->appearance, "'auto', 'on' or 'off' (see splat train)")->capture_default_str();
-  cmd->add_option("--init-max-scale", o->init_max_scale_m, "Cap on the initial Gaussian size [m] (0 = none)")
-      ->capture_default_str();
-  cmd->add_option("--init-pieces", o->init_pieces, "Up to this many capped Gaussians per SfM point (see splat train)")
-      ->capture_default_str();
-  cmd->add_option("--init-points", o->init_points,
-                  "'auto' or 'dense' (dense heights, the default stage) or 'sparse' (tie points only; no dense stage)")
-      ->capture_default_str();
-}
-
 void AddRunTile(CLI::App& app, Runner* runner) {
   auto dir = std::make_shared<std::string>();
-  auto opts = std::make_shared<TileRunOptions>();
-  CLI::App* cmd = app.add_subcommand("run-tile", "Run one tile's pipeline (SfM, splat training); resumable");
+  auto threads = std::make_shared<int>(0);
+  CLI::App* cmd = app.add_subcommand("run-tile", "Run one tile's pipeline (SfM, dense heights, splat training); resumable");
   cmd->add_option("dir", *dir, "Tile folder written by `skyfall tile` (DIR/tiles/<id>)")
       ->required()
       ->check(CLI::ExistingDirectory);
-  AddRunTileOptions(cmd, opts.get());
-  cmd->add_option("--threads", opts->threads, "Threads for this tile (0 = all cores)")->capture_default_str();
+  auto flags = std::make_shared<RunFlags>(cmd);
+  flags->AddTileFlags();
+  cmd->add_option("--threads", *threads, "Threads for this tile (0 = all cores)")->capture_default_str();
   cmd->callback([=] {
     *runner = [=] {
+      const RunOptions options = flags->Resolve();
+      options.Check();
       ConsoleProgress progress;
-      const StageReport r = RunTile(*dir, *opts, progress);
+      const StageReport r = RunTile(*dir, options, *threads, progress);
       if (r.status == StageStatus::kOk) {
         spdlog::info("run-tile {}: {} {:.1f} s", *dir, r.message.empty() ? "ok" : r.message, r.seconds);
       } else {
         spdlog::warn("run-tile {}: {}: {}", *dir, ToString(r.status), r.message);
       }
-      return TileExitCode(r);
+      return ExitCodeOf(r.status);
     };
   });
 }
 
 void AddMerge(CLI::App& app, Runner* runner) {
   auto tiles = std::make_shared<std::string>(), out = std::make_shared<std::string>();
-  auto opts = std::make_shared<MergeOptions>();
   CLI::App* cmd = app.add_subcommand(
       "merge", "Stitch the finished tiles (OpenVDB occupancy) into one scene with LOD and a seam report");
   cmd->add_option("--tiles", *tiles, "Tiles folder written by `skyfall tile`")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", *out, "Output folder (DIR/scene)")->required();
-  cmd->add_option("--voxel-m", opts->stitch.voxel_m, "Occupancy voxel edge [m]")->capture_default_str();
-  cmd->add_option("--lod-levels", opts->lod.max_levels, "Coarser LOD levels to build")->capture_default_str();
+  auto flags = std::make_shared<RunFlags>(cmd);
+  flags->Add("--voxel-m", +[](RunOptions& o) -> double& { return o.merge.stitch.voxel_m; }, "Occupancy voxel edge [m]");
+  flags->Add("--lod-levels", +[](RunOptions& o) -> int& { return o.merge.lod.max_levels; }, "Coarser LOD levels to build");
   cmd->callback([=] {
     *runner = [=] {
+      const RunOptions options = flags->Resolve();
+      options.Check();
       ConsoleProgress progress;
-      const MergeSummary m = MergeTiles(*tiles, *out, *opts, progress);
+      const MergeSummary m = MergeTiles(*tiles, *out, options.merge, options.dsm.export_options, progress);
       const auto& k = m.report.metrics;
       spdlog::info("merge: {} tiles ({} missing), {} Gaussians, {} duplicates removed, {} hole fills, seam ratio {:.2f} "
                    "({:.3f} m across boundaries vs {:.3f} m elsewhere), {:.1f} s -> {}",
@@ -111,7 +104,5 @@ void AddTileCommands(CLI::App& app, Runner* runner) {
   AddRunTile(app, runner);
   AddMerge(app, runner);
 }
-
-void AddRunTileOptionsTo(CLI::App* cmd, TileRunOptions* options) { AddRunTileOptions(cmd, options); }
 
 }  // namespace skyfall::cli

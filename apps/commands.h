@@ -5,11 +5,9 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 
-namespace skyfall::cli {
+#include "pipeline/exit_codes.h"
 
-// Exit code of a stage that ended degenerate (too little data), distinct from
-// bad input (1) and internal errors (3) so batch drivers can tell them apart.
-constexpr int kExitDegenerate = 4;
+namespace skyfall::cli {
 
 // Called after parsing when the subcommand was chosen; returns the exit code.
 using Runner = std::function<int()>;

@@ -36,6 +36,8 @@ void ConsoleProgress::Advance(std::size_t done, std::string_view item) {
 
 void ConsoleProgress::Warn(std::string_view message) { spdlog::warn("{}", message); }
 
+void ConsoleProgress::Info(std::string_view message) { spdlog::info("{}", message); }
+
 void ConsoleProgress::End() {
   spdlog::info("[{}] done: {}/{} in {:.1f} s", task_, done_, total_, clock_.Seconds());
 }

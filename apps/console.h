@@ -21,6 +21,7 @@ class ConsoleProgress final : public Progress {
   void Begin(std::string_view task, std::size_t total) override;
   void Advance(std::size_t done, std::string_view item) override;
   void Warn(std::string_view message) override;
+  void Info(std::string_view message) override;
   void End() override;
 
  private:

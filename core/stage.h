@@ -37,6 +37,8 @@ class Progress {
   virtual void Advance(std::size_t done, std::string_view item) {}
   // Something went wrong with one item but the task goes on.
   virtual void Warn(std::string_view message) {}
+  // A line worth telling the user that is not a problem (a decision, a summary).
+  virtual void Info(std::string_view message) {}
   virtual void End() {}
 };
 

@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/format.h"
 #include "core/stats.h"
 #include "splat/rasterizer.h"
 #include "tiler/dfc2019.h"
@@ -294,10 +295,58 @@ TruthDsm ReadTruthDsm(const TruthGrid& truth) {
 }
 
 DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,
-                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction) {
+                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction,
+                                    const DsmExportOptions& export_options) {
   *prediction = GridOfTruth(grid);
-  RasterizeDsm(scene, enu_origin, DsmExportOptions{}, prediction);
+  RasterizeDsm(scene, enu_origin, export_options, prediction);
   return CompareDsm(*prediction, truth.dsm, truth.cls.empty() ? nullptr : &truth.cls, options);
+}
+
+DsmGrid GridOfBounds(double min_easting_m, double min_northing_m, double max_easting_m, double max_northing_m,
+                     double gsd_m, int epsg, const std::string& subject) {
+  if (!(max_easting_m > min_easting_m && max_northing_m > min_northing_m) || !(gsd_m > 0)) {
+    throw Error("dsm", subject, "needs min < max on both axes and a GSD > 0");
+  }
+  DsmGrid grid;
+  grid.epsg = epsg;
+  grid.gsd_m = gsd_m;
+  grid.width_px = static_cast<int>(std::ceil((max_easting_m - min_easting_m) / gsd_m));
+  grid.height_px = static_cast<int>(std::ceil((max_northing_m - min_northing_m) / gsd_m));
+  grid.upper_left_easting_m = min_easting_m;
+  grid.upper_left_northing_m = max_northing_m;
+  grid.height_m.assign(static_cast<std::size_t>(grid.width_px) * grid.height_px, NAN);
+  return grid;
+}
+
+DsmGrid SampleOnGrid(const DsmGrid& source, const DsmGrid& target, const std::string& source_name) {
+  if (std::abs(source.gsd_m - target.gsd_m) > 1e-6) {
+    throw Error("dsm", source_name, "GSD " + FormatDouble(source.gsd_m) + " differs from the target grid's " +
+                                        FormatDouble(target.gsd_m) + "; export on the target grid");
+  }
+  DsmGrid out = target;
+  for (int r = 0; r < target.height_px; ++r)
+    for (int c = 0; c < target.width_px; ++c) {
+      const double e = target.upper_left_easting_m + (c + 0.5) * target.gsd_m;
+      const double n = target.upper_left_northing_m - (r + 0.5) * target.gsd_m;
+      const int sc = static_cast<int>(std::floor((e - source.upper_left_easting_m) / source.gsd_m));
+      const int sr = static_cast<int>(std::floor((source.upper_left_northing_m - n) / source.gsd_m));
+      out.height_m[static_cast<std::size_t>(r) * target.width_px + c] =
+          sc >= 0 && sr >= 0 && sc < source.width_px && sr < source.height_px ? source.At(sc, sr) : NAN;
+    }
+  return out;
+}
+
+void DsmExportOptions::Check() const {
+  if (!(camera_height_m >= 1e4)) {
+    throw Error("dsm", "camera_height_m", "must be >= 10000 (a near-orthographic camera), got " + FormatDouble(camera_height_m));
+  }
+  if (!(min_alpha > 0 && min_alpha < 1)) throw Error("dsm", "min_alpha", "must be in (0, 1), got " + FormatDouble(min_alpha));
+}
+
+void DsmCompareOptions::Check() const {
+  if (max_shift_px < 0) throw Error("dsm", "max_shift_px", "must be >= 0, got " + std::to_string(max_shift_px));
+  if (pyramid_levels < 1) throw Error("dsm", "pyramid_levels", "must be >= 1, got " + std::to_string(pyramid_levels));
+  if (!(within_m > 0)) throw Error("dsm", "within_m", "must be > 0, got " + FormatDouble(within_m));
 }
 
 }  // namespace skyfall

@@ -33,6 +33,17 @@ DsmGrid GridOfDsmTxt(const DsmTxt& txt, int epsg);
 
 // Reads a DSM GeoTIFF. A raster without georeferencing (the DFC2019 truth)
 // needs `grid_txt`, its _DSM.txt (lower-left convention), and `epsg`.
+// A grid of `gsd_m` pixels covering [min_e, max_e] x [min_n, max_n] (UTM
+// metres, upper-left corner at (min_e, max_n)); throws Error naming `subject`
+// when the box is empty or the GSD not positive.
+DsmGrid GridOfBounds(double min_easting_m, double min_northing_m, double max_easting_m, double max_northing_m,
+                     double gsd_m, int epsg, const std::string& subject);
+
+// `source` sampled at the pixel centres of `target` (nearest pixel, NaN
+// outside `source`), so a DSM exported on any grid compares with a truth.
+// Throws Error naming `source_name` when the GSDs differ.
+DsmGrid SampleOnGrid(const DsmGrid& source, const DsmGrid& target, const std::string& source_name);
+
 DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt = "", int epsg = 0);
 
 // Float32 GeoTIFF with CRS, geotransform and NaN nodata, in the COG layout
@@ -43,12 +54,11 @@ struct DsmExportOptions {
   double camera_height_m = 1.0e6;  // the nadir camera sits this far above: ~orthographic
   double min_alpha = 0.5;          // below this accumulated opacity a pixel is nodata
   // The height of a pixel: the depth where the accumulated opacity reaches
-  // 0.5 (median; faint floaters and half-covered roof edges do not pull it),
-  // or else the opacity-weighted expected depth. JAX_068, default run (16
-  // initial pieces): median MAE 2.18 m, NMAD 1.07 m, RMSE 4.97 m; expected
-  // 2.28, 1.31, 4.74 m. With one large Gaussian per SfM point the two were
-  // even (2.77 against 2.74 m): the errors there were opaque blobs.
+  // 0.5 (median, the default: faint floaters and half-covered roof edges do
+  // not pull it, and its DSM error is lower; see docs/benchmarks.md), or
+  // else the opacity-weighted expected depth.
   bool median_depth = true;
+  void Check() const;  // throws Error("dsm", field, ...)
 };
 
 // Rasterizes the scene (in the AOI's ENU frame with origin `enu_origin`) onto
@@ -64,6 +74,7 @@ struct DsmCompareOptions {
   int pyramid_levels = 2;      // 2x levels searched coarse to fine
   bool mask_water = true;      // CLS == 9 is left out
   double within_m = 1.0;       // threshold of the "within" fraction
+  void Check() const;          // throws Error("dsm", field, ...)
 };
 
 struct DsmComparison {
@@ -92,6 +103,7 @@ TruthDsm ReadTruthDsm(const TruthGrid& truth);
 // Rasterizes `scene` (ENU frame at `enu_origin`) on the truth grid into
 // `prediction` and compares it with the truth.
 DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,
-                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction);
+                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction,
+                                    const DsmExportOptions& export_options = DsmExportOptions{});
 
 }  // namespace skyfall

@@ -135,5 +135,28 @@ TEST(Dsm, ComparisonProductsAreWritten) {
   EXPECT_EQ(ReadRasterInfo((dir / "error_map.png").string()).bands, 3);
 }
 
+TEST(Dsm, AGridOfBoundsSamplesAnotherGridByPixelCentre) {
+  // 10 m x 4 m at 1 m: 10 x 4 pixels, upper-left corner at (min_e, max_n).
+  DsmGrid source = GridOfBounds(500000, 3000000, 500010, 3000004, 1.0, 32617, "test");
+  ASSERT_EQ(source.width_px, 10);
+  ASSERT_EQ(source.height_px, 4);
+  EXPECT_EQ(source.upper_left_northing_m, 3000004);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 10; ++c) source.height_m[static_cast<size_t>(r) * 10 + c] = static_cast<float>(10 * r + c);
+  // A target two pixels east and one south: its (0, 0) is the source's (2, 1);
+  // its last two columns and last row lie outside the source.
+  const DsmGrid target = GridOfBounds(500002, 2999999, 500012, 3000003, 1.0, 32617, "test");
+  const DsmGrid sampled = SampleOnGrid(source, target, "source.tif");
+  EXPECT_EQ(sampled.At(0, 0), source.At(2, 1));
+  EXPECT_EQ(sampled.At(7, 2), source.At(9, 3));
+  EXPECT_TRUE(std::isnan(sampled.At(8, 0)));
+  EXPECT_TRUE(std::isnan(sampled.At(0, 3)));
+  EXPECT_NE(ErrorText([&] { SampleOnGrid(source, GridOfBounds(0, 0, 4, 4, 0.5, 32617, "t"), "source.tif"); })
+                .find("source.tif"),
+            std::string::npos);
+  EXPECT_NE(ErrorText([] { GridOfBounds(1, 0, 0, 4, 0.5, 32617, "--bounds"); }).find("--bounds"), std::string::npos);
+  EXPECT_NE(ErrorText([] { GridOfBounds(0, 0, 4, 4, 0, 32617, "--bounds"); }).find("GSD"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace skyfall

@@ -32,7 +32,7 @@ struct TrainView {
 int DistinctAcquisitionDates(const std::vector<TrainView>& views);
 
 struct TrainOptions {
-  int iterations = 3000;
+  int iterations = 1000;
   std::uint64_t seed = 1;
   double lambda_dssim = 0.2;
   double lambda_opacity = 10.0;     // entropy regularization weight (0 disables)
@@ -69,7 +69,7 @@ struct TrainOptions {
   // Pseudo-camera depth supervision (needs a DepthPrior): every
   // `pseudo_interval` iterations a pseudo view adds lambda_depth * (1 - |r|).
   double lambda_depth = 0.5;
-  int pseudo_interval = 0;  // 0 disables
+  int pseudo_interval = 4;  // 0 disables; needs a DepthPrior to take effect
   PseudoCameraOptions pseudo;
   // Per-image appearance (multi-date imagery). The exported cloud is fused
   // with the embedding of `appearance_image` (a training view name; empty:

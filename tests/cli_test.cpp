@@ -159,7 +159,8 @@ TEST(Cli, SynthIngestSfmChain) {
   EXPECT_EQ(settings["densify"], false);
   const CommandResult bad_densify = RunCommand(Skyfall() + " splat train --sfm " + (dir / "sfm").string() + " --out " +
                                                    (dir / "splat_bad").string() + " --densify maybe", dir);
-  EXPECT_EQ(bad_densify.exit_code, 1);
+  EXPECT_NE(bad_densify.exit_code, 0);  // refused while parsing (a CLI11 exit code), before any stage
+  EXPECT_FALSE(fs::exists(dir / "splat_bad"));
   EXPECT_NE(bad_densify.err.find("--densify"), std::string::npos) << bad_densify.err;
   const CommandResult render = RunCommand(Skyfall() + " splat render --scene " + splat + "/scene.ply --cameras " +
                                               (dir / "sfm" / "cameras.json").string() + " --out " +
@@ -210,63 +211,76 @@ TEST(Cli, SynthIngestSfmChain) {
 }
 
 
-TEST(Cli, RunTilesMergesAndResumesATwoBlockCity) {
+// The run configuration: flags over --set over a --config file over the
+// defaults, checked before any stage, and handed to the tile processes. (The
+// pipeline itself is tested through the library in pipeline/city_run_test.)
+TEST(Cli, RunConfigurationFromFileSetAndFlagsReachesTheTileProcesses) {
   const fs::path dir = ScratchDir("run");
-  const std::string root = (dir / "city").string(), out = (dir / "out").string();
-  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 96 --views 4 --blocks-x 2 --seed 3", dir).exit_code, 0);
-  // 40 steps, so uncapped initial Gaussians (see SynthIngestSfmChain).
-  const std::string run =
-      Skyfall() + " run " + root + " --out " + out + " --tile-m 64 --overlap-m 12 --iterations 40 --init-max-scale 0";
-  const CommandResult first = RunCommand(run, dir);
-  ASSERT_EQ(first.exit_code, 0) << first.err;
-  // Two adjacent AOIs form one city in one frame: 192 m x 96 m in 3 x 2 tiles.
-  const fs::path city = fs::path(out) / "SYN_001";
-  const auto report = nlohmann::json::parse(std::ifstream(city / "run_report.json"));
-  ASSERT_EQ(report["tiles"].size(), 6u);
-  for (const auto& t : report["tiles"]) EXPECT_EQ(t["status"], "ok") << t.dump();
-  EXPECT_EQ(report["aois"].size(), 2u);
-  EXPECT_GT(report["peak_tile_rss_mb"].get<double>(), 10.0);
-  EXPECT_TRUE(std::isfinite(report["seam"]["interior_mean_step_m"].get<double>()));
-  // Per AOI: DSM and comparison with the truth.
-  for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
-    EXPECT_TRUE(fs::exists(fs::path(out) / aoi / "dsm.tif")) << aoi;
-    const auto cmp = nlohmann::json::parse(std::ifstream(fs::path(out) / aoi / "dsm_compare" / "report.json"));
-    EXPECT_GT(cmp["completeness"].get<double>(), 0.5) << aoi;
-  }
-  // Scene and LOD: the finest level is the merged scene, counts fall.
-  const auto lod = nlohmann::json::parse(std::ifstream(city / "scene" / "lod.json"));
-  ASSERT_GE(lod["levels"].size(), 2u);
-  const auto merge = nlohmann::json::parse(std::ifstream(city / "scene" / "merge_report.json"));
-  EXPECT_EQ(lod["levels"][0]["count"], merge["stitch"]["gaussians"]);
-  EXPECT_LT(lod["levels"][1]["count"].get<int>(), lod["levels"][0]["count"].get<int>());
-  for (std::size_t k = 0; k < lod["levels"].size(); ++k) {
-    EXPECT_TRUE(fs::exists(city / "scene" / lod["levels"][k]["file"].get<std::string>()));
-  }
-  EXPECT_GT(merge["stitch"]["duplicates_removed"].get<int>(), 0);
+  const CommandResult defaults = RunCommand(Skyfall() + " run --print-config", dir);
+  ASSERT_EQ(defaults.exit_code, 0) << defaults.err;
+  const auto printed = nlohmann::json::parse(defaults.out);
+  EXPECT_EQ(printed["schema"], "skyfall.run_options/1");
+  EXPECT_EQ(printed["train"]["init_points"], "auto");
 
-  // Rerun: finished tiles are skipped (their reports stay as they were).
-  const fs::path tile = city / "tiles" / "SYN_001_c1_r0";
-  const auto stamp = fs::last_write_time(tile / "tile_report.json");
-  ASSERT_EQ(RunCommand(run, dir).exit_code, 0);
-  EXPECT_EQ(fs::last_write_time(tile / "tile_report.json"), stamp);
-
-  // A tile killed during SfM export (no sfm_report.json, no tile report)
-  // is redone cleanly by run-tile and merges again.
-  fs::remove(tile / "tile_report.json");
-  fs::remove(tile / "sfm" / "sfm_report.json");
-  fs::remove(tile / "sfm" / "points.ply");
-  const CommandResult again = RunCommand(Skyfall() + " run-tile " + tile.string() + " --iterations 40 --init-max-scale 0", dir);
-  ASSERT_EQ(again.exit_code, 0) << again.err;
-  EXPECT_TRUE(fs::exists(tile / "sfm" / "points.ply"));
-  const CommandResult merged = RunCommand(Skyfall() + " merge --tiles " + (city / "tiles").string() + " --out " +
-                                              (dir / "scene2").string(), dir);
+  auto config = printed;
+  config["train"]["iterations"] = 9;
+  config["train"]["densify"] = "on";
+  std::ofstream(dir / "run.json") << config.dump();
+  const CommandResult merged = RunCommand(Skyfall() + " run --print-config --config " + (dir / "run.json").string() +
+                                              " --set dense.sgm_p2=1.5 --set train.densify=off --iterations 11", dir);
   ASSERT_EQ(merged.exit_code, 0) << merged.err;
-  EXPECT_TRUE(fs::exists(dir / "scene2" / "scene.ply"));
+  const auto effective = nlohmann::json::parse(merged.out);
+  EXPECT_EQ(effective["train"]["iterations"], 11);    // the flag wins over the file
+  EXPECT_EQ(effective["train"]["densify"], "off");    // --set wins over the file
+  EXPECT_EQ(effective["dense"]["sgm_p2"], 1.5);
+  EXPECT_EQ(effective["tiling"], printed["tiling"]);  // the rest stays
 
-  // Different options are a different run: the tile is not taken as done.
-  const CommandResult other = RunCommand(Skyfall() + " run-tile " + tile.string() + " --iterations 41 --init-max-scale 0", dir);
-  ASSERT_EQ(other.exit_code, 0) << other.err;
-  EXPECT_EQ(nlohmann::json::parse(std::ifstream(tile / "tile_report.json"))["options"]["iterations"], 41);
+  // A mistyped mode stops the run before anything is read or written,
+  // whether it comes as a flag or in the file.
+  const std::string out = (dir / "out").string(), root = (dir / "city").string();
+  fs::create_directories(root);
+  const CommandResult typo = RunCommand(Skyfall() + " run " + root + " --out " + out + " --init-points dnse", dir);
+  EXPECT_NE(typo.exit_code, 0);
+  EXPECT_NE(typo.err.find("--init-points"), std::string::npos) << typo.err;
+  config["train"]["init_points"] = "dnse";
+  std::ofstream(dir / "bad.json") << config.dump();
+  const CommandResult bad = RunCommand(Skyfall() + " run " + root + " --out " + out + " --config " +
+                                           (dir / "bad.json").string(), dir);
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("train.init_points"), std::string::npos) << bad.err;
+  config = printed;
+  config["dense"]["sgm_p3"] = 1;
+  std::ofstream(dir / "unknown.json") << config.dump();
+  const CommandResult unknown = RunCommand(Skyfall() + " run " + root + " --out " + out + " --config " +
+                                               (dir / "unknown.json").string(), dir);
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_NE(unknown.err.find("dense.sgm_p3"), std::string::npos) << unknown.err;
+  EXPECT_FALSE(fs::exists(out));
+
+  // The printed configuration, piped back in, runs a small city with tile
+  // processes that read it; the city records exactly that configuration.
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 4", dir).exit_code, 0);
+  const std::string flags = " --tile-m 64 --iterations 30 --init-max-scale 0";
+  const CommandResult print = RunCommand(Skyfall() + " run --print-config" + flags, dir);
+  ASSERT_EQ(print.exit_code, 0) << print.err;
+  const CommandResult run = RunCommand(Skyfall() + " run --print-config" + flags + " | " + Skyfall() +
+                                           " run --config /dev/stdin " + root + " --out " + out, dir);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const fs::path city = fs::path(out) / "SYN_001";
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(city / "run_config.json")), nlohmann::json::parse(print.out));
+  const auto report = nlohmann::json::parse(std::ifstream(city / "run_report.json"));
+  ASSERT_EQ(report["tiles"].size(), 1u);
+  EXPECT_EQ(report["tiles"][0]["status"], "ok") << report.dump();
+  const fs::path tile = city / "tiles" / report["tiles"][0]["tile"].get<std::string>();
+  EXPECT_TRUE(fs::exists(tile / "run.log"));  // it ran as its own process
+  EXPECT_GT(report["peak_tile_rss_mb"].get<double>(), 10.0);
+  EXPECT_TRUE(fs::exists(city / "scene" / "scene.ply"));
+  EXPECT_TRUE(fs::exists(city / "dsm.tif"));  // a one-AOI city is named after its AOI
+  // The same configuration given to run-tile finds the tile done.
+  const CommandResult again = RunCommand(Skyfall() + " run-tile " + tile.string() + " --config " +
+                                             (city / "run_config.json").string(), dir);
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.err.find("already done"), std::string::npos) << again.err;
 }
 
 TEST(Cli, TileWithoutImagesIsSkippedNotFatal) {

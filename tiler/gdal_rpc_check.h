@@ -10,8 +10,8 @@
 namespace skyfall {
 
 // GDAL's pixel/line puts the top-left corner of the top-left pixel at (0, 0);
-// the RPC00B convention used here puts its centre there. Measured on the
-// JAX_068 crops (see gdal_rpc_check_test): GDAL pixel = our col + this.
+// the RPC00B convention used here puts its centre there, so GDAL pixel =
+// our col + this (rpc_io_test checks it on the DFC2019 crops).
 inline constexpr double kGdalPixelShift = 0.5;
 
 struct RpcAgreementOptions {

@@ -1,7 +1,8 @@
-#include "apps/jobs.h"
+#include "pipeline/stage_jobs.h"
 
-#include <spdlog/spdlog.h>
+#include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -17,7 +18,7 @@
 #include "splat/ply.h"
 #include "tiler/raster.h"
 
-namespace skyfall::cli {
+namespace skyfall {
 namespace {
 
 namespace fs = std::filesystem;
@@ -59,14 +60,13 @@ std::string ResolveAppearance(const std::string& mode, const std::vector<TrainVi
     o->appearance.enabled = mode == "on";
     return "--appearance " + mode;
   }
-  if (mode != "auto") throw Error("splat", "--appearance", "'" + mode + "' is not 'auto', 'on' or 'off'");
   o->appearance.enabled = dates >= 2;
   return "auto: training views from " + std::to_string(dates) + " acquisition date" + (dates == 1 ? "" : "s");
 }
 
 // A checkpoint is resumed only by a run with the same settings; otherwise it
 // is set aside (renamed, not deleted) and training starts again.
-void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings) {
+void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings, Progress& progress) {
   const fs::path settings_path = dir / "settings.json";
   const fs::path checkpoint = dir / "checkpoint.bin";
   if (fs::exists(checkpoint)) {
@@ -76,8 +76,8 @@ void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings
     } catch (const std::exception&) {
     }
     if (previous != settings) {
-      spdlog::warn("splat train: {} was written with other settings; moved to checkpoint.bin.stale, starting again",
-                   checkpoint.string());
+      progress.Warn("splat train: " + checkpoint.string() +
+                    " was written with other settings; moved to checkpoint.bin.stale, starting again");
       fs::rename(checkpoint, dir / "checkpoint.bin.stale");
     }
   }
@@ -113,32 +113,6 @@ nlohmann::json ExtentJson(const std::optional<GroundBox>& extent) {
   return extent ? BoxToJson(*extent) : nlohmann::json();
 }
 
-// Every setting that changes the heights: a finished stage is reused only
-// when they all match.
-nlohmann::json DenseOptionsJson(const DenseOptions& o) {
-  return {{"cell_m", o.cell_m},
-          {"height_step_m", o.height_step_m},
-          {"height_margin_m", o.height_margin_m},
-          {"height_percentile", o.height_percentile},
-          {"window_cells", o.window_cells},
-          {"max_pairs", o.max_pairs},
-          {"min_pair_matches", o.min_pair_matches},
-          {"min_pair_angle_deg", o.min_pair_angle_deg},
-          {"max_pair_angle_deg", o.max_pair_angle_deg},
-          {"cost_truncation", o.cost_truncation},
-          {"min_std", o.min_std},
-          {"sgm_p1", o.sgm_p1},
-          {"sgm_p2", o.sgm_p2},
-          {"max_cost", o.max_cost},
-          {"max_median_deviation_m", o.max_median_deviation_m},
-          {"fill_holes", o.fill_holes},
-          {"fill_radius_m", o.fill_radius_m},
-          {"max_fill_reach_m", o.max_fill_reach_m},
-          {"visibility_pass", o.visibility_pass},
-          {"visibility_tolerance_m", o.visibility_tolerance_m},
-          {"visibility_prior_pairs", o.visibility_prior_pairs}};
-}
-
 }  // namespace
 
 bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m) {
@@ -147,7 +121,7 @@ bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const st
     const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "dense_report.json").string()));
     return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply") &&
            doc.value("extent_enu_m", nlohmann::json()) == ExtentJson(extent_enu_m) &&
-           doc.value("options", nlohmann::json()) == DenseOptionsJson(options);
+           doc.value("options", nlohmann::json()) == nlohmann::json::parse(DenseOptionsJson(options));
   } catch (const std::exception&) {
     return false;
   }
@@ -197,7 +171,7 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
   const nlohmann::json doc = {{"status", ToString(r.report.status)}, {"message", r.report.message},
                               {"seconds", r.report.seconds},      {"metrics", r.report.metrics},
                               {"cell_m", r.grid.cell_m},          {"extent_enu_m", ExtentJson(extent_enu_m)},
-                              {"options", DenseOptionsJson(options)}, {"pairs", used}};
+                              {"options", nlohmann::json::parse(DenseOptionsJson(options))}, {"pairs", used}};
   WriteFileAtomic((dir / "dense_report.json").string(), doc.dump(2) + "\n");
   return r;
 }
@@ -209,64 +183,97 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
   return r;
 }
 
-TrainResult RunTrainJob(TrainJob job, Progress& progress) {
+TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sfm_dir, const std::string& out_dir,
+                           Progress& progress) {
+  stage.Check();
+  TrainOptions options = stage.optimizer;
+  TrainJobResult result;
+  TrainDecisions& decided = result.decisions;
   std::vector<Eigen::Vector3f> points, colours;
-  ReadSfmPoints((fs::path(job.sfm_dir) / "points.ply").string(), &points, &colours);
-  const fs::path dense_path = fs::path(job.sfm_dir) / "dense.ply";
-  if (job.init_points != "auto" && job.init_points != "dense" && job.init_points != "sparse")
-    throw Error("splat", "--init-points", "'" + job.init_points + "' is not 'auto', 'dense' or 'sparse'");
-  if (job.init_points == "dense" && !fs::exists(dense_path))
-    throw Error("splat", dense_path.string(), "missing: run `skyfall dense --sfm " + job.sfm_dir +
+  ReadSfmPoints((fs::path(sfm_dir) / "points.ply").string(), &points, &colours);
+  const fs::path dense_path = fs::path(sfm_dir) / "dense.ply";
+  if (stage.init_points == "dense" && !fs::exists(dense_path))
+    throw Error("splat", dense_path.string(), "missing: run `skyfall dense --sfm " + sfm_dir +
                                                   "` first, or train with --init-points sparse");
-  const bool dense = job.init_points == "dense" || (job.init_points == "auto" && fs::exists(dense_path));
+  decided.dense_start = stage.init_points == "dense" || (stage.init_points == "auto" && fs::exists(dense_path));
   const std::size_t tie_points = points.size();
-  if (dense) {
+  if (decided.dense_start) {
     std::vector<Eigen::Vector3f> dense_points, dense_colours;
     ReadSfmPoints(dense_path.string(), &dense_points, &dense_colours);
-    ThinToGrid(job.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
+    ThinToGrid(stage.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
   }
-  if (job.densify != "auto" && job.densify != "on" && job.densify != "off")
-    throw Error("splat", "--densify", "'" + job.densify + "' is not 'auto', 'on' or 'off'");
-  const bool densify = job.densify == "on" || (job.densify == "auto" && !dense);
-  if (!densify) job.options.densify_from = job.options.iterations + 1;  // never reached
-  const std::vector<TrainView> views = LoadTrainViews(job.sfm_dir, job.downscale);
-  spdlog::info("splat train: {} views ({} held out), {} initial points ({}), {} iterations, densification {}",
-               views.size(),
-               std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
-               points.size(),
-               dense ? fmt::format("dense heights thinned to {} m, and tie points in their holes", job.init_spacing_m)
-                     : fmt::format("{} tie points", tie_points),
-               job.options.iterations, densify ? "on" : "off");
+  decided.densify = stage.densify == "on" || (stage.densify == "auto" && !decided.dense_start);
+  if (!decided.densify) options.densify_from = options.iterations + 1;  // never reached
+  const std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
+  progress.Info(fmt::format(
+      "splat train: {} views ({} held out), {} initial points ({}), {} iterations, densification {}", views.size(),
+      std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }), points.size(),
+      decided.dense_start ? fmt::format("dense heights thinned to {} m, and tie points in their holes", stage.init_spacing_m)
+                          : fmt::format("{} tie points", tie_points),
+      options.iterations, decided.densify ? "on" : "off"));
   std::unique_ptr<DepthPrior> depth_prior;
-  if (job.depth_prior == "surface") {
-    depth_prior = std::make_unique<SurfaceDepthPrior>(points, dense ? 2.0 * job.init_spacing_m : 2.0);
-  } else if (job.depth_prior.rfind("cmd:", 0) == 0) {
-    fs::create_directories(fs::path(job.out_dir) / "pseudo");
-    depth_prior = std::make_unique<CommandDepthPrior>(job.depth_prior.substr(4), (fs::path(job.out_dir) / "pseudo").string());
-  } else if (job.depth_prior != "none") {
-    throw Error("splat", "--depth-prior", "'" + job.depth_prior + "' is not 'surface', 'none' or 'cmd:...'");
+  if (stage.depth_prior == "surface") {
+    depth_prior = std::make_unique<SurfaceDepthPrior>(points, decided.dense_start ? 2.0 * stage.init_spacing_m : 2.0);
+  } else if (stage.depth_prior.rfind("cmd:", 0) == 0) {
+    fs::create_directories(fs::path(out_dir) / "pseudo");
+    depth_prior = std::make_unique<CommandDepthPrior>(stage.depth_prior.substr(4), (fs::path(out_dir) / "pseudo").string());
   }
-  if (!depth_prior) job.options.pseudo_interval = 0;
-  const std::string appearance_reason = ResolveAppearance(job.appearance, views, &job.options);
-  spdlog::info("splat train: appearance model {} ({})", job.options.appearance.enabled ? "on" : "off",
-               appearance_reason);
-  const fs::path checkpoints = fs::path(job.out_dir) / "checkpoints";
-  SetAsideStaleCheckpoint(checkpoints, {{"appearance_model", job.options.appearance.enabled},
-                                        {"resolution_downscale", job.downscale},
-                                        {"depth_prior", job.depth_prior},
-                                        {"seed", job.options.seed},
-                                        {"init_max_scale_m", job.init_max_scale_m},
-                                        {"init_pieces", job.init_pieces},
-                                        {"init_points", dense ? "dense" : "sparse"},
-                                        {"init_spacing_m", job.init_spacing_m},
-                                        {"densify", densify}});
-  const double init_cap_m = job.init_max_scale_m > 0 ? job.init_max_scale_m : std::numeric_limits<double>::infinity();
-  const TrainResult r = TrainGaussians(job.options, InitializeFromPoints(points, colours, init_cap_m, dense ? 1 : job.init_pieces), views,
-                                       checkpoints.string(), progress, depth_prior.get());
-  WriteGaussiansPly((fs::path(job.out_dir) / "scene.ply").string(), r.cloud);
-  WriteFileAtomic((fs::path(job.out_dir) / "train_report.json").string(),
-                  TrainReportJson(r, job.options, job.downscale, views.size(), appearance_reason));
-  return r;
+  if (!depth_prior) options.pseudo_interval = 0;
+  decided.appearance_reason = ResolveAppearance(stage.appearance, views, &options);
+  decided.appearance = options.appearance.enabled;
+  progress.Info(fmt::format("splat train: appearance model {} ({})", decided.appearance ? "on" : "off",
+                            decided.appearance_reason));
+  const fs::path checkpoints = fs::path(out_dir) / "checkpoints";
+  SetAsideStaleCheckpoint(checkpoints,
+                          {{"appearance_model", options.appearance.enabled},
+                           {"resolution_downscale", stage.downscale},
+                           {"depth_prior", stage.depth_prior},
+                           {"seed", options.seed},
+                           {"init_max_scale_m", stage.init_max_scale_m},
+                           {"init_pieces", stage.init_pieces},
+                           {"init_points", decided.dense_start ? "dense" : "sparse"},
+                           {"init_spacing_m", stage.init_spacing_m},
+                           {"densify", decided.densify}},
+                          progress);
+  const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
+  result.train = TrainGaussians(options,
+                                InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces),
+                                views, checkpoints.string(), progress, depth_prior.get());
+  WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);
+  WriteFileAtomic((fs::path(out_dir) / "train_report.json").string(),
+                  TrainReportJson(result.train, options, stage.downscale, views.size(), decided.appearance_reason));
+  return result;
 }
 
-}  // namespace skyfall::cli
+void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_json, const std::string& out_dir,
+                    int downscale, Progress& progress) {
+  const GaussianCloud cloud = ReadGaussiansPly(scene_ply);
+  const auto cameras = ReadCameras(cameras_json);
+  progress.Begin("splat render", cameras.size());
+  std::size_t done = 0;
+  for (const auto& [name, full] : cameras) {
+    const RenderOutput<float> r = RenderGaussians(cloud, DownscaledCamera(full, downscale), RasterOptions{});
+    const int w = r.width_px, h = r.height_px;
+    std::vector<std::uint8_t> rgb(3 * static_cast<size_t>(w) * h), grey(static_cast<size_t>(w) * h);
+    for (size_t k = 0; k < rgb.size(); ++k) rgb[k] = static_cast<std::uint8_t>(std::clamp(r.rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+    // Depth: absolute camera depth as float, and a min-max visualization.
+    std::vector<float> depth(r.depth.size());
+    float lo = 1e30f, hi = -1e30f;
+    for (size_t k = 0; k < depth.size(); ++k) {
+      if (r.alpha[k] < 0.5f) continue;
+      lo = std::min(lo, r.depth[k]);
+      hi = std::max(hi, r.depth[k]);
+    }
+    for (size_t k = 0; k < depth.size(); ++k) {
+      depth[k] = r.alpha[k] >= 0.5f ? static_cast<float>(r.depth[k] + r.reference_depth_m) : NAN;
+      grey[k] = r.alpha[k] >= 0.5f && hi > lo ? static_cast<std::uint8_t>(255.0f * (hi - r.depth[k]) / (hi - lo)) : 0;
+    }
+    WriteBytePng((fs::path(out_dir) / (name + "_rgb.png")).string(), w, h, 3, rgb.data());
+    WriteBytePng((fs::path(out_dir) / (name + "_depth.png")).string(), w, h, 1, grey.data());
+    WriteFloatTiff((fs::path(out_dir) / (name + "_depth.tif")).string(), w, h, depth.data());
+    progress.Advance(++done, name);
+  }
+  progress.End();
+}
+
+}  // namespace skyfall

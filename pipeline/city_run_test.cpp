@@ -1,0 +1,148 @@
+#include "pipeline/city_run.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "pipeline/exit_codes.h"
+#include "pipeline/merge_tiles.h"
+#include "pipeline/tile_run.h"
+#include "synth/synth.h"
+#include "tests/test_support.h"
+#include "tiler/geo.h"
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using testing::ScratchDir;
+
+json ReadJson(const fs::path& path) { return json::parse(std::ifstream(path)); }
+
+// A square footprint of `side_m` with its lower-left corner at (e, n) in UTM 17N.
+AoiCatalog SquareAoi(const std::string& name, double e, double n, double side_m, int epsg = 32617) {
+  AoiCatalog c;
+  c.aoi = name;
+  c.epsg = epsg;
+  const UtmZone zone = UtmZoneFromEpsg(epsg);
+  for (const auto& [de, dn] : {std::pair{0.0, 0.0}, {side_m, 0.0}, {side_m, side_m}, {0.0, side_m}})
+    c.footprint_lonlat.push_back(GeodeticFromUtm(zone, e + de, n + dn));
+  return c;
+}
+
+TEST(CityRun, AdjacentAoisOfOneZoneFormOneCity) {
+  const double e = 435000, n = 3357000;
+  const auto cities = GroupCities({SquareAoi("A", e, n, 256), SquareAoi("FAR", e + 5000, n, 256),
+                                   SquareAoi("B", e + 256.5, n, 256),      // 0.5 m gap: adjacent
+                                   SquareAoi("C", e + 256.5 + 259, n, 256),  // 2.5 m beyond B: not
+                                   SquareAoi("OTHER_ZONE", e + 256, n, 256, 32618)});
+  ASSERT_EQ(cities.size(), 4u);
+  ASSERT_EQ(cities[0].size(), 2u);  // A and B, in input order
+  EXPECT_EQ(cities[0][0].aoi, "A");
+  EXPECT_EQ(cities[0][1].aoi, "B");
+  EXPECT_EQ(cities[1][0].aoi, "FAR");
+  EXPECT_EQ(cities[2][0].aoi, "C");
+  EXPECT_EQ(cities[3][0].aoi, "OTHER_ZONE");
+}
+
+// The whole run through the library, tiles in this process: a synthetic city
+// of two adjacent AOIs, merged, compared with its truth, then resumed.
+TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
+  const fs::path dir = ScratchDir("run");
+  NullProgress progress;
+  synth::SynthOptions city;
+  city.size_m = 96;
+  city.views = 4;
+  city.blocks_x = 2;
+  city.seed = 3;
+  synth::RunSynth(city, (dir / "city").string(), progress);
+  RunOptions options;
+  options.tiling.tile_m = 64;
+  options.tiling.overlap_m = 12;
+  options.train.optimizer.iterations = 40;
+  options.train.init_max_scale_m = 0;  // 40 steps cannot grow capped Gaussians over the gaps
+  options.executor.kind = "inline";
+  const RunRequest request{(dir / "city").string(), (dir / "out").string(), {}};
+  const RunSummary run = RunAll(options, request, progress);
+  ASSERT_EQ(run.exit_code, kExitOk);
+  ASSERT_EQ(run.cities.size(), 1u);
+  EXPECT_TRUE(run.cities[0].scene) << run.cities[0].error;
+  EXPECT_EQ(run.aois_ingested, 2);
+
+  // Two adjacent AOIs form one city in one frame: 192 m x 96 m in 3 x 2 tiles.
+  const fs::path city_dir = dir / "out" / "SYN_001";
+  const json report = ReadJson(city_dir / "run_report.json");
+  ASSERT_EQ(report["tiles"].size(), 6u);
+  for (const auto& t : report["tiles"]) {
+    EXPECT_EQ(t["status"], "ok") << t.dump();
+    // Each automatic choice is reported with what decided it.
+    EXPECT_EQ(t["decisions"]["densify"]["on"], false) << t.dump();
+    EXPECT_FALSE(t["decisions"]["appearance"]["why"].get<std::string>().empty());
+  }
+  EXPECT_GE(report["decisions"]["lod_levels"]["levels"].get<int>(), 2);
+  EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));
+  EXPECT_EQ(ReadJson(city_dir / "run_config.json"), report["options"]);
+  ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 2u);
+  for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
+    EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm.tif")) << aoi;
+    EXPECT_GT(ReadJson(dir / "out" / aoi / "dsm_compare" / "report.json")["completeness"].get<double>(), 0.5) << aoi;
+  }
+  // Scene and LOD: the finest level is the merged scene, counts fall.
+  const json lod = ReadJson(city_dir / "scene" / "lod.json");
+  const json merge = ReadJson(city_dir / "scene" / "merge_report.json");
+  ASSERT_GE(lod["levels"].size(), 2u);
+  EXPECT_EQ(lod["levels"][0]["count"], merge["stitch"]["gaussians"]);
+  EXPECT_LT(lod["levels"][1]["count"].get<int>(), lod["levels"][0]["count"].get<int>());
+  EXPECT_GT(merge["stitch"]["duplicates_removed"].get<int>(), 0);
+  EXPECT_TRUE(std::isfinite(report["seam"]["interior_mean_step_m"].get<double>()));
+
+  // Rerun: finished tiles are skipped (their reports stay as they were).
+  const fs::path tile = city_dir / "tiles" / "SYN_001_c1_r0";
+  const auto stamp = fs::last_write_time(tile / "tile_report.json");
+  ASSERT_EQ(RunAll(options, request, progress).exit_code, kExitOk);
+  EXPECT_EQ(fs::last_write_time(tile / "tile_report.json"), stamp);
+
+  // A tile killed during SfM export (no sfm_report.json, no tile report) is
+  // redone cleanly and merges again.
+  fs::remove(tile / "tile_report.json");
+  fs::remove(tile / "sfm" / "sfm_report.json");
+  fs::remove(tile / "sfm" / "points.ply");
+  EXPECT_EQ(RunTile(tile.string(), options, 0, progress).status, StageStatus::kOk);
+  EXPECT_TRUE(fs::exists(tile / "sfm" / "points.ply"));
+  const MergeSummary merged = MergeTiles((city_dir / "tiles").string(), (dir / "scene2").string(), options.merge,
+                                         options.dsm.export_options, progress);
+  EXPECT_EQ(merged.tiles_merged, 6u);
+  EXPECT_TRUE(fs::exists(dir / "scene2" / "scene.ply"));
+
+  // Other training options are another run: the tile is not taken as done.
+  RunOptions other = options;
+  other.train.optimizer.iterations = 41;
+  EXPECT_EQ(RunTile(tile.string(), other, 0, progress).status, StageStatus::kOk);
+  EXPECT_EQ(ReadJson(tile / "tile_report.json")["options"]["train"]["iterations"], 41);
+  // How tiles are executed is not part of a tile's options: still done.
+  other.executor.jobs = 3;
+  EXPECT_EQ(RunTile(tile.string(), other, 0, progress).message, "already done (ok)");
+  // The finished SfM and dense heights are reused only under their own options.
+  auto first_stage = [&] { return ReadJson(tile / "tile_report.json")["stages"][0]; };
+  EXPECT_EQ(first_stage()["status"], "skipped");  // reused by the 41-step rerun
+  other.sfm.features.max_features = 3000;
+  EXPECT_EQ(RunTile(tile.string(), other, 0, progress).status, StageStatus::kOk);
+  EXPECT_EQ(first_stage()["stage"], "sfm");
+  EXPECT_EQ(first_stage()["status"], "ok");  // run again, not reused
+}
+
+TEST(CityRun, BadOptionsStopTheRunBeforeAnyStage) {
+  const fs::path dir = ScratchDir("run");
+  RunOptions options;
+  options.train.init_points = "dnse";
+  NullProgress progress;
+  const std::string error =
+      testing::ErrorText([&] { RunAll(options, {"/nonexistent/root", (dir / "out").string(), {}}, progress); });
+  EXPECT_NE(error.find("train.init_points"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+}  // namespace
+}  // namespace skyfall

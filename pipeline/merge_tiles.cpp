@@ -1,0 +1,105 @@
+#include "pipeline/merge_tiles.h"
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "catalogs/aoi_catalog.h"
+#include "catalogs/tile_catalog.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "merge/dsm.h"
+#include "merge/lod.h"
+#include "merge/stitch.h"
+#include "splat/ply.h"
+
+namespace skyfall {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
+                        const DsmExportOptions& dsm_options, Progress& progress) {
+  Stopwatch clock;
+  options.Check();
+  MergeSummary summary;
+  summary.report.stage = "merge";
+  const fs::path index_path = fs::path(tiles_dir) / "tiles.json";
+  json index;
+  try {
+    index = json::parse(ReadTextFile(index_path.string()));
+  } catch (const json::exception& e) {
+    throw Error("merge", index_path.string(), std::string("not valid JSON: ") + e.what());
+  }
+  std::vector<TileCloud> clouds;
+  std::vector<std::string> missing;
+  const json& tiles = index.at("tiles");
+  progress.Begin("merge: reading tiles", tiles.size());
+  std::size_t k = 0;
+  for (const json& t : tiles) {
+    const fs::path dir = fs::path(tiles_dir) / t.at("id").get<std::string>();
+    const TileSpec spec = ReadTileSpec((dir / "tile.json").string());
+    if (summary.epsg == 0 && fs::exists(dir / "aoi.json")) summary.epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
+    const fs::path scene = dir / "splat" / "scene.ply";
+    bool ok = false;
+    try {
+      ok = json::parse(ReadTextFile((dir / "tile_report.json").string())).value("status", "") == "ok" && fs::exists(scene);
+    } catch (const std::exception&) {
+    }
+    if (ok) {
+      clouds.push_back({spec, ReadGaussiansPly(scene.string())});
+    } else {
+      missing.push_back(spec.id);
+      progress.Warn("merge: tile " + spec.id + " has no finished scene; its area is left to its neighbours");
+    }
+    progress.Advance(++k, spec.id);
+  }
+  progress.End();
+  if (clouds.empty()) throw Error("merge", tiles_dir, "no finished tile to merge (run `skyfall run-tile` first)");
+  const json& o = index.at("enu_origin");
+  summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
+
+  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, clouds);
+  fs::create_directories(out_dir);
+  summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
+  WriteGaussiansPly(summary.scene_path, stitched.cloud);
+  const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
+  WriteLod(out_dir, lod);
+
+  // Seam metric on a city DSM rendered from the merged scene.
+  const GroundBox bounds = BoxFromJson(index.at("bounds"));
+  DsmGrid city = GridCovering(bounds, summary.enu_origin, summary.epsg, options.seam_gsd_m);
+  RasterizeDsm(stitched.cloud, summary.enu_origin, dsm_options, &city);
+  WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
+  summary.seam = MeasureSeams(city, clouds[0].tile.grid, summary.enu_origin);
+  summary.tiles_merged = clouds.size();
+  summary.tiles_missing = missing.size();
+  summary.lod_levels = static_cast<int>(lod.size());
+
+  json levels = json::array();
+  for (const LodLevel& l : lod) {
+    levels.push_back({{"level", l.level}, {"count", l.cloud.size()}, {"voxel_m", l.voxel_m},
+                      {"geometric_error_m", l.geometric_error_m}});
+  }
+  auto finite = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  const json frame = {{"enu_origin", o}, {"epsg", summary.epsg}, {"city", index.at("city")}};
+  WriteFileAtomic((fs::path(out_dir) / "frame.json").string(), frame.dump(2) + "\n");
+  summary.report.seconds = clock.Seconds();
+  summary.report.metrics = stitched.report.metrics;
+  summary.report.metrics["seam_ratio"] = summary.seam.ratio;
+  const json doc = {{"city", index.at("city")},
+                    {"tiles_merged", summary.tiles_merged},
+                    {"tiles_missing", missing},
+                    {"stitch", stitched.report.metrics},
+                    {"seam", {{"boundary_mean_step_m", finite(summary.seam.boundary_mean_step_m)},
+                              {"interior_mean_step_m", finite(summary.seam.interior_mean_step_m)},
+                              {"ratio", finite(summary.seam.ratio)},
+                              {"boundary_pairs", summary.seam.boundary_pairs},
+                              {"interior_pairs", summary.seam.interior_pairs}}},
+                    {"lod", levels},
+                    {"seconds", summary.report.seconds}};
+  WriteFileAtomic((fs::path(out_dir) / "merge_report.json").string(), doc.dump(2) + "\n");
+  return summary;
+}
+
+}  // namespace skyfall

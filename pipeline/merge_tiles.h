@@ -1,0 +1,31 @@
+// The merge of a city's finished tiles into one scene with LOD, a city DSM
+// and a seam metric.
+#pragma once
+
+#include <string>
+
+#include "core/aoi.h"
+#include "core/stage.h"
+#include "merge/seam.h"
+#include "pipeline/run_options.h"
+
+namespace skyfall {
+
+struct MergeSummary {
+  std::string scene_path;
+  GeodeticPoint enu_origin;
+  int epsg = 0;
+  std::size_t tiles_merged = 0, tiles_missing = 0;
+  SeamMetric seam;
+  int lod_levels = 0;      // levels written, the finest included
+  StageReport report;      // metrics: the stitch counts and seam_ratio
+};
+
+// Merges the finished tiles of TILES/tiles.json into out_dir: scene.ply,
+// lod_<k>.ply + lod.json, frame.json, dsm_city.tif and merge_report.json
+// (stitch counts, seam metric, LOD levels). Tiles without a finished scene
+// are left to their neighbours (warned); none at all is an Error.
+MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
+                        const DsmExportOptions& dsm_options, Progress& progress);
+
+}  // namespace skyfall

@@ -1,0 +1,109 @@
+// One configuration for a whole run: the options of every stage, nested, with
+// one Check() that validates every field and mode before any stage starts, and
+// one JSON form (schema skyfall.run_options/1) that `skyfall run --config`
+// reads, `--print-config` writes, resume compares and child tile processes
+// receive. The defaults here are the product's defaults; the CLI never
+// restates them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "merge/dsm.h"
+#include "merge/lod.h"
+#include "merge/stitch.h"
+#include "sfm/dense.h"
+#include "sfm/sfm.h"
+#include "splat/trainer.h"
+#include "tiler/dfc2019.h"
+#include "tiler/tiling.h"
+
+namespace skyfall {
+
+// The training stage of a tile: the optimizer's options plus the choices made
+// around it (resolution, initialization, which regularizers run).
+struct TrainStageOptions {
+  TrainOptions optimizer;               // steps, learning rates, losses, densification schedule
+  int downscale = 2;                    // training image downscale (SfM and dense use full resolution)
+  std::string depth_prior = "surface";  // pseudo-camera depth: "surface", "none" or "cmd:COMMAND"
+  // Appearance model: "on", "off" or "auto" (on when the training views come
+  // from more than one acquisition date; one date has nothing to explain).
+  std::string appearance = "auto";
+  // [m] cap on the initial Gaussian size (0 = none): uncapped, Gaussians sized
+  // by the tie-point spacing start as blobs that the scaling learning rate
+  // shrinks only slowly.
+  double init_max_scale_m = 1.0;
+  // Up to this many capped Gaussians per tie point, covering its neighbourhood
+  // (1 = one per point): the cap alone leaves gaps between sparse points.
+  int init_pieces = 16;
+  // Where the initial Gaussians come from: "dense" (the dense heights, thinned
+  // to init_spacing_m, plus tie points in their holes), "sparse" (tie points
+  // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
+  std::string init_points = "auto";
+  double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
+  // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
+  // grows over the gaps; off for dense starts, which already hold one Gaussian
+  // per init_spacing_m and which densification degrades).
+  std::string densify = "auto";
+  void Check() const;  // throws Error("train", field, ...)
+};
+
+struct MergeOptions {
+  StitchOptions stitch;
+  LodOptions lod;
+  double seam_gsd_m = 0.5;  // [m] DSM spacing of the seam metric
+  void Check() const;       // throws Error("merge", field, ...)
+};
+
+struct DsmOptions {
+  DsmExportOptions export_options;   // JSON key "export"
+  DsmCompareOptions compare;
+  void Check() const;                // throws Error("dsm", field, ...)
+};
+
+// How tiles are executed.
+struct ExecutorOptions {
+  // "local": each tile is its own `skyfall run-tile` process (memory and crash
+  // isolation), several at once; "inline": tiles run one after the other in
+  // the calling process (library users without the skyfall binary).
+  std::string kind = "local";
+  int jobs = 0;         // tiles at once with "local" (0 = bounded by cores and memory only)
+  std::string program;  // the skyfall executable for "local" (empty = found beside this program)
+  void Check() const;   // throws Error("executor", field, ...)
+};
+
+struct RunOptions {
+  IngestOptions ingest;      // `aois` is part of the request, not of the options
+  TilingOptions tiling;
+  SfmOptions sfm;
+  DenseOptions dense;
+  TrainStageOptions train;
+  MergeOptions merge;
+  DsmOptions dsm;
+  ExecutorOptions executor;
+  // Validates every stage's options; throws Error("run options", "<section>.<field>", ...).
+  void Check() const;
+};
+
+// The JSON form (pretty-printed, with "schema": "skyfall.run_options/1").
+std::string RunOptionsToJson(const RunOptions& options);
+
+// Parses the JSON form. Missing fields keep their defaults; an unknown field,
+// a value of the wrong type or a wrong schema throws Error naming `subject`
+// (the file) and the field's dotted path. Does not call Check().
+RunOptions RunOptionsFromJson(const std::string& text, const std::string& subject);
+
+// Applies "section.field=value" (value: JSON, or else a plain string), e.g.
+// "dense.sgm_p2=1.5" or "train.depth_prior=none"; throws Error naming the path.
+void SetRunOption(RunOptions* options, const std::string& assignment);
+
+// The JSON of the options that decide a tile's products (SfM, dense heights,
+// training); a tile finished under other values is redone.
+std::string TileOptionsJson(const RunOptions& options);
+
+// The JSON of one stage's options (recorded beside its products, so that a
+// finished stage is reused only under the same options).
+std::string DenseOptionsJson(const DenseOptions& options);
+std::string SfmOptionsJson(const SfmOptions& options);
+
+}  // namespace skyfall

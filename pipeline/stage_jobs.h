@@ -1,0 +1,59 @@
+// Stage jobs: each reads its inputs from files, runs a library stage and
+// writes its outputs atomically, so `skyfall splat train` on its own and a
+// tile of `skyfall run` behave alike.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "core/aoi.h"
+#include "core/stage.h"
+#include "pipeline/run_options.h"
+#include "sfm/dense.h"
+#include "sfm/sfm.h"
+#include "splat/trainer.h"
+
+namespace skyfall {
+
+// SfM on a catalog; writes cameras.json, points.ply, sfm_report.json (last)
+// and the COLMAP model under out_dir.
+SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const std::string& out_dir,
+                    bool colmap_images, Progress& progress);
+
+// Dense heights for an SfM folder (cameras.json, points.ply and the pairs of
+// sfm_report.json); writes dense.ply (one point per cell with a height:
+// x y z red green blue matching_cost filled) and dense_report.json (last).
+// `extent_enu_m` clips the grid (a tile's extent, in the SfM frame).
+DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
+                        const std::optional<GroundBox>& extent_enu_m = std::nullopt);
+
+// True when `sfm_dir` holds a finished dense stage with the same options
+// over the same extent.
+bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m);
+
+// What the training job decided and why (for the reports).
+struct TrainDecisions {
+  bool dense_start = false;
+  bool densify = false;
+  bool appearance = false;
+  std::string appearance_reason;
+};
+
+struct TrainJobResult {
+  TrainResult train;
+  TrainDecisions decisions;
+};
+
+// Trains on the SfM folder `sfm_dir` (resuming from out_dir/checkpoints when
+// the settings match, else setting the old checkpoint aside), then writes
+// scene.ply and train_report.json into `out_dir`.
+TrainJobResult RunTrainJob(const TrainStageOptions& options, const std::string& sfm_dir, const std::string& out_dir,
+                           Progress& progress);
+
+// Renders the scene (Inria PLY) from every camera of a cameras.json into
+// out_dir: <name>_rgb.png, <name>_depth.png (visualization) and
+// <name>_depth.tif (camera depth in metres, NaN where opacity < 0.5).
+void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_json, const std::string& out_dir,
+                    int downscale, Progress& progress);
+
+}  // namespace skyfall

@@ -1,0 +1,336 @@
+#include "pipeline/tile_run.h"
+
+#include <spawn.h>
+#include <fmt/format.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <tbb/global_control.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "pipeline/exit_codes.h"
+#include "pipeline/stage_jobs.h"
+#include "core/format.h"
+#include "catalogs/aoi_catalog.h"
+#include "catalogs/tile_catalog.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+
+extern char** environ;
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+json OptionsJson(const RunOptions& o) { return json::parse(TileOptionsJson(o)); }
+
+json StageJson(const StageReport& r) {
+  return {{"stage", r.stage}, {"status", ToString(r.status)}, {"message", r.message}, {"seconds", r.seconds},
+          {"metrics", r.metrics}, {"warnings", r.warnings}};
+}
+
+StageReport WriteTileReport(const std::string& dir, const TileSpec& spec, const RunOptions& o, StageReport report,
+                            const std::vector<StageReport>& stages, const json& decisions = json::object()) {
+  json list = json::array();
+  for (const StageReport& s : stages) list.push_back(StageJson(s));
+  report.stage = "run-tile";
+  report.metrics["peak_rss_mb"] = PeakRssMb();
+  const json doc = {{"tile", spec.id}, {"status", ToString(report.status)}, {"message", report.message},
+                    {"options", OptionsJson(o)}, {"decisions", decisions}, {"images", spec.images.size()},
+                    {"seconds", report.seconds}, {"metrics", report.metrics}, {"stages", list}};
+  WriteFileAtomic((fs::path(dir) / "tile_report.json").string(), doc.dump(2) + "\n");
+  return report;
+}
+
+// A finished run with the same options, if there is one.
+bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* report) {
+  const fs::path path = fs::path(dir) / "tile_report.json";
+  if (!fs::exists(path)) return false;
+  try {
+    const json doc = json::parse(ReadTextFile(path.string()));
+    if (doc.at("options") != OptionsJson(o)) return false;
+    const std::string status = doc.at("status").get<std::string>();
+    if (status == "ok" && !fs::exists(fs::path(dir) / "splat" / "scene.ply")) return false;
+    report->status = status == "ok" ? StageStatus::kOk : status == "degenerate" ? StageStatus::kDegenerate
+                                                                                : StageStatus::kSkipped;
+    report->message = "already done (" + status + ")";
+    return status == "ok" || status == "degenerate" || status == "skipped";
+  } catch (const std::exception&) {
+    return false;  // unreadable report: redo the tile
+  }
+}
+
+// A finished SfM under the same options (sfm_options.json is written after
+// the SfM's own outputs, so a killed SfM is never taken as finished).
+bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
+  try {
+    const json doc = json::parse(ReadTextFile((sfm_dir / "sfm_report.json").string()));
+    return doc.value("status", "") == "ok" && fs::exists(sfm_dir / "points.ply") &&
+           fs::exists(sfm_dir / "cameras.json") &&
+           ReadTextFile((sfm_dir / "sfm_options.json").string()) == SfmOptionsJson(options);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+StageReport ReusedStage(const std::string& stage, const std::string& what) {
+  StageReport reused;
+  reused.stage = stage;
+  reused.status = StageStatus::kSkipped;
+  reused.message = "reused " + what + " of an earlier run";
+  return reused;
+}
+
+}  // namespace
+
+StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int threads, Progress& progress) {
+  Stopwatch clock;
+  options.Check();
+  const TileSpec spec = ReadTileSpec((fs::path(tile_dir) / "tile.json").string());
+  StageReport report;
+  report.stage = "run-tile";
+  if (AlreadyDone(tile_dir, options, &report)) return report;
+  std::unique_ptr<tbb::global_control> thread_cap;
+  if (threads > 0) {
+    thread_cap = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+  }
+  if (spec.images.empty()) {
+    report.status = StageStatus::kSkipped;
+    report.message = spec.id + ": fewer than 2 images see this tile; nothing to reconstruct";
+    return WriteTileReport(tile_dir, spec, options, report, {});
+  }
+  std::vector<StageReport> stages;
+  const fs::path sfm_dir = fs::path(tile_dir) / "sfm";
+  if (SfmDone(sfm_dir, options.sfm)) {
+    stages.push_back(ReusedStage("sfm", "the finished SfM"));
+  } else {
+    const AoiCatalog catalog = ReadAoiCatalog((fs::path(tile_dir) / "aoi.json").string());
+    fs::remove(sfm_dir / "sfm_options.json");  // until this SfM has finished
+    const SfmResult sfm = RunSfmJob(options.sfm, catalog, sfm_dir.string(), false, progress);
+    WriteFileAtomic((sfm_dir / "sfm_options.json").string(), SfmOptionsJson(options.sfm));
+    stages.push_back(sfm.report);
+    if (sfm.report.status != StageStatus::kOk) {
+      report.status = StageStatus::kDegenerate;
+      report.message = spec.id + ": " + sfm.report.message;
+      report.seconds = clock.Seconds();
+      return WriteTileReport(tile_dir, spec, options, report, stages);
+    }
+  }
+  json decisions = json::object();
+  if (options.train.init_points == "sparse") {
+    decisions["dense"] = {{"ran", false}, {"why", "train.init_points is 'sparse'"}};
+  } else if (DenseDone(sfm_dir.string(), options.dense, spec.extent)) {
+    stages.push_back(ReusedStage("dense", "the finished dense heights"));
+  } else {
+    const DenseResult dense = RunDenseJob(options.dense, sfm_dir.string(), progress, spec.extent);
+    stages.push_back(dense.report);
+    if (dense.report.status != StageStatus::kOk) progress.Warn(spec.id + ": " + dense.report.message);
+  }
+  const TrainJobResult trained = RunTrainJob(options.train, sfm_dir.string(), (fs::path(tile_dir) / "splat").string(),
+                                             progress);
+  decisions["initial_points"] = trained.decisions.dense_start ? "dense" : "sparse";
+  decisions["densify"] = {{"on", trained.decisions.densify},
+                          {"why", "train.densify '" + options.train.densify + "', " +
+                                      (trained.decisions.dense_start ? "dense" : "tie-point") + " start"}};
+  decisions["appearance"] = {{"on", trained.decisions.appearance}, {"why", trained.decisions.appearance_reason}};
+  StageReport splat = trained.train.report;
+  splat.stage = "splat";
+  splat.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());
+  if (!trained.train.series.empty()) splat.metrics["psnr_test_db"] = trained.train.series.back().psnr_test_db;
+  stages.push_back(splat);
+  report.seconds = clock.Seconds();
+  report.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());
+  return WriteTileReport(tile_dir, spec, options, report, stages, decisions);
+}
+
+namespace {
+
+// [MB] memory a tile run needs: a base (code, TBB, SfM tracks) plus per
+// full-resolution crop pixel (SIFT pyramids and float training images);
+// measured peaks: JAX_068 (19 crops, 12 Mpx) 280 MB SfM, 250 MB training.
+constexpr double kTileBaseMb = 300.0;
+constexpr double kTileBytesPerPixel = 40.0;
+
+double AvailableMemoryMb() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  double kb = 0;
+  std::string unit;
+  while (in >> key >> kb >> unit) {
+    if (key == "MemAvailable:") return kb / 1024.0;
+  }
+  return 4096.0;  // unknown: assume a small machine
+}
+
+double TileMemoryMb(const std::string& dir) {
+  double pixels = 0;
+  try {
+    for (const TileImage& im : ReadTileSpec((fs::path(dir) / "tile.json").string()).images) {
+      pixels += static_cast<double>(im.width_px) * im.height_px;
+    }
+  } catch (const Error&) {
+  }
+  return kTileBaseMb + kTileBytesPerPixel * pixels / 1e6;
+}
+
+std::string TailOf(const fs::path& log, std::size_t max_chars = 600) {
+  std::string text;
+  try {
+    text = ReadTextFile(log.string());
+  } catch (const Error&) {
+    return "";
+  }
+  return text.size() > max_chars ? text.substr(text.size() - max_chars) : text;
+}
+
+// Tells the user how a tile ended and advances the tile count.
+void ReportOutcome(const TileOutcome& o, std::size_t done, Progress& progress) {
+  const std::string name = fs::path(o.dir).filename().string();
+  if (o.exit_code == kExitDegenerate) {
+    progress.Warn("tile " + name + " is degenerate (too little data); see " + o.dir + "/tile_report.json");
+  } else if (o.exit_code != 0) {
+    progress.Warn("tile " + name + " failed (exit " + std::to_string(o.exit_code) + "): " + o.message);
+  }
+  progress.Advance(done, fmt::format("{} exit {} {:.0f} s", name, o.exit_code, o.seconds));
+}
+
+}  // namespace
+
+int ParallelTileJobs(const std::vector<std::string>& tile_dirs, int requested, std::string* why) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  double largest_mb = 0;
+  for (const auto& d : tile_dirs) largest_mb = std::max(largest_mb, TileMemoryMb(d));
+  const double available_mb = AvailableMemoryMb();
+  const int by_memory = std::max(1, static_cast<int>(0.8 * available_mb / std::max(largest_mb, 1.0)));
+  const int wanted = requested > 0 ? requested : cores;
+  const int jobs = std::max(1, std::min({wanted, cores, by_memory, static_cast<int>(tile_dirs.size())}));
+  if (why) {
+    *why = fmt::format("{} parallel tile(s): {} requested, {} cores, memory for {} ({:.0f} MB available, "
+                       "~{:.0f} MB per tile)", jobs, wanted, cores, by_memory, available_mb, largest_mb);
+  }
+  return jobs;
+}
+
+namespace {
+
+// The skyfall executable that runs a tile: the configured one, this program
+// when it is skyfall, or a skyfall beside this program.
+std::string TileProgram(const ExecutorOptions& executor) {
+  if (!executor.program.empty()) {
+    if (access(executor.program.c_str(), X_OK) != 0)
+      throw Error("run", "executor.program", "'" + executor.program + "' is not an executable file");
+    return executor.program;
+  }
+  const fs::path self = fs::read_symlink("/proc/self/exe");
+  if (self.filename() == "skyfall") return self.string();
+  for (const fs::path& candidate : {self.parent_path() / "skyfall", self.parent_path().parent_path() / "bin" / "skyfall"}) {
+    if (access(candidate.c_str(), X_OK) == 0) return candidate.string();
+  }
+  throw Error("run", "executor.program",
+              "no skyfall executable beside " + self.string() + ": set executor.program, or use executor.kind 'inline'");
+}
+
+std::vector<TileOutcome> RunTilesAsProcesses(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                                             const std::string& config_path, Progress& progress) {
+  std::string why;
+  const int jobs = ParallelTileJobs(tile_dirs, options.executor.jobs, &why);
+  progress.Info(why);
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = std::max(1, cores / std::max(1, jobs));
+  const std::string program = TileProgram(options.executor);
+  std::vector<TileOutcome> outcomes(tile_dirs.size());
+  std::map<pid_t, std::pair<std::size_t, std::chrono::steady_clock::time_point>> running;
+  std::size_t next = 0, done = 0;
+  progress.Begin("tiles", tile_dirs.size());
+  auto launch = [&](std::size_t k) {
+    outcomes[k].dir = tile_dirs[k];
+    std::vector<std::string> args = {program, "-q", "run-tile", tile_dirs[k], "--config", config_path,
+                                     "--threads", std::to_string(threads)};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string log = (fs::path(tile_dirs[k]) / "run.log").string();
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    pid_t pid = 0;
+    const int rc = posix_spawn(&pid, program.c_str(), &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) throw Error("run", tile_dirs[k], std::string("cannot start a tile process: ") + std::strerror(rc));
+    running[pid] = {k, std::chrono::steady_clock::now()};
+  };
+  while (done < tile_dirs.size()) {
+    while (next < tile_dirs.size() && static_cast<int>(running.size()) < jobs) launch(next++);
+    int status = 0;
+    const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw Error("run", "", std::string("waitpid failed: ") + std::strerror(errno));
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    TileOutcome& o = outcomes[it->second.first];
+    o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    if (o.exit_code != 0) o.message = TailOf(fs::path(o.dir) / "run.log");
+    running.erase(it);
+    ReportOutcome(o, ++done, progress);
+  }
+  progress.End();
+  return outcomes;
+}
+
+std::vector<TileOutcome> RunTilesInline(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                                        Progress& progress) {
+  std::vector<TileOutcome> outcomes(tile_dirs.size());
+  NullProgress quiet;  // the tiles' own progress would interleave with the tile count
+  progress.Begin("tiles", tile_dirs.size());
+  for (std::size_t k = 0; k < tile_dirs.size(); ++k) {
+    TileOutcome& o = outcomes[k];
+    o.dir = tile_dirs[k];
+    Stopwatch clock;
+    try {
+      o.exit_code = ExitCodeOf(RunTile(o.dir, options, 0, quiet).status);
+    } catch (const Error& e) {
+      o.exit_code = kExitBadInput;
+      o.message = e.what();
+    } catch (const std::exception& e) {
+      o.exit_code = kExitInternal;
+      o.message = std::string("internal error: ") + e.what();
+    }
+    o.seconds = clock.Seconds();
+    ReportOutcome(o, k + 1, progress);
+  }
+  progress.End();
+  return outcomes;
+}
+
+}  // namespace
+
+std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                                  const std::string& config_path, Progress& progress) {
+  options.executor.Check();
+  if (options.executor.kind == "inline") return RunTilesInline(tile_dirs, options, progress);
+  return RunTilesAsProcesses(tile_dirs, options, config_path, progress);
+}
+
+}  // namespace skyfall

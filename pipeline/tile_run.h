@@ -1,0 +1,40 @@
+// One tile's pipeline (SfM, dense heights, splat training) and the executors
+// that run a city's tiles: as separate `skyfall run-tile` processes (memory
+// and crash isolation; several at once) or one after the other in this
+// process.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/stage.h"
+#include "pipeline/run_options.h"
+
+namespace skyfall {
+
+// Runs one tile folder written by WriteTiles (`skyfall tile`) with the SfM,
+// dense and training options of `options`. Resumable: a tile whose
+// tile_report.json says it finished under the same options is skipped; a
+// killed one redoes SfM unless its report was written, reuses finished dense
+// heights, and resumes training from its checkpoint. Writes
+// DIR/tile_report.json last. `threads` caps TBB's threads (0 = all cores).
+StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int threads, Progress& progress);
+
+struct TileOutcome {
+  std::string dir;
+  int exit_code = 0;     // as `skyfall run-tile` exits (see exit_codes.h)
+  double seconds = 0;
+  std::string message;   // why it failed (the end of DIR/run.log for a process)
+};
+
+// How many tiles run at once: at most `requested` (0 = number of cores),
+// cores, and what the available memory allows given an estimate per tile.
+int ParallelTileJobs(const std::vector<std::string>& tile_dirs, int requested, std::string* why);
+
+// Runs every tile folder with options.executor. One failing tile never stops
+// the others. With "local", `config_path` is the run configuration file the
+// child processes read (written by the caller); each child logs to DIR/run.log.
+std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                                  const std::string& config_path, Progress& progress);
+
+}  // namespace skyfall
