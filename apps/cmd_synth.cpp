@@ -27,6 +27,14 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--lon", opts->lon_deg, "City centre longitude [deg]")->capture_default_str();
   cmd->add_option("--blocks-x", opts->blocks_x, "Adjacent AOIs along east")->capture_default_str();
   cmd->add_option("--blocks-y", opts->blocks_y, "Adjacent AOIs along north")->capture_default_str();
+  cmd->add_option("--min-off-nadir", opts->min_off_nadir_deg, "Smallest off-nadir angle of the views [deg]")
+      ->capture_default_str();
+  cmd->add_option("--max-off-nadir", opts->max_off_nadir_deg, "Largest off-nadir angle of the views [deg]")
+      ->capture_default_str();
+  cmd->add_option("--views-per-date", opts->views_per_date, "Images taken on one pass (same light)")
+      ->capture_default_str();
+  cmd->add_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)")->capture_default_str();
+  cmd->add_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)")->capture_default_str();
   cmd->callback([runner, opts, out] {
     *runner = [opts, out] {
       ConsoleProgress progress;

@@ -1,5 +1,6 @@
 #include "catalogs/aoi_catalog.h"
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/json_doc.h"
@@ -73,6 +74,41 @@ RpcModel RpcFromJson(const json& j) {
   return rpc;
 }
 
+json RadiometryToJson(const Radiometry& r) {
+  return {{"bands", r.bands}, {"low", r.low}, {"high", r.high}, {"method", r.method},
+          {"nodata", r.has_nodata ? json(r.nodata) : json(nullptr)}};
+}
+
+}  // namespace
+
+std::string RadiometryJson(const Radiometry& r) { return RadiometryToJson(r).dump(); }
+
+Radiometry RadiometryFromJson(const std::string& text, const std::string& subject) {
+  Radiometry r;
+  try {
+    const json j = json::parse(text);
+    const auto bands = j.at("bands").get<std::vector<int>>();
+    if (bands.size() != 3) throw Error("catalog", subject + ".bands", "must list 3 bands (red, green, blue)");
+    for (int k = 0; k < 3; ++k) {
+      if (bands[k] < 1) throw Error("catalog", subject + ".bands", "band numbers start at 1, got " + std::to_string(bands[k]));
+      r.bands[k] = bands[k];
+    }
+    r.low = j.at("low").get<double>();
+    r.high = j.at("high").get<double>();
+    r.method = j.at("method").get<std::string>();
+    r.has_nodata = j.contains("nodata") && !j.at("nodata").is_null();
+    if (r.has_nodata) r.nodata = j.at("nodata").get<double>();
+  } catch (const json::exception& e) {
+    throw Error("catalog", subject, std::string("bad radiometry: ") + e.what());
+  }
+  if (!(std::isfinite(r.low) && std::isfinite(r.high) && r.high > r.low))
+    throw Error("catalog", subject, "radiometry needs finite low < high, got " + std::to_string(r.low) + " and " +
+                                        std::to_string(r.high));
+  return r;
+}
+
+namespace {
+
 json ImageToJson(const ImageRecord& im) {
   return {{"name", im.name},
           {"path", im.path},
@@ -80,6 +116,7 @@ json ImageToJson(const ImageRecord& im) {
           {"height_px", im.height_px},
           {"bands", im.bands},
           {"dtype", im.dtype},
+          {"radiometry", im.radiometry.Measured() ? RadiometryToJson(im.radiometry) : json(nullptr)},
           {"acquisition_time", im.acquisition_time},
           {"sun_elevation_deg", OptionalNumber(im.sun_elevation_deg)},
           {"sun_azimuth_deg", OptionalNumber(im.sun_azimuth_deg)},
@@ -99,6 +136,9 @@ ImageRecord ImageFromJson(const json& j) {
   im.height_px = j.at("height_px").get<int>();
   im.bands = j.at("bands").get<int>();
   im.dtype = j.at("dtype").get<std::string>();
+  // Catalogs written before radiometry was recorded: measured when read.
+  if (j.contains("radiometry") && !j.at("radiometry").is_null())
+    im.radiometry = RadiometryFromJson(j.at("radiometry").dump(), "images[" + im.name + "].radiometry");
   im.acquisition_time = j.value("acquisition_time", std::string());
   im.sun_elevation_deg = OptionalNumberFrom(j, "sun_elevation_deg");
   im.sun_azimuth_deg = OptionalNumberFrom(j, "sun_azimuth_deg");

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -18,6 +19,21 @@ struct GeodeticPoint {
   double height_m = 0.0;
 };
 
+// How an image's raw values become the RGB in [0, 1] that every stage uses
+// (features, dense matching, training, PLY colours, renders): one
+// normalization per image, measured once at ingestion.
+struct Radiometry {
+  std::array<int, 3> bands{1, 2, 3};  // source band (1-based) of red, green, blue; a grey image repeats one
+  double low = 0.0;                   // raw value mapped to 0
+  double high = 255.0;                // raw value mapped to 1
+  // "percentile" (robust low/high percentiles of the image) or "type_range"
+  // (Byte imagery, display-scaled already); empty: not measured yet.
+  std::string method;
+  bool has_nodata = false;            // pixels equal to `nodata` are masked
+  double nodata = 0.0;
+  bool Measured() const { return !method.empty(); }
+};
+
 struct ImageRecord {
   std::string name;              // file stem, e.g. "JAX_068_001_RGB"
   std::string path;              // absolute path of the raster
@@ -25,6 +41,7 @@ struct ImageRecord {
   int height_px = 0;
   int bands = 0;
   std::string dtype;             // GDAL data type name, e.g. "Byte"
+  Radiometry radiometry;
   RpcModel rpc;                  // for this raster's pixel grid (crop offsets applied)
   std::string rpc_source;        // "gdal_metadata", "rpb" or "satnerf_json"
   std::string acquisition_time;  // ISO 8601 UTC ("2014-10-05T16:01:38Z"); empty if unknown

@@ -18,8 +18,15 @@ constexpr const char* kSchema = "skyfall.run_options/1";
 // Every options struct is described once, by a Visit() that names each field;
 // the same description writes JSON and reads it strictly (Writer, Reader below).
 
+template <class IO> void Visit(IO& io, RadiometryOptions& o) {
+  io("low_percentile", o.low_percentile);
+  io("high_percentile", o.high_percentile);
+  io("stretch_byte", o.stretch_byte);
+  io("max_sample_px", o.max_sample_px);
+}
 template <class IO> void Visit(IO& io, IngestOptions& o) {
   io("verify_pixels", o.verify_pixels);
+  io("radiometry", o.radiometry);
   io("height_margin_m", o.height_margin_m);
   io("rpc_height_half_range_m", o.rpc_height_half_range_m);
   io("nominal_orbit_height_m", o.nominal_orbit_height_m);

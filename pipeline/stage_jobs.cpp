@@ -16,6 +16,7 @@
 #include "sfm/export.h"
 #include "splat/dataset.h"
 #include "splat/ply.h"
+#include "tiler/radiometry.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -134,17 +135,21 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
   std::vector<DenseView> views;
   std::map<std::string, int> index;
   for (CameraEntry& entry : ReadCameraEntries((dir / "cameras.json").string())) {
-    FloatImage pixels = ReadFloatImage(entry.source_image);
+    NormalizedImage pixels = ReadNormalizedImage(entry.source_image, entry.radiometry);
     if (pixels.width_px != entry.camera.width_px || pixels.height_px != entry.camera.height_px)
       throw Error("dense", entry.source_image, "size differs from cameras.json");
+    // 8-bit scale for the cells' colours; NaN where there is no data, which
+    // the sweep treats like a point outside the image.
+    for (std::size_t k = 0; k < pixels.valid.size(); ++k)
+      for (int c = 0; c < 3; ++c) pixels.rgb[3 * k + c] = pixels.valid[k] ? 255.0f * pixels.rgb[3 * k + c] : NAN;
     index[entry.name] = static_cast<int>(views.size());
     DenseView v;
     v.name = std::move(entry.name);
     v.camera = entry.camera;
     v.width_px = pixels.width_px;
     v.height_px = pixels.height_px;
-    v.bands = pixels.bands;
-    v.pixels = std::move(pixels.values);
+    v.bands = 3;
+    v.pixels = std::move(pixels.rgb);
     views.push_back(std::move(v));
   }
   nlohmann::json sfm_report;

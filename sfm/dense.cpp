@@ -82,7 +82,11 @@ GreyImage ToGrey(const DenseView& v) {
     for (int b = 0; b < v.bands; ++b) sum += v.pixels[k * v.bands + b];
     g.values[k] = sum / static_cast<float>(v.bands);
   }
-  const float p99 = Quantile(g.values, 0.99);
+  std::vector<float> finite;
+  finite.reserve(n);
+  for (float x : g.values)
+    if (std::isfinite(x)) finite.push_back(x);
+  const float p99 = Quantile(std::move(finite), 0.99);
   const float scale = p99 > 0 ? 1.0f / p99 : 1.0f;
   for (float& x : g.values) x *= scale;
   return g;
@@ -602,6 +606,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
         const int u = static_cast<int>(std::lround(px.x())), w = static_cast<int>(std::lround(px.y()));
         if (u < 0 || w < 0 || u >= view.width_px || w >= view.height_px) continue;
         const float* p = view.pixels.data() + (static_cast<std::size_t>(w) * view.width_px + u) * view.bands;
+        if (!std::isfinite(p[0])) continue;  // no data there: the next view
         for (int b = 0; b < 3; ++b)
           g.rgb[k][b] = static_cast<std::uint8_t>(std::clamp(p[std::min(b, view.bands - 1)], 0.0f, 255.0f));
         break;

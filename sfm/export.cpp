@@ -10,6 +10,8 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "catalogs/aoi_catalog.h"
+#include "tiler/radiometry.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -36,6 +38,7 @@ std::string CamerasJson(const SfmResult& r, const AoiCatalog& c) {
                       {"width_px", cam.width_px},
                       {"height_px", cam.height_px},
                       {"acquisition_time", im.acquisition_time},
+                      {"radiometry", im.radiometry.Measured() ? json::parse(RadiometryJson(im.radiometry)) : json()},
                       {"K", Matrix(cam.K())},
                       {"R", Matrix(cam.cam_from_world_rotation)},
                       {"t", Vector(cam.cam_from_world_translation)},
@@ -97,13 +100,13 @@ Eigen::Vector2d ColmapPixel(const PinholeCamera& cam, const Eigen::Vector2d& p) 
 }
 
 void WriteDeskewedImage(const SfmImage& im, const std::string& path) {
-  const FloatImage src = ReadFloatImage(im.path);
+  const NormalizedImage src = ReadNormalizedImage(im.path, im.radiometry);
   cv::Mat rgb(src.height_px, src.width_px, CV_8UC3);
   for (int r = 0; r < src.height_px; ++r)
     for (int c = 0; c < src.width_px; ++c)
       for (int b = 0; b < 3; ++b) {
-        const float v = src.values[(static_cast<size_t>(r) * src.width_px + c) * src.bands + std::min(b, src.bands - 1)];
-        rgb.at<cv::Vec3b>(r, c)[b] = static_cast<std::uint8_t>(std::clamp(v, 0.0f, 255.0f));
+        const float v = src.rgb[(static_cast<size_t>(r) * src.width_px + c) * 3 + b];
+        rgb.at<cv::Vec3b>(r, c)[b] = static_cast<std::uint8_t>(v * 255.0f + 0.5f);
       }
   // Output pixel (x', y) samples the source at x = x' + shear * (y - cy).
   const double shear = im.camera.skew / im.camera.fy;

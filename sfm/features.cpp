@@ -74,7 +74,7 @@ void FeatureOptions::Check() const {
 }
 
 ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width, int height, int bands,
-                             const FeatureOptions& o) {
+                             const FeatureOptions& o, const std::vector<std::uint8_t>* valid) {
   o.Check();
   if (width < 16 || height < 16 || bands < 1 || pixels.size() != static_cast<size_t>(width) * height * bands) {
     throw Error("features", "image", "needs at least 16x16 pixels and matching data");
@@ -83,7 +83,15 @@ ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width, int he
   auto sift = cv::SIFT::create(o.max_features, 3, o.contrast_threshold);
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
-  sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
+  cv::Mat mask;
+  if (valid) {
+    if (valid->size() != static_cast<size_t>(width) * height) throw Error("features", "valid", "mask size differs from the image");
+    mask = cv::Mat(height, width, CV_8U, const_cast<std::uint8_t*>(valid->data())).clone() * 255;
+    // A keypoint's support reaches ~8 px: none may see the edge of the fill.
+    constexpr int kMaskMarginPx = 8;
+    cv::erode(mask, mask, cv::Mat(), cv::Point(-1, -1), kMaskMarginPx);
+  }
+  sift->detectAndCompute(grey, valid ? cv::InputArray(mask) : cv::noArray(), keypoints, descriptors);
   ImageFeatures f;
   f.descriptors.assign(descriptors.ptr<float>(), descriptors.ptr<float>() + descriptors.total());
   for (const auto& k : keypoints) {

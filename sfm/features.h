@@ -25,9 +25,11 @@ struct ImageFeatures {
   std::vector<std::array<std::uint8_t, 3>> colours; // RGB at each keypoint
 };
 
-// `pixels`: `bands` floats per pixel, row-major (any radiometric range).
+// `pixels`: `bands` floats per pixel, row-major (any radiometric range;
+// keypoint colours clamp to 0-255). `valid` (1 per pixel, optional) masks
+// nodata: no keypoint lies in or near it.
 ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width_px, int height_px, int bands,
-                             const FeatureOptions& options);
+                             const FeatureOptions& options, const std::vector<std::uint8_t>* valid = nullptr);
 
 // Matches (index in a, index in b) that pass the ratio test both ways.
 std::vector<std::pair<int, int>> MatchFeatures(const ImageFeatures& a, const ImageFeatures& b, double ratio);

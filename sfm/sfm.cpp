@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/format.h"
 #include "tiler/geo.h"
+#include "tiler/radiometry.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -118,12 +119,14 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     im.name = rec.name;
     im.path = rec.path;
     im.acquisition_time = rec.acquisition_time;
+    im.radiometry = rec.radiometry;
     im.approximation = ApproximateRpcByPinhole(rec.rpc, rec.width_px, rec.height_px, catalog.min_height_m,
                                                catalog.max_height_m, enu, options.pinhole);
     im.camera = im.approximation.camera;
-    const FloatImage pixels = ReadFloatImage(rec.path);
+    NormalizedImage pixels = ReadNormalizedImage(rec.path, rec.radiometry);
+    for (float& v : pixels.rgb) v *= 255.0f;  // keypoint colours are 8-bit
     loaded.features.push_back(
-        DetectFeatures(pixels.values, pixels.width_px, pixels.height_px, pixels.bands, options.features));
+        DetectFeatures(pixels.rgb, pixels.width_px, pixels.height_px, 3, options.features, &pixels.valid));
     im.keypoints = static_cast<int>(loaded.features.back().keypoints.size());
     loaded.cameras.push_back(im.camera);
     result.images.push_back(im);

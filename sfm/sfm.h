@@ -41,6 +41,7 @@ struct SfmImage {
   std::string name;
   std::string path;
   std::string acquisition_time;
+  Radiometry radiometry;                      // how its pixels are read (from the catalog)
   PinholeFit approximation;                   // RPC -> pinhole, before BA
   PinholeCamera camera;                       // final: the BA offset folded into cx, cy
   Eigen::Vector2d ba_offset_px = Eigen::Vector2d::Zero();

@@ -10,6 +10,8 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "catalogs/aoi_catalog.h"
+#include "tiler/radiometry.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -89,6 +91,8 @@ std::vector<CameraEntry> ReadCameraEntries(const std::string& path) {
       e.source_image = im.value("source_image", std::string());
       e.held_out = im.value("split", std::string("train")) == "test";
       e.acquisition_time = im.value("acquisition_time", std::string());
+      if (im.contains("radiometry") && !im.at("radiometry").is_null())
+        e.radiometry = RadiometryFromJson(im.at("radiometry").dump(), path + ": " + e.name + ".radiometry");
       out.push_back(std::move(e));
     }
   } catch (const json::exception& e) {
@@ -115,24 +119,30 @@ std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale)
     v.acquisition_time = entry.acquisition_time;
     const PinholeCamera& full = entry.camera;
     v.camera = DownscaledCamera(full, downscale);
-    const FloatImage img = ReadFloatImage(entry.source_image);
+    const NormalizedImage img = ReadNormalizedImage(entry.source_image, entry.radiometry);
     if (img.width_px != full.width_px || img.height_px != full.height_px) {
       throw Error("splat", entry.source_image, "size differs from cameras.json");
     }
     const int w = v.camera.width_px, h = v.camera.height_px;
     v.rgb.assign(3 * static_cast<size_t>(w) * h, 0.0f);
-    const float norm = 1.0f / (255.0f * downscale * downscale);
+    v.valid.assign(static_cast<size_t>(w) * h, 1);
+    const float norm = 1.0f / static_cast<float>(downscale * downscale);
     for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x)
+      for (int x = 0; x < w; ++x) {
+        // A training pixel holds data only when every source pixel in it does.
+        std::uint8_t all_valid = 1;
         for (int c = 0; c < 3; ++c) {
           float s = 0;
           for (int dy = 0; dy < downscale; ++dy)
             for (int dx = 0; dx < downscale; ++dx) {
               const size_t p = static_cast<size_t>(y * downscale + dy) * img.width_px + (x * downscale + dx);
-              s += img.values[p * img.bands + std::min(c, img.bands - 1)];
+              s += img.rgb[3 * p + c];
+              all_valid &= img.valid[p];
             }
           v.rgb[(static_cast<size_t>(y) * w + x) * 3 + c] = s * norm;
         }
+        v.valid[static_cast<size_t>(y) * w + x] = all_valid;
+      }
     views.push_back(std::move(v));
   }
   if (views.empty()) throw Error("splat", path, "lists no used image");

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/aoi.h"
 #include "splat/trainer.h"
 
 namespace skyfall {
@@ -34,6 +35,7 @@ struct CameraEntry {
   std::string source_image;      // the pixels the camera describes
   bool held_out = false;         // "split": "test"
   std::string acquisition_time;  // empty when unknown
+  Radiometry radiometry;         // how the source image's pixels are read (not measured: measured on read)
 };
 
 // The used images of cameras.json, in file order; throws Error naming the

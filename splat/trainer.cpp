@@ -520,6 +520,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     if (v.rgb.size() != 3u * v.camera.width_px * v.camera.height_px) {
       throw Error("train", v.name, "image size does not match its camera");
     }
+    if (!v.valid.empty() && v.valid.size() != v.rgb.size() / 3) throw Error("train", v.name, "mask size does not match its image");
   }
 
   const int fused_view = AppearanceViewIndex(o, views);
@@ -589,6 +590,9 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
     std::vector<float> d_rgb;
     double loss = PhotometricLoss(r.rgb, view.rgb, view.camera.width_px, view.camera.height_px, photometric, &d_rgb);
+    for (std::size_t p = 0; p < view.valid.size(); ++p) {
+      if (!view.valid[p]) d_rgb[3 * p] = d_rgb[3 * p + 1] = d_rgb[3 * p + 2] = 0.0f;  // no data: no pull
+    }
     GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, {}, {}, colour_affine);
     AppearanceModel appearance_grad;
     if (appearance.enabled) {

@@ -23,6 +23,9 @@ struct TrainView {
   std::string name;
   PinholeCamera camera;       // for the (possibly downscaled) image
   std::vector<float> rgb;     // 3 per pixel in [0, 1]
+  // 1 per pixel, 0 where the image holds no data (nodata, zero fill): those
+  // pixels give no gradient. Empty: every pixel holds data.
+  std::vector<std::uint8_t> valid;
   bool held_out = false;      // evaluation only
   std::string acquisition_time;  // ISO 8601 (UTC) when known, else empty
 };

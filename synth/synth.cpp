@@ -252,6 +252,39 @@ void WriteTruth(const SynthResult& r, const SynthAoi& aoi, const SynthOptions& o
 
 }  // namespace
 
+namespace {
+
+// Writes a rendered view with the sensor's bands and bit depth: Byte RGB as
+// rendered, else luminance for one band and, above 8 bits, digital numbers
+// from a dark offset to 90% of the range (so that a reader dividing by 255
+// saturates and one that measures the range does not).
+void WriteSensorImage(const std::string& path, const RenderedView& img, const SynthOptions& o,
+                      const RasterWriteOptions& write) {
+  const std::size_t n = static_cast<std::size_t>(img.width_px) * img.height_px;
+  if (o.bit_depth == 8 && o.bands == 3) return WriteByteTiff(path, img.width_px, img.height_px, 3, img.rgb.data(), write);
+  std::vector<float> values(n * o.bands);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint8_t* p = &img.rgb[3 * k];
+    if (o.bands == 1) {
+      values[k] = 0.299f * p[0] + 0.587f * p[1] + 0.114f * p[2];
+    } else {
+      for (int c = 0; c < 3; ++c) values[3 * k + c] = p[c];
+    }
+  }
+  if (o.bit_depth == 8) {
+    std::vector<std::uint8_t> bytes(values.size());
+    for (std::size_t k = 0; k < values.size(); ++k) bytes[k] = static_cast<std::uint8_t>(std::lround(values[k]));
+    return WriteByteTiff(path, img.width_px, img.height_px, o.bands, bytes.data(), write);
+  }
+  const double max_dn = std::ldexp(1.0, o.bit_depth) - 1.0, offset = std::ldexp(1.0, o.bit_depth - 6);
+  const double gain = (0.9 * max_dn - offset) / 255.0;
+  std::vector<std::uint16_t> dn(values.size());
+  for (std::size_t k = 0; k < values.size(); ++k) dn[k] = static_cast<std::uint16_t>(std::lround(offset + gain * values[k]));
+  WriteUInt16Tiff(path, img.width_px, img.height_px, o.bands, dn.data(), write);
+}
+
+}  // namespace
+
 void SynthOptions::Check() const {
   auto need = [](bool ok, const char* field, const std::string& value, const char* rule) {
     if (!ok) throw Error("synth", field, value + " is invalid: " + rule);
@@ -271,6 +304,9 @@ void SynthOptions::Check() const {
   need(blocks_y >= 1 && blocks_y <= 16, "blocks_y", std::to_string(blocks_y), "must be 1..16");
   need(min_off_nadir_deg >= 0 && min_off_nadir_deg <= max_off_nadir_deg && max_off_nadir_deg <= 45,
        "max_off_nadir_deg", FormatDouble(max_off_nadir_deg), "need 0 <= min <= max <= 45 deg");
+  need(bit_depth == 8 || (bit_depth >= 11 && bit_depth <= 16), "bit_depth", std::to_string(bit_depth),
+       "must be 8 or 11..16");
+  need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
        FormatDouble(orbit_height_m), "must be 200..2000 km");
   need(cars_per_block >= 0, "cars_per_block", std::to_string(cars_per_block), "must be >= 0");
@@ -361,7 +397,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
         RasterWriteOptions wo;
         wo.metadata["NITF_IDATIM"] = acq.compact;
         wo.rpc_metadata = RpcToGdalMetadata(fit.rpc);
-        WriteByteTiff(view.path, img.width_px, img.height_px, 3, img.rgb.data(), wo);
+        WriteSensorImage(view.path, img, o, wo);
 
         std::vector<Eigen::Vector2d> footprint;
         for (const auto& c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(img.width_px - 0.5, -0.5),

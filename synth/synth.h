@@ -31,6 +31,11 @@ struct SynthOptions {
   double orbit_height_m = 617000.0;  // WorldView-3
   int cars_per_block = 40;
   int image_margin_px = 16;      // image border beyond the AOI's projection [px]
+  // Sensor radiometry of the written images: 8 bits (Byte) or 11-16 bits
+  // (UInt16 digital numbers over most of the range, as WorldView and
+  // Pleiades deliver them); 3 bands (RGB) or 1 (panchromatic luminance).
+  int bit_depth = 8;
+  int bands = 3;
   void Check() const;            // throws Error("synth", field, ...)
 };
 

@@ -101,6 +101,7 @@ ImageRecord ReadImage(const std::string& stem, const std::string& path, const Ao
   im.height_px = info.height_px;
   im.bands = info.bands;
   im.dtype = info.dtype;
+  im.radiometry = MeasureRadiometry(path, options.radiometry);
 
   const fs::path json_path = fs::path(files.satnerf_dir) / (stem + ".json");
   if (fs::exists(json_path)) *satnerf = ReadSatNerfCamera(json_path.string());
@@ -364,6 +365,11 @@ void IngestOptions::Check() const {
           "nominal_orbit_height_m", nominal_orbit_height_m, "must be > 0");
   require(std::isfinite(view_ray_height_step_m) && view_ray_height_step_m > 0,
           "view_ray_height_step_m", view_ray_height_step_m, "must be > 0");
+  try {
+    radiometry.Check();
+  } catch (const Error& e) {
+    throw Error("ingest", "radiometry." + e.subject(), e.detail());
+  }
 }
 
 int IngestResult::NumIngested() const {

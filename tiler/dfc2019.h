@@ -8,6 +8,7 @@
 
 #include "core/aoi.h"
 #include "core/stage.h"
+#include "tiler/radiometry.h"
 
 namespace skyfall {
 
@@ -22,6 +23,7 @@ struct IngestOptions {
   double nominal_orbit_height_m = 617000.0;
   // [m] vertical separation of the two points that define the viewing ray.
   double view_ray_height_step_m = 100.0;
+  RadiometryOptions radiometry;   // how each image's values map to [0, 1] (recorded per image)
   // Throws Error("ingest", field, ...) naming the bad field.
   void Check() const;
 };

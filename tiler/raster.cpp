@@ -147,6 +147,11 @@ void WriteByteTiff(const std::string& path, int width_px, int height_px, int ban
   WriteTiff(path, width_px, height_px, bands, GDT_Byte, pixels, options);
 }
 
+void WriteUInt16Tiff(const std::string& path, int width_px, int height_px, int bands,
+                     const std::uint16_t* pixels, const RasterWriteOptions& options) {
+  WriteTiff(path, width_px, height_px, bands, GDT_UInt16, pixels, options);
+}
+
 void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels) {
   WriteThroughMem(path, "PNG", width_px, height_px, bands, GDT_Byte, pixels, nullptr, {});
 }

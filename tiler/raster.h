@@ -56,6 +56,8 @@ struct RasterWriteOptions {
 // `pixels` is band-interleaved by pixel: bands values per pixel, row-major.
 void WriteByteTiff(const std::string& path, int width_px, int height_px, int bands,
                    const std::uint8_t* pixels, const RasterWriteOptions& options = {});
+void WriteUInt16Tiff(const std::string& path, int width_px, int height_px, int bands,
+                     const std::uint16_t* pixels, const RasterWriteOptions& options = {});
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,
                     const RasterWriteOptions& options = {});
 // A float32 GeoTIFF in the COG layout (tiled 256, DEFLATE, overviews) with
