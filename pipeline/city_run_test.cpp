@@ -7,11 +7,13 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "merge/dsm.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/merge_tiles.h"
 #include "pipeline/tile_run.h"
 #include "splat/ply.h"
 #include "synth/synth.h"
+#include "tiler/dfc2019.h"
 #include "tests/test_support.h"
 #include "tiler/geo.h"
 
@@ -184,6 +186,69 @@ TEST(CityRun, SixteenBitPanchromaticSceneRunsEndToEnd) {
   // the colours; it may tint the grey by a few 8-bit levels, no more.
   constexpr double kGreyTolerance = 0.01;
   EXPECT_LT(max_channel_gap, kGreyTolerance);
+}
+
+// The user's own data: a plain folder of images with RPCs (any names) and a
+// truth DSM that carries its own grid and CRS (no _DSM.txt, no EPSG given).
+TEST(CityRun, APlainFolderWithAGeoreferencedTruthIsIngestedAndCompared) {
+  const fs::path dir = ScratchDir("own");
+  NullProgress progress;
+  synth::SynthOptions city;
+  city.size_m = 64;
+  city.views = 3;
+  city.seed = 4;
+  const synth::SynthResult made = synth::RunSynth(city, (dir / "synth").string(), progress);
+  const fs::path folder = dir / "my-city";
+  fs::create_directories(folder);
+  const char* names[] = {"pass_a.tif", "pass_b.tif", "pass_c.tif"};
+  for (std::size_t k = 0; k < made.aois[0].views.size(); ++k)
+    fs::copy_file(made.aois[0].views[k].path, folder / names[k]);
+  // The truth as a georeferenced GeoTIFF (UTM 17N), named by the user.
+  const fs::path truth = dir / "synth" / "Track3-Truth" / "SYN_001";
+  WriteDsm((folder / "lidar_DSM_2019.tif").string(),
+           ReadDsm(truth.string() + "_DSM.tif", truth.string() + "_DSM.txt", 32617));
+  fs::copy_file(truth.string() + "_CLS.tif", folder / "lidar_CLS.tif");
+  // A raster that is neither an image (no RPC) nor truth is skipped, named.
+  WriteDsm((folder / "notes.tif").string(), ReadDsm(truth.string() + "_DSM.tif", truth.string() + "_DSM.txt", 32617));
+
+  RunOptions options;
+  options.train.optimizer.iterations = 60;
+  options.train.init_max_scale_m = 0;
+  options.executor.kind = "inline";
+  const RunSummary run = RunAll(options, {folder.string(), (dir / "out").string(), {}}, progress);
+  ASSERT_EQ(run.exit_code, kExitOk);
+  const json catalog = ReadJson(dir / "out" / "catalogs" / "my-city" / "aoi.json");
+  EXPECT_EQ(catalog["images"].size(), 3u);
+  EXPECT_EQ(catalog["truth"]["epsg"], 32617);  // from the file's CRS
+  EXPECT_EQ(catalog["truth"]["dsm_txt_path"], "");
+  EXPECT_NE(catalog["truth"]["cls_path"].get<std::string>().find("lidar_CLS.tif"), std::string::npos);
+  EXPECT_EQ(catalog["footprint_source"], "truth_grid");
+  EXPECT_EQ(catalog["images"][0]["acquisition_time"].get<std::string>().size(), 20u);  // from the NITF date
+  // The DSM is compared with the user's truth on its own grid.
+  const json dsm = ReadJson(dir / "out" / "my-city" / "dsm_compare" / "report.json");
+  EXPECT_LT(dsm["mae_m"].get<double>(), 1.5);
+  EXPECT_GT(dsm["completeness"].get<double>(), 0.8);
+  ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 1u);
+
+  // A folder with no raster that has an RPC says what it needs.
+  fs::create_directories(dir / "empty");
+  const std::string error = testing::ErrorText(
+      [&] { RunAll(options, {(dir / "empty").string(), (dir / "out2").string(), {}}, progress); });
+  EXPECT_NE(error.find("no raster with an RPC"), std::string::npos) << error;
+  // A truth in a CRS other than UTM is refused, naming the file and the CRS.
+  fs::create_directories(dir / "wgs84");
+  for (const char* n : names) fs::copy_file(folder / n, dir / "wgs84" / n);
+  DsmGrid geographic = ReadDsm((folder / "lidar_DSM_2019.tif").string());
+  geographic.epsg = 4326;
+  geographic.upper_left_easting_m = -81.66;
+  geographic.upper_left_northing_m = 30.35;
+  geographic.gsd_m = 5e-6;
+  WriteDsm((dir / "wgs84" / "dsm.tif").string(), geographic);
+  const IngestResult wrong = RunIngest(IngestOptions{}, (dir / "wgs84").string(), (dir / "out3").string(), progress);
+  ASSERT_EQ(wrong.aois.size(), 1u);
+  EXPECT_EQ(wrong.aois[0].report.status, StageStatus::kFailed);
+  EXPECT_NE(wrong.aois[0].report.message.find("dsm.tif"), std::string::npos) << wrong.aois[0].report.message;
+  EXPECT_NE(wrong.aois[0].report.message.find("EPSG:4326"), std::string::npos) << wrong.aois[0].report.message;
 }
 
 TEST(CityRun, BadOptionsStopTheRunBeforeAnyStage) {

@@ -1,6 +1,7 @@
 #include "tiler/dfc2019.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -29,7 +30,67 @@ struct AoiFiles {
   std::map<std::string, std::string> images;  // image stem -> raster path
   std::string truth_dir;
   std::string satnerf_dir;  // may not exist
+  // A plain folder's truth: a georeferenced DSM raster (and classes), any
+  // GDAL format; empty for DFC2019 trees (their truth is in truth_dir).
+  std::string truth_dsm_path, truth_cls_path;
+  std::vector<Skipped> skipped;  // files of the folder that are neither images nor truth
 };
+
+bool HasRasterExtension(const fs::path& p) {
+  std::string ext = p.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* e : {".tif", ".tiff", ".ntf", ".nitf", ".jp2", ".img", ".vrt"})
+    if (ext == e) return true;
+  const std::string name = p.filename().string();  // DIMAP products open through DIM_*.XML
+  return name.rfind("DIM_", 0) == 0 && (ext == ".xml" || ext == ".XML");
+}
+
+std::string LowerName(const fs::path& p) {
+  std::string s = p.filename().string();
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// A plain folder of images with RPCs (GeoTIFF tags, .RPB, _RPC.TXT, DIMAP
+// RPC XML: whatever GDAL reads into its RPC domain) is one AOI named after the
+// folder. A raster without an RPC whose name contains "dsm" is the truth DSM,
+// one containing "cls" its classes.
+std::map<std::string, AoiFiles> ScanPlainFolder(const fs::path& root) {
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(root))
+    if (entry.is_regular_file() && HasRasterExtension(entry.path())) files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  std::string aoi;
+  for (char c : root.filename().string()) aoi += std::isalnum(static_cast<unsigned char>(c)) || c == '-' ? c : '_';
+  if (aoi.empty()) aoi = "AOI";
+  AoiFiles found;
+  for (const fs::path& file : files) {
+    RasterInfo info;
+    try {
+      info = ReadRasterInfo(file.string());
+    } catch (const Error& e) {
+      found.skipped.push_back({file.string(), e.what()});
+      continue;
+    }
+    const std::string name = LowerName(file);
+    if (!info.rpc_metadata.empty()) {
+      found.images.emplace(file.stem().string(), file.string());
+    } else if (name.find("dsm") != std::string::npos && found.truth_dsm_path.empty()) {
+      found.truth_dsm_path = file.string();
+    } else if (name.find("cls") != std::string::npos && found.truth_cls_path.empty()) {
+      found.truth_cls_path = file.string();
+    } else {
+      found.skipped.push_back({file.string(), "ingest: " + file.string() +
+                                                  ": no RPC (not an image) and no 'dsm' or 'cls' in its name (not truth)"});
+    }
+  }
+  if (found.images.empty()) {
+    throw Error("ingest", root.string(),
+                "holds no Track3-RGB or Track3-RGB-crops folder, and no raster with an RPC (a plain folder of "
+                "images needs RPC tags, .RPB, _RPC.TXT or DIMAP RPC files)");
+  }
+  return {{aoi, found}};
+}
 
 // DFC2019 image names: <AOI>_<NNN>_RGB.tif, e.g. JAX_068_001_RGB.tif.
 const std::regex kImageName(R"(^(.+)_(\d+)_RGB\.tiff?$)", std::regex::icase);
@@ -51,9 +112,7 @@ std::vector<fs::path> ImageFolders(const fs::path& root) {
 std::map<std::string, AoiFiles> ScanRoot(const fs::path& root) {
   if (!fs::is_directory(root)) throw Error("ingest", root.string(), "is not a folder");
   const auto folders = ImageFolders(root);
-  if (folders.empty()) {
-    throw Error("ingest", root.string(), "holds no Track3-RGB or Track3-RGB-crops folder");
-  }
+  if (folders.empty()) return ScanPlainFolder(root);
   std::map<std::string, AoiFiles> aois;
   for (const auto& folder : folders) {
     std::vector<fs::path> files;
@@ -122,13 +181,31 @@ ImageRecord ReadImage(const std::string& stem, const std::string& path, const Ao
                 "or Sat-NeRF JSON)");
   }
   const auto idatim = info.metadata.find("NITF_IDATIM");
-  if (idatim != info.metadata.end()) im.acquisition_time = IsoTimeFromCompact(idatim->second);
+  const auto imagery = info.imagery_metadata.find("ACQUISITIONDATETIME");
+  if (idatim != info.metadata.end()) {
+    im.acquisition_time = IsoTimeFromCompact(idatim->second);
+  } else if (imagery != info.imagery_metadata.end() && imagery->second.size() >= 19) {
+    im.acquisition_time = imagery->second.substr(0, 10) + "T" + imagery->second.substr(11, 8) + "Z";
+  }
   if (*satnerf) {
     if (im.acquisition_time.empty()) im.acquisition_time = (*satnerf)->acquisition_time;
     im.sun_elevation_deg = (*satnerf)->sun_elevation_deg;
     im.sun_azimuth_deg = (*satnerf)->sun_azimuth_deg;
   }
   return im;
+}
+
+// Finite height range of a DSM band (nodata and NaN left out).
+void SetHeightRange(const FloatBand& dsm, const std::string& path, TruthGrid* t) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (float v : dsm.values) {
+    if (!std::isfinite(v) || (dsm.has_nodata && v == dsm.nodata)) continue;
+    lo = std::min<double>(lo, v);
+    hi = std::max<double>(hi, v);
+  }
+  if (!(lo <= hi)) throw Error("ingest", path, "holds no finite height");
+  t->min_height_m = lo;
+  t->max_height_m = hi;
 }
 
 TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files) {
@@ -161,15 +238,36 @@ TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files) {
   t.lower_left_northing_m = grid.northing_m;
   t.width_px = t.height_px = grid.size_px;
   t.gsd_m = grid.gsd_m;
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (float v : dsm.values) {
-    if (!std::isfinite(v) || (dsm.has_nodata && v == dsm.nodata)) continue;
-    lo = std::min<double>(lo, v);
-    hi = std::max<double>(hi, v);
+  SetHeightRange(dsm, t.dsm_path, &t);
+  return t;
+}
+
+// A truth DSM that carries its own grid and CRS (any GDAL raster): north-up,
+// square pixels, in a WGS84 UTM zone (the frame DSMs are exported in).
+TruthGrid ReadGeoreferencedTruth(const AoiFiles& files) {
+  TruthGrid t;
+  t.dsm_path = files.truth_dsm_path;
+  const GeoGrid grid = ReadGeoGrid(t.dsm_path);
+  if (!(grid.epsg >= 32601 && grid.epsg <= 32660) && !(grid.epsg >= 32701 && grid.epsg <= 32760)) {
+    throw Error("ingest", t.dsm_path,
+                "CRS is " + (grid.epsg ? "EPSG:" + std::to_string(grid.epsg) : std::string("unknown")) +
+                    ", not a WGS84 UTM zone; reproject it, e.g. gdalwarp -t_srs EPSG:326NN");
   }
-  if (!(lo <= hi)) throw Error("ingest", t.dsm_path, "holds no finite height");
-  t.min_height_m = lo;
-  t.max_height_m = hi;
+  t.epsg = grid.epsg;
+  t.width_px = grid.width_px;
+  t.height_px = grid.height_px;
+  t.gsd_m = grid.pixel_size;
+  t.lower_left_easting_m = grid.upper_left_x;
+  t.lower_left_northing_m = grid.upper_left_y - grid.height_px * grid.pixel_size;
+  if (!files.truth_cls_path.empty()) {
+    const RasterInfo cls = ReadRasterInfo(files.truth_cls_path);
+    if (cls.width_px != t.width_px || cls.height_px != t.height_px)
+      throw Error("ingest", files.truth_cls_path, "is " + std::to_string(cls.width_px) + "x" +
+                                                      std::to_string(cls.height_px) + " px, the DSM is " +
+                                                      std::to_string(t.width_px) + "x" + std::to_string(t.height_px));
+    t.cls_path = files.truth_cls_path;
+  }
+  SetHeightRange(ReadFloatBand(t.dsm_path), t.dsm_path, &t);
   return t;
 }
 
@@ -266,6 +364,10 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   c.aoi = aoi;
   c.source_root = root;
 
+  for (const Skipped& s : files.skipped) {
+    result.skipped_images.push_back(s);
+    progress.Warn("skipping file: " + s.reason);
+  }
   progress.Begin("ingest " + aoi, files.images.size());
   std::vector<std::optional<SatNerfCamera>> satnerf;
   std::size_t done = 0;
@@ -285,7 +387,11 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
 
   const bool has_truth = fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.tif")) ||
                          fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.txt"));
-  if (has_truth) c.truth = ReadTruth(aoi, files);
+  if (!files.truth_dsm_path.empty()) {
+    c.truth = ReadGeoreferencedTruth(files);
+  } else if (has_truth) {
+    c.truth = ReadTruth(aoi, files);
+  }
 
   const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
   c.min_height_m = range.min_m;
@@ -298,9 +404,11 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
   UtmZone zone = StandardUtmZone(centre.x(), centre.y());
   if (c.truth) {
-    // DFC2019 truth is in the standard UTM zone of the AOI.
-    const TruthGrid& t = *c.truth;
+    // A georeferenced truth names its zone; DFC2019 truth is in the standard
+    // UTM zone of the AOI.
+    if (c.truth->epsg) zone = UtmZoneFromEpsg(c.truth->epsg);
     c.truth->epsg = zone.Epsg();
+    const TruthGrid& t = *c.truth;
     const double e0 = t.lower_left_easting_m, n0 = t.lower_left_northing_m;
     const double e1 = e0 + t.width_px * t.gsd_m, n1 = n0 + t.height_px * t.gsd_m;
     c.footprint_lonlat = {GeodeticFromUtm(zone, e0, n0), GeodeticFromUtm(zone, e1, n0),

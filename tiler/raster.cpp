@@ -2,6 +2,8 @@
 
 #include <ogr_srs_api.h>
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <limits>
@@ -25,7 +27,32 @@ RasterInfo ReadRasterInfo(const std::string& path) {
   info.dtype = GDALGetDataTypeName(GDALGetRasterDataType(GDALGetRasterBand(ds.handle, 1)));
   info.metadata = gdal::MetadataMap(ds.handle, "");
   info.rpc_metadata = gdal::MetadataMap(ds.handle, "RPC");
+  info.imagery_metadata = gdal::MetadataMap(ds.handle, "IMAGERY");
   return info;
+}
+
+GeoGrid ReadGeoGrid(const std::string& path) {
+  gdal::Dataset ds(gdal::OpenOrThrow(path));
+  double gt[6];
+  if (GDALGetGeoTransform(ds.handle, gt) != CE_None) throw Error("raster", path, "has no georeferencing (geotransform)");
+  if (gt[2] != 0 || gt[4] != 0 || !(gt[1] > 0) || std::abs(gt[5] + gt[1]) > 1e-9 * gt[1]) {
+    throw Error("raster", path, "is not a north-up grid with square pixels (geotransform " + std::to_string(gt[1]) +
+                                    ", " + std::to_string(gt[2]) + ", " + std::to_string(gt[4]) + ", " +
+                                    std::to_string(gt[5]) + ")");
+  }
+  GeoGrid g;
+  g.upper_left_x = gt[0];
+  g.upper_left_y = gt[3];
+  g.pixel_size = gt[1];
+  g.width_px = GDALGetRasterXSize(ds.handle);
+  g.height_px = GDALGetRasterYSize(ds.handle);
+  OGRSpatialReferenceH srs = GDALGetSpatialRef(ds.handle);
+  if (srs) {
+    OSRAutoIdentifyEPSG(srs);
+    const char* code = OSRGetAuthorityCode(srs, nullptr);
+    if (code) g.epsg = std::atoi(code);
+  }
+  return g;
 }
 
 void VerifyRasterPixels(const std::string& path) {

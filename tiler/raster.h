@@ -17,11 +17,25 @@ struct RasterInfo {
   std::string dtype;       // GDAL data type name of band 1 ("Byte", "Float32")
   std::map<std::string, std::string> metadata;      // default domain
   std::map<std::string, std::string> rpc_metadata;  // "RPC" domain; empty when none
+  // "IMAGERY" domain: what GDAL's metadata readers found in the vendor's
+  // files (e.g. ACQUISITIONDATETIME of DigitalGlobe, Pleiades, SPOT).
+  std::map<std::string, std::string> imagery_metadata;
 };
 
 // Opens the raster and reads its description. Throws Error("raster", path, ...)
 // with GDAL's own message when the file is missing or not a readable raster.
 RasterInfo ReadRasterInfo(const std::string& path);
+
+// The georeferencing of a north-up raster with square pixels: the
+// upper-left corner and pixel size in CRS units, and the CRS's EPSG code (0
+// when it has none). Throws Error naming the file when it has no
+// geotransform or is rotated or sheared.
+struct GeoGrid {
+  double upper_left_x = 0, upper_left_y = 0, pixel_size = 0;
+  int width_px = 0, height_px = 0;
+  int epsg = 0;
+};
+GeoGrid ReadGeoGrid(const std::string& path);
 
 // Reads every pixel of every band once, so that truncated or corrupt files are
 // caught at ingestion rather than halfway through a tile run. Throws Error
