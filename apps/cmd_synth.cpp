@@ -35,6 +35,11 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)")->capture_default_str();
   cmd->add_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)")->capture_default_str();
+  cmd->add_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]")->capture_default_str();
+  cmd->add_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)")
+      ->capture_default_str();
+  cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
+      ->capture_default_str();
   cmd->callback([runner, opts, out] {
     *runner = [opts, out] {
       ConsoleProgress progress;

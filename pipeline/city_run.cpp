@@ -9,6 +9,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <sstream>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -73,11 +74,61 @@ json TileEntry(const TileOutcome& o) {
   return entry;
 }
 
+// The dense heights of every finished tile as opaque Gaussians (one per cell:
+// half a cell wide, flat), so they go through the same DSM export as the
+// trained scene and the two can be compared side by side. `measured_only`
+// leaves out the cells filled in rather than matched. Tiles share the city
+// frame; in their overlaps both copies are kept (the export takes the surface).
+GaussianCloud DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs, bool measured_only,
+                                    std::size_t* filled_cells, std::size_t* all_cells) {
+  GaussianCloud cloud;
+  *filled_cells = *all_cells = 0;
+  for (const std::string& dir : tile_dirs) {
+    const fs::path ply = fs::path(dir) / "sfm" / "dense.ply";
+    if (!fs::exists(ply)) continue;
+    std::istringstream in(ReadTextFile(ply.string()));
+    std::string line;
+    double cell_m = 0.5;
+    while (std::getline(in, line) && line != "end_header") {
+      const std::size_t at = line.find("one point per ");
+      if (at != std::string::npos) cell_m = std::stod(line.substr(at + 14));
+    }
+    double x, y, z, cost;
+    int r, g, b, filled;
+    while (in >> x >> y >> z >> r >> g >> b >> cost >> filled) {
+      ++*all_cells;
+      *filled_cells += filled != 0;
+      if (measured_only && filled) continue;
+      cloud.means.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+      const float half_cell = static_cast<float>(std::log(0.5 * cell_m));
+      cloud.log_scales.emplace_back(half_cell, half_cell, std::log(0.05f));
+      cloud.rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
+      cloud.opacity_logits.push_back(4.6f);  // opacity 0.99: opaque
+      std::array<float, 3 * kShCoeffsPerChannel> sh{};
+      const int rgb[3] = {r, g, b};
+      for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(rgb[c] / 255.0));
+      cloud.sh.push_back(sh);
+    }
+  }
+  return cloud;
+}
+
+json ComparisonJson(const DsmComparison& c) {
+  return {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
+          {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
+}
+
 // Exports and compares the DSM of every AOI with truth; returns their entries.
+// Beside the trained scene's figures: those of the dense heights alone, and of
+// their matched cells alone (the filled ones left out).
 json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois, const MergeSummary& merged,
-                 const std::string& out_dir, json* stages, CityOutcome* outcome, Progress& progress) {
+                 const std::vector<std::string>& tile_dirs, const std::string& out_dir, json* stages,
+                 CityOutcome* outcome, Progress& progress) {
   json dsm = json::array();
   const GaussianCloud scene = ReadGaussiansPly(merged.scene_path);
+  std::size_t filled = 0, cells = 0;
+  const GaussianCloud dense = DenseCellsAsGaussians(tile_dirs, false, &filled, &cells);
+  const GaussianCloud measured = DenseCellsAsGaussians(tile_dirs, true, &filled, &cells);
   for (const AoiCatalog& a : aois) {
     if (!a.truth) continue;
     Stopwatch clock;
@@ -92,9 +143,25 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
                        (aoi_dir / "dsm_compare").string());
     progress.Info(fmt::format("[{}] DSM vs truth: MAE {:.2f} m, RMSE {:.2f} m, completeness {:.1f}%", a.aoi, c.mae_m,
                               c.rmse_m, 100 * c.completeness));
-    dsm.push_back({{"aoi", a.aoi}, {"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m},
-                   {"nmad_m", c.nmad_m}, {"completeness", c.completeness}, {"within_1m", c.within_fraction},
-                   {"dsm", (aoi_dir / "dsm.tif").string()}, {"report", (aoi_dir / "dsm_compare/report.json").string()}});
+    json entry = ComparisonJson(c);
+    entry["aoi"] = a.aoi;
+    entry["dsm"] = (aoi_dir / "dsm.tif").string();
+    entry["report"] = (aoi_dir / "dsm_compare/report.json").string();
+    if (dense.size() > 0) {
+      DsmGrid unused;
+      const DsmComparison d = CompareSceneWithTruth(dense, merged.enu_origin, *a.truth, truth, options.dsm.compare,
+                                                    &unused, options.dsm.export_options);
+      const DsmComparison m = CompareSceneWithTruth(measured, merged.enu_origin, *a.truth, truth,
+                                                    options.dsm.compare, &unused, options.dsm.export_options);
+      entry["dense"] = ComparisonJson(d);
+      entry["dense"]["filled_cell_fraction"] = cells ? static_cast<double>(filled) / cells : 0.0;
+      entry["dense_measured_only"] = ComparisonJson(m);
+      progress.Info(fmt::format("[{}] dense heights alone: MAE {:.2f} m, completeness {:.1f}% ({:.1f}% of cells "
+                                "filled; matched cells alone: MAE {:.2f} m, completeness {:.1f}%)",
+                                a.aoi, d.mae_m, 100 * d.completeness, cells ? 100.0 * filled / cells : 0.0, m.mae_m,
+                                100 * m.completeness));
+    }
+    dsm.push_back(entry);
     outcome->dsm_mae_m.push_back(c.mae_m);
     stages->push_back(StageEntry("dsm " + a.aoi, "ok", clock.Seconds()));
   }
@@ -178,7 +245,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
     return outcome;
   }
   outcome.scene = true;
-  report["dsm"] = CompareAois(options, aois, merged, out_dir, &stages, &outcome, progress);
+  report["dsm"] = CompareAois(options, aois, merged, tiles.tile_dirs, out_dir, &stages, &outcome, progress);
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
   report["decisions"] = {{"lod_levels", {{"levels", merged.lod_levels},

@@ -90,6 +90,14 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));
   EXPECT_EQ(ReadJson(city_dir / "run_config.json"), report["options"]);
   ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 2u);
+  // Dense heights alone and trained scene, side by side, per AOI.
+  for (const auto& d : report["dsm"]) {
+    EXPECT_TRUE(std::isfinite(d["dense"]["mae_m"].get<double>())) << d.dump();
+    EXPECT_GE(d["dense"]["filled_cell_fraction"].get<double>(), 0.0);
+    EXPECT_LT(d["dense"]["filled_cell_fraction"].get<double>(), 1.0);
+    // The matched cells alone cover no more than all cells do.
+    EXPECT_LE(d["dense_measured_only"]["completeness"].get<double>(), d["dense"]["completeness"].get<double>() + 1e-9);
+  }
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
     EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm.tif")) << aoi;
     EXPECT_GT(ReadJson(dir / "out" / aoi / "dsm_compare" / "report.json")["completeness"].get<double>(), 0.5) << aoi;

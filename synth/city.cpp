@@ -155,6 +155,7 @@ void CityOptions::Check() const {
   need(cell_m > 0.01 && cell_m <= 5, "cell_m", cell_m, "must be 0.01..5 m");
   need(std::isfinite(base_height_m) && std::abs(base_height_m) < 9000, "base_height_m",
        base_height_m, "must be a plausible height");
+  need(relief_m >= 0 && relief_m <= 1000, "relief_m", relief_m, "must be 0..1000 m");
   need(max_building_m >= 6 && max_building_m <= 600, "max_building_m", max_building_m,
        "must be 6..600 m");
   need(block_m >= 24 && block_m <= 1000, "block_m", block_m, "must be 24..1000 m");
@@ -179,7 +180,9 @@ float City::HeightAt(double x_m, double y_m) const {
 double City::TerrainAt(double x_m, double y_m) const {
   const CityOptions& o = options;
   const double phase = static_cast<double>(o.seed % 1000) * 0.01;
-  return o.base_height_m + 0.004 * x_m - 0.003 * y_m +
+  constexpr double kHillPeriodM = 1000.0;
+  const double hills = 0.5 * o.relief_m * (1.0 + std::sin(2 * M_PI * (0.8 * x_m + 0.6 * y_m) / kHillPeriodM + phase));
+  return o.base_height_m + hills + 0.004 * x_m - 0.003 * y_m +
          1.5 * std::sin(2 * M_PI * x_m / 310.0 + phase) * std::cos(2 * M_PI * y_m / 270.0 + phase) +
          0.8 * ValueNoise(x_m, y_m, 45.0, o.seed ^ 0x7E44A1ull);
 }

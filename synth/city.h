@@ -55,6 +55,11 @@ struct CityOptions {
   double block_m = 72.0;           // street spacing [m]
   double street_width_m = 12.0;
   bool water = true;               // a river with bridges across it
+  // [m] relief of hills under the city: a long wave of this peak-to-peak
+  // height (period 1 km, so slopes reach relief * pi / 1000, e.g. 31% at
+  // 100 m), on top of the gentle default terrain. A river needs flat ground,
+  // so relief above 10 m leaves it out.
+  double relief_m = 0.0;
   std::uint64_t seed = 1;
   void Check() const;              // throws Error("synth", field, ...)
 };

@@ -306,6 +306,9 @@ void SynthOptions::Check() const {
        "max_off_nadir_deg", FormatDouble(max_off_nadir_deg), "need 0 <= min <= max <= 45 deg");
   need(bit_depth == 8 || (bit_depth >= 11 && bit_depth <= 16), "bit_depth", std::to_string(bit_depth),
        "must be 8 or 11..16");
+  need(max_building_m >= 6 && max_building_m <= 600, "max_building_m", FormatDouble(max_building_m), "must be 6..600 m");
+  need(relief_m >= 0 && relief_m <= 1000, "relief_m", FormatDouble(relief_m), "must be 0..1000 m");
+  need(date_contrast >= 0 && date_contrast <= 4, "date_contrast", FormatDouble(date_contrast), "must be 0..4");
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
        FormatDouble(orbit_height_m), "must be 200..2000 km");
@@ -324,9 +327,13 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
   co.cell_m = 0.5 * o.gsd_m;  // two cells per DSM pixel: DSM pixel centres are cell centres
   // Terrain beyond the AOIs: the corners of rotated, oblique crops look up to
   // about half an AOI side further out, plus the lean of the tallest buildings.
-  const double margin_m = 0.45 * o.size_m + 64.0;
+  const double lean_m = o.max_building_m * std::tan(o.max_off_nadir_deg * M_PI / 180.0);
+  const double margin_m = 0.45 * o.size_m + std::max(64.0, lean_m);
   co.margin_m = std::ceil(margin_m / o.gsd_m) * o.gsd_m;
   co.seed = o.seed;
+  co.max_building_m = o.max_building_m;
+  co.relief_m = o.relief_m;
+  co.water = o.relief_m <= 10.0;
   r.city = GenerateCity(co);
 
   Georef g;
@@ -382,10 +389,11 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                            UnitFromAngles((90.0 - view.sun_elevation_deg) * kDegToRad,
                                           view.sun_azimuth_deg * kDegToRad))
                               .normalized();
-        light.gain = static_cast<float>(0.88 + 0.24 * Frac(0.17 + date * 0.4142 + o.seed * 0.1));
+        const double s = o.date_contrast;
+        light.gain = static_cast<float>(1.0 + s * 0.24 * (Frac(0.17 + date * 0.4142 + o.seed * 0.1) - 0.5));
         light.ambient = static_cast<float>(0.28 + 0.12 * Frac(0.61 + date * 0.7071));
-        light.tint = Eigen::Vector3f(1.0f + 0.05f * static_cast<float>(Frac(date * 0.31) - 0.5), 1.0f,
-                                     1.0f + 0.08f * static_cast<float>(Frac(date * 0.53) - 0.5));
+        light.tint = Eigen::Vector3f(1.0f + static_cast<float>(s * 0.05 * (Frac(date * 0.31) - 0.5)), 1.0f,
+                                     1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
         light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
 
         const RpcFitResult fit = FitViewRpc(view.camera, g, r.city);

@@ -36,6 +36,11 @@ struct SynthOptions {
   // Pleiades deliver them); 3 bands (RGB) or 1 (panchromatic luminance).
   int bit_depth = 8;
   int bands = 3;
+  double max_building_m = 80.0;  // tallest building above ground [m]
+  double relief_m = 0.0;         // hills under the city (see CityOptions::relief_m) [m]
+  // Strength of the radiometric change between dates (sun gain and colour
+  // tint); 1 is the default variety, 3 a strong one (gain 0.64-1.36).
+  double date_contrast = 1.0;
   void Check() const;            // throws Error("synth", field, ...)
 };
 
