@@ -132,4 +132,59 @@ void WriteRunReport(const std::vector<RunPoint>& pts, const std::string& out_dir
   WriteBytePng((dir / "error_vs_time.png").string(), rgb.cols, rgb.rows, 3, rgb.ptr<std::uint8_t>());
 }
 
+void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path) {
+  constexpr int kW = 900, kH = 520;
+  const cv::Rect box(70, 40, kW - 110, kH - 100);
+  cv::Mat img(kH, kW, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::rectangle(img, box, cv::Scalar(0, 0, 0));
+  double x_max = 1, y_max = 0.5;
+  for (const ScenePoint& s : scenes) {
+    if (std::isfinite(s.seconds)) x_max = std::max(x_max, s.seconds);
+    if (std::isfinite(s.mae_m)) y_max = std::max(y_max, s.mae_m);
+    if (std::isfinite(s.dense_mae_m)) y_max = std::max(y_max, s.dense_mae_m);
+  }
+  x_max *= 1.1;
+  y_max = std::ceil(y_max * 1.15 * 2) / 2;
+  auto at = [&](double seconds, double mae) {
+    return cv::Point(box.x + static_cast<int>(seconds / x_max * box.width),
+                     box.y + box.height - static_cast<int>(mae / y_max * box.height));
+  };
+  const cv::Scalar black(0, 0, 0), held_out(200, 90, 30), tuned(150, 150, 150), target(60, 160, 60);
+  auto text = [&](const std::string& s, cv::Point p, const cv::Scalar& c) {
+    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, 0.42, c, 1, cv::LINE_AA);
+  };
+  // The accuracy target lines (1.5 m required, 1.0 m goal) for reference.
+  for (double line : {1.0, 1.5}) {
+    if (line > y_max) continue;
+    const int y = at(0, line).y;
+    cv::line(img, {box.x, y}, {box.x + box.width, y}, target, 1, cv::LINE_AA);
+    text(line == 1.0 ? "1.0 m" : "1.5 m", {box.x + box.width - 45, y - 4}, target);
+  }
+  for (const ScenePoint& s : scenes) {
+    const cv::Scalar colour = s.tuned_on ? tuned : held_out;
+    if (std::isfinite(s.dense_mae_m) && std::isfinite(s.seconds)) {
+      cv::circle(img, at(s.seconds, s.dense_mae_m), 6, colour, 1, cv::LINE_AA);
+      if (std::isfinite(s.mae_m)) cv::line(img, at(s.seconds, s.dense_mae_m), at(s.seconds, s.mae_m), colour, 1);
+    }
+    if (std::isfinite(s.mae_m) && std::isfinite(s.seconds)) {
+      const cv::Point p = at(s.seconds, s.mae_m);
+      cv::circle(img, p, 6, colour, cv::FILLED, cv::LINE_AA);
+      text(s.scene, {p.x + 9, p.y + 4}, colour);
+    }
+  }
+  for (int k = 0; k <= 4; ++k) {
+    char a[32], t[32];
+    std::snprintf(a, sizeof(a), "%.1f", y_max * k / 4);
+    std::snprintf(t, sizeof(t), "%.0f", x_max * k / 4);
+    text(a, {box.x - 40, box.y + box.height - k * box.height / 4 + 4}, black);
+    text(t, {box.x + k * box.width / 4 - 10, box.y + box.height + 18}, black);
+  }
+  text("whole run [s]", {box.x + box.width / 2 - 40, kH - 35}, black);
+  text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on", {box.x, kH - 12}, black);
+  text("DSM MAE [m]", {4, 25}, black);
+  cv::Mat rgb;
+  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+  WriteBytePng(png_path, rgb.cols, rgb.rows, 3, rgb.ptr<std::uint8_t>());
+}
+
 }  // namespace skyfall

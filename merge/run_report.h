@@ -30,4 +30,17 @@ std::vector<RunPoint> EvaluateRun(const std::string& run_dir, const AoiCatalog& 
 // elapsed seconds) into `out_dir`.
 void WriteRunReport(const std::vector<RunPoint>& points, const std::string& out_dir);
 
+// One scene of a multi-scene benchmark: its DSM error and the run's time.
+struct ScenePoint {
+  std::string scene;
+  double seconds = 0;     // whole run
+  double mae_m = 0;       // trained scene's DSM
+  double dense_mae_m = 0; // dense heights alone (NaN when unknown)
+  bool tuned_on = false;  // a setting was chosen on this scene
+};
+
+// A scatter of DSM MAE against run time, one labelled point per scene
+// (trained: filled; dense alone: open; tuned-on scenes in grey), as a PNG.
+void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path);
+
 }  // namespace skyfall

@@ -103,6 +103,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_holes", o.fill_holes);
   io("fill_radius_m", o.fill_radius_m);
   io("max_fill_reach_m", o.max_fill_reach_m);
+  io("fill_ground_radius_m", o.fill_ground_radius_m);
   io("visibility_pass", o.visibility_pass);
   io("visibility_tolerance_m", o.visibility_tolerance_m);
   io("visibility_prior_pairs", o.visibility_prior_pairs);
@@ -173,6 +174,12 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("lambda_depth", t.lambda_depth);
   io("pseudo_interval", t.pseudo_interval);
   io("pseudo_cameras", t.pseudo);
+  io("lambda_surface_depth", t.lambda_surface_depth);
+  io("lambda_surface_alpha", t.lambda_surface_alpha);
+  io("surface_huber_m", t.surface_huber_m);
+  io("surface_nadir_interval", t.surface_nadir_interval);
+  io("surface_nadir_size_px", t.surface_nadir_size_px);
+  io("surface_nadir_gsd_m", t.surface_nadir_gsd_m);
   io("appearance_model", t.appearance);
   io("appearance_image", t.appearance_image);
   io("raster", t.raster);

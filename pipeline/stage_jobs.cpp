@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/tile_catalog.h"
@@ -52,6 +53,17 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
                       {"fused_image", r.appearance_image.empty() ? nlohmann::json() : nlohmann::json(r.appearance_image)}}},
       {"series", series}};
   return doc.dump(2) + "\n";
+}
+
+// The cell size a dense.ply states in its header comment ("one point per X m cell").
+double DenseCellM(const std::string& path) {
+  std::istringstream in(ReadTextFile(path));
+  std::string line;
+  while (std::getline(in, line) && line != "end_header") {
+    const std::size_t at = line.find("one point per ");
+    if (at != std::string::npos) return std::stod(line.substr(at + 14));
+  }
+  throw Error("splat", path, "states no cell size (expected the dense.ply written by `skyfall dense`)");
 }
 
 // Decides whether the appearance model runs, and says why.
@@ -202,11 +214,15 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                                                   "` first, or train with --init-points sparse");
   decided.dense_start = stage.init_points == "dense" || (stage.init_points == "auto" && fs::exists(dense_path));
   const std::size_t tie_points = points.size();
+  std::unique_ptr<SurfaceDepthPrior> surface;  // the dense heights, to anchor training to
   if (decided.dense_start) {
     std::vector<Eigen::Vector3f> dense_points, dense_colours;
     ReadSfmPoints(dense_path.string(), &dense_points, &dense_colours);
+    if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
+      surface = std::make_unique<SurfaceDepthPrior>(dense_points, DenseCellM(dense_path.string()));
     ThinToGrid(stage.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
   }
+  decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == "on" || (stage.densify == "auto" && !decided.dense_start);
   if (!decided.densify) options.densify_from = options.iterations + 1;  // never reached
   const std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
@@ -238,12 +254,17 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"init_pieces", stage.init_pieces},
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
                            {"init_spacing_m", stage.init_spacing_m},
-                           {"densify", decided.densify}},
+                           {"densify", decided.densify},
+                           {"surface_anchor", decided.surface_anchor ? nlohmann::json({options.lambda_surface_depth,
+                                                                                      options.lambda_surface_alpha,
+                                                                                      options.surface_huber_m,
+                                                                                      options.surface_nadir_interval})
+                                                                     : nlohmann::json(nullptr)}},
                           progress);
   const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
   result.train = TrainGaussians(options,
                                 InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces),
-                                views, checkpoints.string(), progress, depth_prior.get());
+                                views, checkpoints.string(), progress, depth_prior.get(), surface.get());
   WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);
   WriteFileAtomic((fs::path(out_dir) / "train_report.json").string(),
                   TrainReportJson(result.train, options, stage.downscale, views.size(), decided.appearance_reason));

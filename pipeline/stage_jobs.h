@@ -37,6 +37,7 @@ struct TrainDecisions {
   bool densify = false;
   bool appearance = false;
   std::string appearance_reason;
+  bool surface_anchor = false;  // training anchored to the dense heights (needs a dense start)
 };
 
 struct TrainJobResult {

@@ -151,6 +151,11 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
                           {"why", "train.densify '" + options.train.densify + "', " +
                                       (trained.decisions.dense_start ? "dense" : "tie-point") + " start"}};
   decisions["appearance"] = {{"on", trained.decisions.appearance}, {"why", trained.decisions.appearance_reason}};
+  decisions["surface_anchor"] = {
+      {"on", trained.decisions.surface_anchor},
+      {"why", trained.decisions.surface_anchor ? "dense start: training holds to the dense heights"
+                                               : trained.decisions.dense_start ? "train.lambda_surface_* are 0"
+                                                                               : "no dense heights to hold to"}};
   StageReport splat = trained.train.report;
   splat.stage = "splat";
   splat.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());

@@ -25,6 +25,7 @@ void DenseOptions::Check() const {
   positive(max_median_deviation_m, "max_median_deviation_m");
   if (!(fill_radius_m > 0)) throw Error("dense", "fill_radius_m", "must be > 0");
   if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
+  if (!(fill_ground_radius_m >= 0)) throw Error("dense", "fill_ground_radius_m", "must be >= 0 (0 = flat ground)");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
@@ -426,13 +427,28 @@ std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& s
   return out;
 }
 
+std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells) {
+  if (h.size() != static_cast<std::size_t>(nx) * ny)
+    throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
+  if (radius_cells < 1) throw Error("dense", "ground radius", std::to_string(radius_cells) + " cells must be >= 1");
+  std::vector<float> eroded = MinFilter(h, nx, ny, radius_cells);
+  for (float& x : eroded) x = -x;  // the maximum filter as a minimum of negatives
+  std::vector<float> opened = MinFilter(eroded, nx, ny, radius_cells);
+  for (float& x : opened) x = -x;
+  return opened;
+}
+
 std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells,
-                                             int max_radius_cells) {
+                                             int max_radius_cells, int ground_radius_cells) {
   if (h.size() != static_cast<std::size_t>(nx) * ny)
     throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
   if (radius_cells < 1) throw Error("dense", "fill radius", std::to_string(radius_cells) + " cells must be >= 1");
   std::vector<std::uint8_t> filled(h.size(), 0);
-  const std::vector<float> measured = h;
+  // Heights above the ground (or above 0: flat ground), and the ground itself.
+  std::vector<float> ground(h.size(), 0.0f);
+  if (ground_radius_cells > 0) ground = GroundSurface(h, nx, ny, ground_radius_cells);
+  std::vector<float> measured(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) measured[k] = h[k] - ground[k];
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = std::min(radius_cells, max_radius_cells);; r = std::min(2 * r, max_radius_cells)) {
@@ -440,8 +456,8 @@ std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int 
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;
-      if (std::isfinite(low[k])) {
-        h[k] = low[k];
+      if (std::isfinite(low[k]) && std::isfinite(ground[k])) {
+        h[k] = ground[k] + low[k];
         filled[k] = 1;
       } else {
         open = true;
@@ -554,6 +570,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   }
 
   auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
+  const int ground_cells = o.fill_ground_radius_m > 0 ? cells_of(o.fill_ground_radius_m) : 0;
   const Sweep sweep{o, g, z_lo, nh, result.pairs_used, slot, grey, projection};
   std::vector<float> cost = CostVolume(sweep, nullptr, "dense: sweeping heights", progress);
   CellHeights first = PickHeights(sweep, cost, progress);
@@ -563,7 +580,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     // point is hidden from; the second sweep scores each height only with
     // the pairs that see it there.
     std::vector<float> surface = first.height_m;
-    FillHolesFromBelow(surface, g.nx, g.ny, cells_of(o.fill_radius_m), cells_of(o.max_fill_reach_m));
+    FillHolesFromBelow(surface, g.nx, g.ny, cells_of(o.fill_radius_m), cells_of(o.max_fill_reach_m), ground_cells);
     std::vector<std::vector<float>> seen_above(grey.size());
     tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int k) {
       const Eigen::Vector3d to_camera = views[used_views[k]].camera.Centre() - centre;
@@ -584,7 +601,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
   g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny, cells_of(o.fill_radius_m),
-                                                cells_of(o.max_fill_reach_m))
+                                                cells_of(o.max_fill_reach_m), ground_cells)
                           : std::vector<std::uint8_t>(cells, 0);
 
   // Colour from the most nadir view that sees the cell.

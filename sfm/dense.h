@@ -50,6 +50,10 @@ struct DenseOptions {
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.
   double max_fill_reach_m = 20.0;
+  // [m] "Lowest" above is measured above a ground surface estimated by an
+  // opening of this radius (larger than half the widest building), so that
+  // holes on slopes take their own ground level (0 = flat ground).
+  double fill_ground_radius_m = 30.0;
   // A second sweep that scores each height of a cell only with the pairs
   // whose two views see that point, judged against the first sweep's
   // surface (holes filled): beside a wall half the views see the ground and
@@ -115,8 +119,19 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::
 // within `radius_cells` (Chebyshev), doubling the radius for cells still out
 // of reach while it stays within `max_radius_cells`; returns a per-cell flag
 // of what was filled. Cells out of every reach (all-NaN input) stay NaN.
+// With `ground_radius_cells` > 0, "lowest" is measured above a ground
+// surface (GroundSurface with that radius) and the hole takes the ground's
+// height at the hole plus that lowest height above ground, so that on a
+// slope a hole is filled at its own ground level, not at the downhill one.
 std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells,
-                                             int max_radius_cells);
+                                             int max_radius_cells, int ground_radius_cells = 0);
+
+// The ground under `height_m` (nx x ny, NaN = unknown): a morphological
+// opening with a flat square of radius `radius_cells` (the highest of the
+// square minima), which keeps planes and any terrain smoother than the square
+// exactly and removes what is narrower than it (buildings, trees). NaN where
+// no measured cell is within reach.
+std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int ny, int radius_cells);
 
 // Per cell of `grid`, the height above which a point on the cell's vertical
 // is seen from a camera in direction `to_camera` (ENU, from the scene; an

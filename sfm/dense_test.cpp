@@ -92,6 +92,41 @@ TEST(Dense, HolesTakeTheLowestHeightWithinReach) {
     }
 }
 
+TEST(Dense, HolesOnASlopeTakeTheirOwnGroundLevel) {
+  // A 30% slope rising east (0.5 m cells: 0.15 m per cell), a 12 m tall
+  // building 16 cells wide, and the ground east of it hidden for 8 cells (the
+  // wall's shadow in oblique views). The lowest height within reach is
+  // downhill ground, 10 cells (1.5 m) lower; above the ground surface it is 0.
+  const int nx = 120, ny = 40;
+  const float nan = std::nanf("");
+  auto plane = [](int i) { return 0.15f * i; };
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool building = i >= 50 && i < 66 && j >= 10 && j < 30;
+      const bool hidden = i >= 66 && i < 74 && j >= 10 && j < 30;
+      h[static_cast<std::size_t>(j) * nx + i] = hidden ? nan : plane(i) + (building ? 12.0f : 0.0f);
+    }
+  const std::vector<float> measured = h;
+  std::vector<float> flat = h;
+  FillHolesFromBelow(h, nx, ny, 10, 40, 30);
+  FillHolesFromBelow(flat, nx, ny, 10, 40);
+  // Tolerance: exact for a plane but for float rounding of ~10 m heights.
+  constexpr float kTol = 1e-4f;
+  double flat_error = 0;
+  for (int j = 10; j < 30; ++j)
+    for (int i = 66; i < 74; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      EXPECT_NEAR(h[k], plane(i), kTol) << i << "," << j;
+      flat_error = std::max<double>(flat_error, std::abs(flat[k] - plane(i)));
+    }
+  EXPECT_GT(flat_error, 1.0);  // what the flat-ground fill gets wrong here
+  // The ground surface keeps the plane under the building and removes it.
+  const std::vector<float> ground = GroundSurface(measured, nx, ny, 30);
+  EXPECT_NEAR(ground[20 * nx + 58], plane(58), kTol);
+  EXPECT_THROW(GroundSurface(measured, nx, ny, 0), Error);
+}
+
 TEST(Dense, HolesOutOfReachAreFilledAsTheReachGrows) {
   // One row: 5 m at the west end, 1 m at the east end, 7 cells between.
   // With a reach of 1 cell, the cell next to each end takes that end; the

@@ -74,6 +74,40 @@ double SurfaceDepthPrior::HeightAt(double x, double y) const {
 }
 
 DepthMap SurfaceDepthPrior::Estimate(const PinholeCamera& cam, const std::vector<float>&) {
+  return DepthRelativeTo(cam, 0.0);
+}
+
+DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
+  const int W = cam.width_px, H = cam.height_px;
+  DepthMap out;
+  out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
+  out.valid.assign(out.depth.size(), 0);
+  const Eigen::Vector3d c = cam.Centre();
+  const Eigen::Matrix3d Rt = cam.cam_from_world_rotation.transpose();
+  for (int r = 0; r < H; ++r)
+    for (int col = 0; col < W; ++col) {
+      const double yn = (r - cam.cy) / cam.fy;
+      const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
+      if (d.z() >= -0.9) continue;  // not a downward view
+      // Where the ray meets height h: t = (c.z - h) / -d.z; its ground point
+      // moves by the ray's tiny tilt times the height change, so a few
+      // fixed-point steps settle it.
+      double t = (c.z() - max_z_) / -d.z();
+      bool ok = true;
+      for (int k = 0; k < 4 && ok; ++k) {
+        const Eigen::Vector3d p = c + t * d;
+        const double h = HeightAt(p.x(), p.y());
+        ok = std::isfinite(h);
+        if (ok) t = (c.z() - h) / -d.z();
+      }
+      if (!ok) continue;
+      out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(t - reference_depth_m);
+      out.valid[static_cast<size_t>(r) * W + col] = 1;
+    }
+  return out;
+}
+
+DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
   const int W = cam.width_px, H = cam.height_px;
   DepthMap out;
   out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
@@ -101,7 +135,7 @@ DepthMap SurfaceDepthPrior::Estimate(const PinholeCamera& cam, const std::vector
         // Bisection between the last sample above and the first below.
         double a = prev, b = t;
         for (int k = 0; k < 12; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
-        out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(b);  // camera depth (d has unit camera z)
+        out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(b - reference_depth_m);  // d has unit camera z
         out.valid[static_cast<size_t>(r) * W + col] = 1;
         break;
       }
@@ -142,6 +176,17 @@ DepthMap CommandDepthPrior::Estimate(const PinholeCamera& cam, const std::vector
   fs::remove(in, ec);
   fs::remove(out, ec);
   return m;
+}
+
+PinholeCamera NadirCamera(const Eigen::Vector3d& look_at, double gsd_m, int size_px, double height_m) {
+  PinholeCamera cam;
+  cam.cam_from_world_rotation << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  const Eigen::Vector3d eye = look_at + Eigen::Vector3d(0, 0, height_m);
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  cam.fx = cam.fy = height_m / gsd_m;
+  cam.cx = cam.cy = 0.5 * (size_px - 1);
+  cam.width_px = cam.height_px = size_px;
+  return cam;
 }
 
 PinholeCamera SamplePseudoCamera(const PseudoCameraOptions& o, const Eigen::Vector3d& centre, std::uint64_t sample) {

@@ -32,6 +32,13 @@ class SurfaceDepthPrior final : public DepthPrior {
  public:
   SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m);
   DepthMap Estimate(const PinholeCamera& camera, const std::vector<float>& rgb) override;
+  // The same depth less `reference_depth_m`, subtracted in double: satellite
+  // depths (~6e5 m) keep only ~6 cm in float, their differences keep all.
+  DepthMap DepthRelativeTo(const PinholeCamera& camera, double reference_depth_m) const;
+  // The same for a camera looking straight down from far away (NadirCamera):
+  // each ray meets the surface within a few fixed-point steps, so this costs
+  // a few height lookups per pixel instead of a march.
+  DepthMap NadirDepthRelativeTo(const PinholeCamera& camera, double reference_depth_m) const;
   // Height of the fitted surface [m in the points' frame]; NaN outside.
   double HeightAt(double x_m, double y_m) const;
 
@@ -67,6 +74,12 @@ struct PseudoCameraOptions {
   int size_px = 192;
   double fov_deg = 60.0;
 };
+// A camera `height_m` above `look_at` (ENU: z up) looking straight down, x
+// to the east and image rows to the south, with `gsd_m` ground pixels at the
+// look-at height and size_px x size_px pixels: the view the DSM is exported
+// from, over a patch of the scene.
+PinholeCamera NadirCamera(const Eigen::Vector3d& look_at, double gsd_m, int size_px, double height_m);
+
 PinholeCamera SamplePseudoCamera(const PseudoCameraOptions& options, const Eigen::Vector3d& scene_centre,
                                  std::uint64_t sample);
 

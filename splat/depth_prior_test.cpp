@@ -45,6 +45,33 @@ TEST(DepthPrior, SurfaceOfAFlatGroundGivesRayPlaneDepths) {
   EXPECT_GT(valid, cam.width_px * cam.height_px / 2);
 }
 
+TEST(DepthPrior, NadirViewsOfAStepSeeBothLevelsAtTheirDepths) {
+  // Ground at 0 m west of x = 0, a 30 m roof east of it: 1 m grid of points.
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = -60; i <= 60; ++i)
+    for (int j = -60; j <= 60; ++j) pts.emplace_back(i + 0.5f, j + 0.5f, i >= 0 ? 30.0f : 0.0f);
+  const SurfaceDepthPrior prior(pts, 1.0);
+  const double height_m = 1.0e5, gsd_m = 0.5;
+  const PinholeCamera cam = NadirCamera(Eigen::Vector3d(0, 0, 0), gsd_m, 64, height_m);
+  // Geometry: east is +col, north is -row, a pixel is gsd_m on the ground.
+  const Eigen::Vector2d centre = cam.Project(Eigen::Vector3d(0, 0, 0));
+  EXPECT_NEAR(centre.x(), 31.5, 1e-9);
+  EXPECT_NEAR(centre.y(), 31.5, 1e-9);
+  EXPECT_NEAR(cam.Project(Eigen::Vector3d(gsd_m, gsd_m, 0)).x() - centre.x(), 1.0, 1e-6);
+  EXPECT_NEAR(cam.Project(Eigen::Vector3d(gsd_m, gsd_m, 0)).y() - centre.y(), -1.0, 1e-6);
+  const double reference = cam.cam_from_world_translation.z();
+  const DepthMap nadir = prior.NadirDepthRelativeTo(cam, reference);
+  const DepthMap marched = prior.DepthRelativeTo(cam, reference);
+  for (int col : {2, 20, 45, 61}) {
+    const std::size_t p = static_cast<std::size_t>(32) * 64 + col;
+    ASSERT_TRUE(nadir.valid[p]);
+    // Relative to the frame origin's depth: 0 on the ground, -30 m on the roof
+    // (the step itself, at col ~31.5, is left out).
+    EXPECT_NEAR(nadir.depth[p], col > 32 ? -30.0 : 0.0, 1e-3) << col;
+    EXPECT_NEAR(nadir.depth[p], marched.depth[p], 0.05) << col;  // the march's bisection tolerance
+  }
+}
+
 TEST(DepthPrior, PseudoCamerasLookDownAtTheSceneFromTheRequestedRange) {
   const PseudoCameraOptions o;
   for (std::uint64_t s = 0; s < 20; ++s) {

@@ -200,6 +200,33 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
 }
 
+template <typename T>
+double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alpha, const std::vector<T>& target,
+                         const std::vector<unsigned char>& valid, const SurfaceAnchorOptions& o,
+                         std::vector<T>* d_depth, std::vector<T>* d_alpha) {
+  RequireSameSize(depth.size(), alpha.size(), "surface anchor (depth, alpha)");
+  RequireSameSize(target.size(), alpha.size(), "surface anchor (target, alpha)");
+  RequireSameSize(valid.size(), alpha.size(), "surface anchor (valid, alpha)");
+  d_depth->assign(alpha.size(), T(0));
+  d_alpha->assign(alpha.size(), T(0));
+  std::size_t n = 0;
+  for (unsigned char v : valid) n += v != 0;
+  if (n == 0) return 0.0;
+  const double inv_n = 1.0 / static_cast<double>(n), delta = o.huber_delta;
+  double loss = 0;
+  for (std::size_t p = 0; p < alpha.size(); ++p) {
+    if (!valid[p]) continue;
+    loss += o.lambda_alpha * (1.0 - alpha[p]) * inv_n;
+    (*d_alpha)[p] = static_cast<T>(-o.lambda_alpha * inv_n);
+    if (alpha[p] < o.min_alpha) continue;
+    const double e = static_cast<double>(depth[p]) - target[p];
+    const double a = std::abs(e);
+    loss += o.lambda_depth * (a <= delta ? 0.5 * e * e : delta * (a - 0.5 * delta)) * inv_n;
+    (*d_depth)[p] = static_cast<T>(o.lambda_depth * (a <= delta ? e : delta * (e > 0 ? 1.0 : -1.0)) * inv_n);
+  }
+  return loss;
+}
+
 #define SKYFALL_INSTANTIATE_LOSSES(T)                                                                       \
   template double L1Loss(const std::vector<T>&, const std::vector<T>&, std::vector<T>*);                   \
   template double Ssim(const std::vector<T>&, const std::vector<T>&, int, int, int, std::vector<T>*);      \
@@ -208,7 +235,10 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   template double OpacityEntropy(const std::vector<T>&, std::vector<T>*);                                   \
   template double PearsonDepthLoss(const std::vector<T>&, const std::vector<T>&,                           \
                                    const std::vector<unsigned char>&, std::vector<T>*);                     \
-  template double Psnr(const std::vector<T>&, const std::vector<T>&);
+  template double Psnr(const std::vector<T>&, const std::vector<T>&);                                       \
+  template double SurfaceAnchorLoss(const std::vector<T>&, const std::vector<T>&, const std::vector<T>&,      \
+                                    const std::vector<unsigned char>&, const SurfaceAnchorOptions&,         \
+                                    std::vector<T>*, std::vector<T>*);
 SKYFALL_INSTANTIATE_LOSSES(float)
 SKYFALL_INSTANTIATE_LOSSES(double)
 

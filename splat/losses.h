@@ -39,6 +39,24 @@ template <typename T>
 double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior,
                         const std::vector<unsigned char>& valid, std::vector<T>* grad);
 
+// Anchoring a render to a known surface, averaged over the pixels where
+// `valid` is non-zero: lambda_depth * Huber_delta(depth - target) (quadratic
+// within delta, linear beyond, so the surface's own errors at edges pull
+// with bounded force) + lambda_alpha * (1 - alpha). The depth term counts only
+// where alpha >= min_alpha (below it the expected depth is undefined); the
+// opacity term everywhere the surface is seen. `depth` and `target` share one
+// reference. `d_depth` and `d_alpha` receive the gradients (sized like alpha).
+struct SurfaceAnchorOptions {
+  double lambda_depth = 0.0;
+  double lambda_alpha = 0.0;
+  double huber_delta = 1.0;  // [depth units]
+  double min_alpha = 0.1;
+};
+template <typename T>
+double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alpha, const std::vector<T>& target,
+                         const std::vector<unsigned char>& valid, const SurfaceAnchorOptions& options,
+                         std::vector<T>* d_depth, std::vector<T>* d_alpha);
+
 // Peak signal-to-noise ratio of images in [0, 1] [dB].
 template <typename T>
 double Psnr(const std::vector<T>& x, const std::vector<T>& target);

@@ -102,6 +102,33 @@ TEST(Losses, PearsonDepthGradientAndZeroVariance) {
   EXPECT_EQ(PearsonDepthLoss<double>(prior, flat, valid, nullptr), 0.0);
 }
 
+TEST(Losses, SurfaceAnchorGradientsMatchFiniteDifferences) {
+  // Depth errors inside and beyond the Huber scale, a pixel too transparent
+  // for its depth to count, and pixels that do not see the surface.
+  const std::vector<double> target = {10.0, 10.0, -3.0, 4.0, 0.0, 7.5};
+  const std::vector<double> depth = {10.4, 12.5, -7.0, 4.0, 9.0, 0.0};
+  const std::vector<double> alpha = {0.9, 0.6, 0.7, 0.05, 0.8, 0.3};
+  const std::vector<unsigned char> valid = {1, 1, 1, 1, 0, 1};
+  const SurfaceAnchorOptions o{0.2, 0.3, 1.0, 0.1};
+  std::vector<double> d_depth, d_alpha, unused_a, unused_b;
+  const double l = SurfaceAnchorLoss(depth, alpha, target, valid, o, &d_depth, &d_alpha);
+  // By hand over the 5 valid pixels: Huber 0.08, 2.0, 3.5, (too transparent),
+  // (5th: 7.5 m off at alpha 0.3: 7.0); opacity 0.1 + 0.4 + 0.3 + 0.95 + 0.7.
+  EXPECT_NEAR(l, (0.2 * (0.08 + 2.0 + 3.5 + 7.0) + 0.3 * (0.1 + 0.4 + 0.3 + 0.95 + 0.7)) / 5, 1e-12);
+  EXPECT_EQ(d_depth[3], 0.0);
+  EXPECT_EQ(d_depth[4], 0.0);
+  EXPECT_EQ(d_alpha[4], 0.0);
+  CheckGradient(depth, [&](const std::vector<double>& v) {
+    return SurfaceAnchorLoss(v, alpha, target, valid, o, &unused_a, &unused_b);
+  }, d_depth, 1e-7, 1e-6);
+  CheckGradient(alpha, [&](const std::vector<double>& v) {
+    return SurfaceAnchorLoss(depth, v, target, valid, o, &unused_a, &unused_b);
+  }, d_alpha, 1e-7, 1e-6);
+  // Nothing sees the surface: no loss, no pull.
+  EXPECT_EQ(SurfaceAnchorLoss(depth, alpha, target, std::vector<unsigned char>(6, 0), o, &d_depth, &d_alpha), 0.0);
+  for (double g : d_alpha) EXPECT_EQ(g, 0.0);
+}
+
 TEST(Losses, PsnrOfKnownError) {
   const std::vector<float> a(100, 0.5f), b(100, 0.6f);
   EXPECT_NEAR(Psnr(a, b), 20.0, 1e-4);  // MSE 0.01

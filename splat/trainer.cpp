@@ -335,6 +335,14 @@ double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions&
 
 // Held-out views have no embedding of their own: with the appearance model
 // they are rendered with the mean training embedding.
+// The surface anchor on one rendered training view (the surface's depth is
+// relative to the render's reference depth).
+double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, const TrainOptions& o,
+                         std::vector<float>* d_alpha, std::vector<float>* d_depth) {
+  const SurfaceAnchorOptions anchor{o.lambda_surface_depth, o.lambda_surface_alpha, o.surface_huber_m};
+  return SurfaceAnchorLoss(r.depth, r.alpha, surface.depth, surface.valid, anchor, d_depth, d_alpha);
+}
+
 double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                    const AppearanceState& appearance, const std::vector<int>& train_ids) {
   Eigen::VectorXf mean;
@@ -413,6 +421,12 @@ void TrainOptions::Check() const {
   need(iterations >= 1, "iterations", iterations);
   need(lambda_dssim >= 0 && lambda_dssim <= 1, "lambda_dssim", lambda_dssim);
   need(lambda_opacity >= 0, "lambda_opacity", lambda_opacity);
+  need(lambda_surface_depth >= 0, "lambda_surface_depth", lambda_surface_depth);
+  need(lambda_surface_alpha >= 0, "lambda_surface_alpha", lambda_surface_alpha);
+  need(surface_huber_m > 0, "surface_huber_m", surface_huber_m);
+  need(surface_nadir_interval >= 0, "surface_nadir_interval", surface_nadir_interval);
+  need(surface_nadir_size_px >= 16, "surface_nadir_size_px", surface_nadir_size_px);
+  need(surface_nadir_gsd_m > 0, "surface_nadir_gsd_m", surface_nadir_gsd_m);
   for (double lr : {lr_mean_initial, lr_mean_final, lr_scale, lr_rotation, lr_opacity, lr_sh_dc, lr_sh_rest})
     need(lr > 0 && std::isfinite(lr), "learning rate", lr);
   need(densify_interval >= 1, "densify_interval", densify_interval);
@@ -507,7 +521,8 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
 }
 
 TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
-                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior) {
+                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior,
+                           const SurfaceDepthPrior* surface) {
   o.Check();
   Stopwatch clock;
   TrainResult result;
@@ -575,6 +590,9 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     s.loss = std::numeric_limits<double>::quiet_NaN();
     result.series.push_back(s);
   }
+  // The surface's depth in each training view, computed when first needed.
+  const bool anchored = surface && (o.lambda_surface_depth > 0 || o.lambda_surface_alpha > 0);
+  std::vector<DepthMap> surface_depth(views.size());
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
   for (int it = start + 1; it <= o.iterations; ++it) {
     const int view_id = train_ids[rng() % train_ids.size()];
@@ -593,7 +611,13 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     for (std::size_t p = 0; p < view.valid.size(); ++p) {
       if (!view.valid[p]) d_rgb[3 * p] = d_rgb[3 * p + 1] = d_rgb[3 * p + 2] = 0.0f;  // no data: no pull
     }
-    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, {}, {}, colour_affine);
+    std::vector<float> d_alpha, d_depth;
+    if (anchored) {
+      DepthMap& target = surface_depth[view_id];
+      if (target.depth.empty()) target = surface->DepthRelativeTo(view.camera, view.camera.cam_from_world_translation.z());
+      loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &d_depth);
+    }
+    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
     AppearanceModel appearance_grad;
     if (appearance.enabled) {
       appearance_grad = appearance.model.ZerosLike();
@@ -604,6 +628,25 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       std::vector<float> d_op;
       loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
       for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
+    }
+    if (anchored && o.surface_nadir_interval > 0 && it % o.surface_nadir_interval == 0) {
+      // A nadir patch around a look-at point drawn like the pseudo views'.
+      std::mt19937_64 pick(0xA11C0000ull + static_cast<std::uint64_t>(it));
+      std::normal_distribution<double> offset(0.0, o.pseudo.look_at_sigma_m);
+      const Eigen::Vector3d look_at = scene_centre + Eigen::Vector3d(offset(pick), offset(pick), 0.0);
+      constexpr double kNadirHeightM = 1.0e5;  // far: rays tilt < 0.1 deg over the patch
+      const PinholeCamera nadir = NadirCamera(look_at, o.surface_nadir_gsd_m, o.surface_nadir_size_px, kNadirHeightM);
+      const RenderOutput<float> nr = RenderGaussians(cloud, nadir, o.raster);
+      const DepthMap target = surface->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
+      std::vector<float> n_alpha, n_depth;
+      loss += SurfaceAnchorLoss(nr, target, o, &n_alpha, &n_depth);
+      const GaussianGradients<float> gn = BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth);
+      for (std::size_t i = 0; i < cloud.size(); ++i) {
+        g.d.means[i] += gn.d.means[i];
+        g.d.log_scales[i] += gn.d.log_scales[i];
+        g.d.rotations[i] += gn.d.rotations[i];
+        g.d.opacity_logits[i] += gn.d.opacity_logits[i];
+      }
     }
     if (depth_prior && o.pseudo_interval > 0 && it % o.pseudo_interval == 0) {
       // Pseudo view: the same sample for the same iteration, so resumes match.

@@ -74,6 +74,22 @@ struct TrainOptions {
   double lambda_depth = 0.5;
   int pseudo_interval = 4;  // 0 disables; needs a DepthPrior to take effect
   PseudoCameraOptions pseudo;
+  // Anchoring to a known surface (needs a surface, e.g. the dense heights):
+  // on every training view, lambda_surface_depth times the Huber loss (scale
+  // surface_huber_m) of the expected depth against the surface's depth, and
+  // lambda_surface_alpha times (1 - accumulated opacity), both averaged over
+  // the pixels that see the surface. The photometric loss alone lets
+  // Gaussians drift off the surface and fade (the DSM then loses accuracy
+  // and completeness); the Pearson depth loss cannot hold absolute heights.
+  double lambda_surface_depth = 1.0;   // per metre of depth error
+  double lambda_surface_alpha = 0.5;
+  double surface_huber_m = 1.0;        // [m] errors beyond this count linearly
+  // Every this many iterations the anchor also holds a nadir view of a patch
+  // (the view the DSM is exported from; the satellite views alone leave its
+  // coverage free to thin out): 0 = never.
+  int surface_nadir_interval = 2;
+  int surface_nadir_size_px = 192;
+  double surface_nadir_gsd_m = 0.5;
   // Per-image appearance (multi-date imagery). The exported cloud is fused
   // with the embedding of `appearance_image` (a training view name; empty:
   // the view whose embedding is nearest the mean).
@@ -117,7 +133,9 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
 // saved there every checkpoint_interval iterations and a matching checkpoint
 // is resumed from.
 // `depth_prior` may be null (no depth supervision).
+// `surface` may be null (no anchoring); it is ray-cast once per training view.
 TrainResult TrainGaussians(const TrainOptions& options, GaussianCloud cloud, const std::vector<TrainView>& views,
-                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior = nullptr);
+                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior = nullptr,
+                           const SurfaceDepthPrior* surface = nullptr);
 
 }  // namespace skyfall

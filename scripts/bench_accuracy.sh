@@ -1,0 +1,135 @@
+#!/usr/bin/env bash
+# Multi-scene accuracy benchmark: the whole pipeline (`skyfall run`, product
+# defaults) on JAX_068 and on synthetic scenes that differ in latitude, view
+# angles, number of views, relief, sensor, building height and radiometry.
+# Writes OUT/bench_accuracy.json (one object per scene), OUT/bench_accuracy.md
+# (a table) and OUT/bench_accuracy.png (DSM MAE against run time).
+#
+# Usage: scripts/bench_accuracy.sh [--quick] [--scenes a,b,...] [OUT]
+#   --quick   synthetic scenes of 128 m instead of 256 m (about 4x faster;
+#             the figures are then not comparable with full runs)
+#   --scenes  a subset, by name (see SCENES below); default: all
+# Reruns resume: finished runs are reused, so adding a scene costs one run.
+# SKYFALL_BIN: the skyfall binary to measure (default build/bin/skyfall; copy
+# it elsewhere to keep building while the benchmark runs). SKYFALL_RUN_ARGS:
+# extra `skyfall run` arguments, e.g. "--set dense.fill_ground_radius_m=0".
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SIZE=256
+ONLY=""
+OUT=out/bench_accuracy
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --quick) SIZE=128; shift ;;
+    --scenes) ONLY=",$2,"; shift 2 ;;
+    -h|--help) sed -n 2,13p "$0"; exit 0 ;;
+    *) OUT=$1; shift ;;
+  esac
+done
+if [ -z "${SKYFALL_BIN:-}" ]; then
+  [ -x build/bin/skyfall ] || bash scripts/build.sh
+  SKYFALL_BIN=$(pwd)/build/bin/skyfall
+fi
+B=$SKYFALL_BIN
+read -r -a RUN_ARGS <<< "${SKYFALL_RUN_ARGS:-}"
+mkdir -p "$OUT"
+
+# name | tuned_on | synth flags ("dfc2019" for the real AOI)
+# Settings of the dense stage and the trainer were chosen on JAX_068 (the only
+# real AOI with truth here); the synthetic scenes were tuned on by nothing.
+SCENES=(
+  "jax068|true|dfc2019"
+  "syn_default|false|"
+  "syn_south45|false|--lat -45.0 --lon 170.5"
+  "syn_steep|false|--min-off-nadir 20 --max-off-nadir 40"
+  "syn_fewviews|false|--views 3 --views-per-date 3"
+  "syn_relief|false|--relief-m 100"
+  "syn_pan16|false|--bit-depth 11 --bands 1"
+  "syn_towers|false|--max-building-m 180"
+  "syn_multidate|false|--date-contrast 3 --views-per-date 1"
+)
+
+for entry in "${SCENES[@]}"; do
+  IFS='|' read -r name tuned flags <<< "$entry"
+  if [ -n "$ONLY" ] && [[ "$ONLY" != *",$name,"* ]]; then continue; fi
+  dir="$OUT/$name"
+  mkdir -p "$dir"
+  if [ "$flags" = "dfc2019" ]; then
+    root=../shared/data/dfc2019
+    if [ ! -d "$root/Track3-Truth" ]; then echo "bench_accuracy: $name skipped: no $root" >&2; continue; fi
+    extra=(--aoi JAX_068)
+  else
+    root="$dir/input"
+    # shellcheck disable=SC2086
+    [ -f "$root/synth_report.json" ] || "$B" -q synth --out "$root" --size-m "$SIZE" $flags
+    extra=()
+  fi
+  if [ -f "$dir/run/run_summary.json" ] && [ -f "$dir/wall_seconds" ]; then
+    echo "bench_accuracy: $name: reusing its finished run (delete $dir/run to measure again)" >&2
+    continue
+  fi
+  echo "bench_accuracy: $name ..." >&2
+  start=$(date +%s.%N)
+  if ! "$B" -q run "$root" --out "$dir/run" "${extra[@]}" "${RUN_ARGS[@]}" 2> "$dir/run.log"; then
+    echo "bench_accuracy: $name failed, see $dir/run.log" >&2
+  fi
+  # The whole run, ingest to DSM comparison, as a user waits for it.
+  awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' > "$dir/wall_seconds"
+done
+
+TUNED=""
+for e in "${SCENES[@]}"; do
+  IFS='|' read -r n t _ <<< "$e"
+  if [ "$t" = true ]; then TUNED="$TUNED$n,"; fi
+done
+python3 - "$OUT" "$SIZE" "$TUNED" <<'PY'
+import json, os, sys
+out, size = sys.argv[1], int(sys.argv[2])
+tuned = set(filter(None, sys.argv[3].split(",")))
+scenes = []
+for name in sorted(os.listdir(out)):
+    summary_path = os.path.join(out, name, "run", "run_summary.json")
+    if not os.path.isfile(summary_path):
+        continue
+    summary = json.load(open(summary_path))
+    reports = [c.get("report") for c in summary["cities"] if c.get("scene")]
+    if not reports:
+        continue
+    report = json.load(open(reports[0]))
+    dsm = report.get("dsm") or [{}]
+    d = dsm[0]
+    psnrs = [s["metrics"]["psnr_test_db"] for t in report.get("tiles", []) for s in t.get("stages", [])
+             if s.get("stage") == "splat" and isinstance(s.get("metrics", {}).get("psnr_test_db"), (int, float))]
+    scenes.append({
+        "scene": name,
+        "mae_m": d.get("mae_m"), "rmse_m": d.get("rmse_m"), "median_m": d.get("median_abs_m"),
+        "nmad_m": d.get("nmad_m"), "completeness": d.get("completeness"), "within_1m": d.get("within_1m"),
+        "dense_mae_m": (d.get("dense") or {}).get("mae_m"),
+        "dense_completeness": (d.get("dense") or {}).get("completeness"),
+        "filled_cell_fraction": (d.get("dense") or {}).get("filled_cell_fraction"),
+        "heldout_psnr_db": sum(psnrs) / len(psnrs) if psnrs else None,
+        "seconds": float(open(os.path.join(out, name, "wall_seconds")).read())
+                   if os.path.isfile(os.path.join(out, name, "wall_seconds")) else summary.get("seconds"),
+        "tuned_on": name in tuned,
+        "synthetic_size_m": None if name == "jax068" else size,
+    })
+doc = {"schema": "skyfall.bench_accuracy/1", "scenes": scenes}
+with open(os.path.join(out, "bench_accuracy.json.tmp"), "w") as f:
+    json.dump(doc, f, indent=2)
+os.replace(os.path.join(out, "bench_accuracy.json.tmp"), os.path.join(out, "bench_accuracy.json"))
+def fmt(v, digits=2, scale=1.0, suffix=""):
+    return "n/a" if v is None else f"{v * scale:.{digits}f}{suffix}"
+lines = ["| scene | tuned on | MAE | RMSE | median | NMAD | completeness | within 1 m | dense MAE | filled cells | held-out PSNR | run |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+for s in scenes:
+    lines.append(f"| {s['scene']} | {'yes' if s['tuned_on'] else 'no'} | {fmt(s['mae_m'], suffix=' m')} | "
+                 f"{fmt(s['rmse_m'], suffix=' m')} | {fmt(s['median_m'], suffix=' m')} | {fmt(s['nmad_m'], suffix=' m')} | "
+                 f"{fmt(s['completeness'], 1, 100, '%')} | {fmt(s['within_1m'], 0, 100, '%')} | "
+                 f"{fmt(s['dense_mae_m'], suffix=' m')} | {fmt(s['filled_cell_fraction'], 0, 100, '%')} | "
+                 f"{fmt(s['heldout_psnr_db'], 1, 1, ' dB')} | {fmt(s['seconds'], 0, 1, ' s')} |")
+open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
+print("\n".join(lines))
+PY
+"$B" -q report --scenes "$OUT/bench_accuracy.json" --out "$OUT"
+echo "bench_accuracy: $OUT/bench_accuracy.json, bench_accuracy.md, bench_accuracy.png" >&2
