@@ -179,8 +179,8 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
     text(a, {box.x - 40, box.y + box.height - k * box.height / 4 + 4}, black);
     text(t, {box.x + k * box.width / 4 - 10, box.y + box.height + 18}, black);
   }
-  text("whole run [s]", {box.x + box.width / 2 - 40, kH - 35}, black);
-  text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on", {box.x, kH - 12}, black);
+  text("whole run [s]", {box.x + box.width - 90, box.y + box.height + 34}, black);
+  text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on", {box.x, kH - 8}, black);
   text("DSM MAE [m]", {4, 25}, black);
   cv::Mat rgb;
   cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 
 #include "merge/dsm.h"
@@ -25,6 +26,29 @@ using json = nlohmann::json;
 using testing::ScratchDir;
 
 json ReadJson(const fs::path& path) { return json::parse(std::ifstream(path)); }
+
+// A small synthetic city (`size_m` blocks seen by `views` images) written
+// under `root`; `tweak` changes further options.
+synth::SynthResult MakeCity(const fs::path& root, double size_m, int views, std::uint64_t seed,
+                            const std::function<void(synth::SynthOptions&)>& tweak = nullptr) {
+  synth::SynthOptions city;
+  city.size_m = size_m;
+  city.views = views;
+  city.seed = seed;
+  if (tweak) tweak(city);
+  NullProgress quiet;
+  return synth::RunSynth(city, root.string(), quiet);
+}
+
+// The product's options for a short test run, tiles in this process. So few
+// steps cannot grow capped initial Gaussians over the gaps: uncapped.
+RunOptions ShortRun(int iterations) {
+  RunOptions options;
+  options.train.optimizer.iterations = iterations;
+  options.train.init_max_scale_m = 0;
+  options.executor.kind = "inline";
+  return options;
+}
 
 // A square footprint of `side_m` with its lower-left corner at (e, n) in UTM 17N.
 AoiCatalog SquareAoi(const std::string& name, double e, double n, double side_m, int epsg = 32617) {
@@ -57,18 +81,10 @@ TEST(CityRun, AdjacentAoisOfOneZoneFormOneCity) {
 TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   const fs::path dir = ScratchDir("run");
   NullProgress progress;
-  synth::SynthOptions city;
-  city.size_m = 96;
-  city.views = 4;
-  city.blocks_x = 2;
-  city.seed = 3;
-  synth::RunSynth(city, (dir / "city").string(), progress);
-  RunOptions options;
+  MakeCity(dir / "city", 96, 4, 3, [](synth::SynthOptions& o) { o.blocks_x = 2; });
+  RunOptions options = ShortRun(40);
   options.tiling.tile_m = 64;
   options.tiling.overlap_m = 12;
-  options.train.optimizer.iterations = 40;
-  options.train.init_max_scale_m = 0;  // 40 steps cannot grow capped Gaussians over the gaps
-  options.executor.kind = "inline";
   const RunRequest request{(dir / "city").string(), (dir / "out").string(), {}};
   const RunSummary run = RunAll(options, request, progress);
   ASSERT_EQ(run.exit_code, kExitOk);
@@ -152,18 +168,12 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
 TEST(CityRun, SixteenBitPanchromaticSceneRunsEndToEnd) {
   const fs::path dir = ScratchDir("pan");
   NullProgress progress;
-  synth::SynthOptions city;
-  city.size_m = 96;
-  city.views = 4;
-  city.bit_depth = 11;
-  city.bands = 1;
-  city.seed = 5;
-  synth::RunSynth(city, (dir / "city").string(), progress);
-  RunOptions options;
+  MakeCity(dir / "city", 96, 4, 5, [](synth::SynthOptions& o) {
+    o.bit_depth = 11;
+    o.bands = 1;
+  });
+  RunOptions options = ShortRun(100);
   options.tiling.tile_m = 96;
-  options.train.optimizer.iterations = 100;
-  options.train.init_max_scale_m = 0;  // 100 steps cannot grow capped Gaussians over the gaps
-  options.executor.kind = "inline";
   const RunSummary run = RunAll(options, {(dir / "city").string(), (dir / "out").string(), {}}, progress);
   ASSERT_EQ(run.exit_code, kExitOk);
   const json image = ReadJson(dir / "out" / "catalogs" / "SYN_001" / "aoi.json")["images"][0];
@@ -201,11 +211,7 @@ TEST(CityRun, SixteenBitPanchromaticSceneRunsEndToEnd) {
 TEST(CityRun, APlainFolderWithAGeoreferencedTruthIsIngestedAndCompared) {
   const fs::path dir = ScratchDir("own");
   NullProgress progress;
-  synth::SynthOptions city;
-  city.size_m = 64;
-  city.views = 3;
-  city.seed = 4;
-  const synth::SynthResult made = synth::RunSynth(city, (dir / "synth").string(), progress);
+  const synth::SynthResult made = MakeCity(dir / "synth", 64, 3, 4);
   const fs::path folder = dir / "my-city";
   fs::create_directories(folder);
   const char* names[] = {"pass_a.tif", "pass_b.tif", "pass_c.tif"};
@@ -219,10 +225,7 @@ TEST(CityRun, APlainFolderWithAGeoreferencedTruthIsIngestedAndCompared) {
   // A raster that is neither an image (no RPC) nor truth is skipped, named.
   WriteDsm((folder / "notes.tif").string(), ReadDsm(truth.string() + "_DSM.tif", truth.string() + "_DSM.txt", 32617));
 
-  RunOptions options;
-  options.train.optimizer.iterations = 60;
-  options.train.init_max_scale_m = 0;
-  options.executor.kind = "inline";
+  const RunOptions options = ShortRun(60);
   const RunSummary run = RunAll(options, {folder.string(), (dir / "out").string(), {}}, progress);
   ASSERT_EQ(run.exit_code, kExitOk);
   const json catalog = ReadJson(dir / "out" / "catalogs" / "my-city" / "aoi.json");

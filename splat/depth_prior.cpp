@@ -77,7 +77,13 @@ DepthMap SurfaceDepthPrior::Estimate(const PinholeCamera& cam, const std::vector
   return DepthRelativeTo(cam, 0.0);
 }
 
-DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
+namespace {
+
+// Casts every pixel's ray (camera centre c, direction d with unit camera z,
+// so the ray parameter is the camera depth) and stores `hit(c, d)` (a depth,
+// or NaN for no surface) less the reference depth.
+template <class Hit>
+DepthMap CastRays(const PinholeCamera& cam, double reference_depth_m, Hit hit) {
   const int W = cam.width_px, H = cam.height_px;
   DepthMap out;
   out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
@@ -88,59 +94,58 @@ DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, doubl
     for (int col = 0; col < W; ++col) {
       const double yn = (r - cam.cy) / cam.fy;
       const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
-      if (d.z() >= -0.9) continue;  // not a downward view
-      // Where the ray meets height h: t = (c.z - h) / -d.z; its ground point
-      // moves by the ray's tiny tilt times the height change, so a few
-      // fixed-point steps settle it.
-      double t = (c.z() - max_z_) / -d.z();
-      bool ok = true;
-      for (int k = 0; k < 4 && ok; ++k) {
-        const Eigen::Vector3d p = c + t * d;
-        const double h = HeightAt(p.x(), p.y());
-        ok = std::isfinite(h);
-        if (ok) t = (c.z() - h) / -d.z();
-      }
-      if (!ok) continue;
+      const double t = hit(c, d);
+      if (!std::isfinite(t)) continue;
       out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(t - reference_depth_m);
       out.valid[static_cast<size_t>(r) * W + col] = 1;
     }
   return out;
 }
 
-DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
-  const int W = cam.width_px, H = cam.height_px;
-  DepthMap out;
-  out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
-  out.valid.assign(out.depth.size(), 0);
-  const Eigen::Vector3d c = cam.Centre();
-  const Eigen::Matrix3d Rt = cam.cam_from_world_rotation.transpose();
-  const double step = 0.5 * cell_;
-  for (int r = 0; r < H; ++r)
-    for (int col = 0; col < W; ++col) {
-      const double yn = (r - cam.cy) / cam.fy;
-      const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);  // unit camera z
-      if (d.z() >= 0) continue;  // looking up: no surface
-      // March from the top of the surface's height range downwards.
-      double t = std::max(0.0, (max_z_ + 1.0 - c.z()) / d.z());
-      const double t_end = (min_z_ - 1.0 - c.z()) / d.z();
-      // At most half a cell horizontally and vertically per step.
-      const double dt = step / std::max(d.head<2>().norm(), std::abs(d.z()));
-      auto below = [&](double tt) {
-        const Eigen::Vector3d p = c + tt * d;
-        const double h = HeightAt(p.x(), p.y());
-        return std::isfinite(h) && p.z() <= h;
-      };
-      for (double prev = t; t <= t_end; prev = t, t += dt) {
-        if (!below(t)) continue;
-        // Bisection between the last sample above and the first below.
-        double a = prev, b = t;
-        for (int k = 0; k < 12; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
-        out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(b - reference_depth_m);  // d has unit camera z
-        out.valid[static_cast<size_t>(r) * W + col] = 1;
-        break;
-      }
+constexpr double kNoHit = std::numeric_limits<double>::quiet_NaN();
+
+}  // namespace
+
+DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
+  return CastRays(cam, reference_depth_m, [&](const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+    if (d.z() >= -0.9) return kNoHit;  // not a downward view
+    // Where the ray meets height h: t = (c.z - h) / -d.z; its ground point
+    // moves by the ray's tiny tilt times the height change, so a few
+    // fixed-point steps settle it.
+    double t = (c.z() - max_z_) / -d.z();
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Vector3d p = c + t * d;
+      const double h = HeightAt(p.x(), p.y());
+      if (!std::isfinite(h)) return kNoHit;
+      t = (c.z() - h) / -d.z();
     }
-  return out;
+    return t;
+  });
+}
+
+DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
+  const double step = 0.5 * cell_;
+  return CastRays(cam, reference_depth_m, [&](const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+    if (d.z() >= 0) return kNoHit;  // looking up: no surface
+    // March from the top of the surface's height range downwards.
+    double t = std::max(0.0, (max_z_ + 1.0 - c.z()) / d.z());
+    const double t_end = (min_z_ - 1.0 - c.z()) / d.z();
+    // At most half a cell horizontally and vertically per step.
+    const double dt = step / std::max(d.head<2>().norm(), std::abs(d.z()));
+    auto below = [&](double tt) {
+      const Eigen::Vector3d p = c + tt * d;
+      const double h = HeightAt(p.x(), p.y());
+      return std::isfinite(h) && p.z() <= h;
+    };
+    for (double prev = t; t <= t_end; prev = t, t += dt) {
+      if (!below(t)) continue;
+      // Bisection between the last sample above and the first below.
+      double a = prev, b = t;
+      for (int k = 0; k < 12; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
+      return b;
+    }
+    return kNoHit;
+  });
 }
 
 CommandDepthPrior::CommandDepthPrior(std::string command, std::string work_dir)

@@ -335,6 +335,17 @@ double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions&
 
 // Held-out views have no embedding of their own: with the appearance model
 // they are rendered with the mean training embedding.
+// Adds the geometry and opacity gradients of an extra view (a pseudo or
+// nadir view, which supervises no colour) to the step's gradients.
+void AddGeometryGradients(const GaussianGradients<float>& extra, GaussianGradients<float>* g) {
+  for (std::size_t i = 0; i < extra.d.means.size(); ++i) {
+    g->d.means[i] += extra.d.means[i];
+    g->d.log_scales[i] += extra.d.log_scales[i];
+    g->d.rotations[i] += extra.d.rotations[i];
+    g->d.opacity_logits[i] += extra.d.opacity_logits[i];
+  }
+}
+
 // The surface anchor on one rendered training view (the surface's depth is
 // relative to the render's reference depth).
 double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, const TrainOptions& o,
@@ -640,13 +651,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       const DepthMap target = surface->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
       std::vector<float> n_alpha, n_depth;
       loss += SurfaceAnchorLoss(nr, target, o, &n_alpha, &n_depth);
-      const GaussianGradients<float> gn = BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth);
-      for (std::size_t i = 0; i < cloud.size(); ++i) {
-        g.d.means[i] += gn.d.means[i];
-        g.d.log_scales[i] += gn.d.log_scales[i];
-        g.d.rotations[i] += gn.d.rotations[i];
-        g.d.opacity_logits[i] += gn.d.opacity_logits[i];
-      }
+      AddGeometryGradients(BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth), &g);
     }
     if (depth_prior && o.pseudo_interval > 0 && it % o.pseudo_interval == 0) {
       // Pseudo view: the same sample for the same iteration, so resumes match.
@@ -657,13 +662,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       std::vector<float> d_depth;
       loss += o.lambda_depth * PearsonDepthLoss(pr.depth, prior.depth, prior.valid, &d_depth);
       for (float& v : d_depth) v *= static_cast<float>(o.lambda_depth);
-      const GaussianGradients<float> gd = BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth);
-      for (std::size_t i = 0; i < cloud.size(); ++i) {
-        g.d.means[i] += gd.d.means[i];
-        g.d.log_scales[i] += gd.d.log_scales[i];
-        g.d.rotations[i] += gd.d.rotations[i];
-        g.d.opacity_logits[i] += gd.d.opacity_logits[i];
-      }
+      AddGeometryGradients(BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth), &g);
     }
     loss_sum += loss;
     ++loss_count;

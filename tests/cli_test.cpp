@@ -283,6 +283,20 @@ TEST(Cli, RunConfigurationFromFileSetAndFlagsReachesTheTileProcesses) {
   EXPECT_NE(again.err.find("already done"), std::string::npos) << again.err;
 }
 
+TEST(Cli, ReportPlotsErrorAgainstRunTimeAcrossScenes) {
+  const fs::path dir = ScratchDir("report");
+  std::ofstream(dir / "bench_accuracy.json") << R"({"schema": "skyfall.bench_accuracy/1", "scenes": [
+      {"scene": "a", "mae_m": 1.2, "dense_mae_m": 1.4, "seconds": 300.0, "tuned_on": true},
+      {"scene": "b", "mae_m": 0.8, "dense_mae_m": null, "seconds": 120.0}]})";
+  const CommandResult r = RunCommand(Skyfall() + " report --scenes " + (dir / "bench_accuracy.json").string(), dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GT(fs::file_size(dir / "bench_accuracy.png"), 1000u);
+  std::ofstream(dir / "broken.json") << "{";
+  const CommandResult bad = RunCommand(Skyfall() + " report --scenes " + (dir / "broken.json").string(), dir);
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("broken.json"), std::string::npos) << bad.err;
+}
+
 TEST(Cli, TileWithoutImagesIsSkippedNotFatal) {
   const fs::path dir = ScratchDir("run");
   const std::string root = (dir / "city").string(), cat = (dir / "catalogs").string();
