@@ -1,5 +1,6 @@
 #include "core/format.h"
 
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 
@@ -14,6 +15,11 @@ std::string FormatDouble(double value) {
     if (std::strtod(buf, nullptr) == value) break;
   }
   return buf;
+}
+
+std::string ToLower(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
 }
 
 }  // namespace skyfall

@@ -1,4 +1,4 @@
-// Number formatting shared by messages and text outputs.
+// Number and text formatting shared by messages, readers and text outputs.
 #pragma once
 
 #include <string>
@@ -8,5 +8,8 @@ namespace skyfall {
 // Shortest text that reads back to exactly the same double ("%.17g"), so
 // coordinates printed by the CLI or written to metadata lose nothing.
 std::string FormatDouble(double value);
+
+// ASCII lower case (file extensions, band names, keys compared without case).
+std::string ToLower(std::string text);
 
 }  // namespace skyfall

@@ -9,7 +9,6 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
-#include <sstream>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -17,6 +16,7 @@
 #include "merge/dsm_report.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/merge_tiles.h"
+#include "pipeline/stage_jobs.h"
 #include "pipeline/tile_run.h"
 #include "splat/ply.h"
 #include "tiler/dfc2019.h"
@@ -76,41 +76,37 @@ json TileEntry(const TileOutcome& o) {
 
 // The dense heights of every finished tile as opaque Gaussians (one per cell:
 // half a cell wide, flat), so they go through the same DSM export as the
-// trained scene and the two can be compared side by side. `measured_only`
-// leaves out the cells filled in rather than matched. Tiles share the city
-// frame; in their overlaps both copies are kept (the export takes the surface).
-GaussianCloud DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs, bool measured_only,
-                                    std::size_t* filled_cells, std::size_t* all_cells) {
-  GaussianCloud cloud;
-  *filled_cells = *all_cells = 0;
+// trained scene and the two can be compared side by side: all cells, and the
+// matched ones alone (the filled ones left out). Tiles share the city frame;
+// in their overlaps both copies are kept (the export takes the surface).
+struct DenseClouds {
+  GaussianCloud all, measured;
+  std::size_t cells = 0, filled = 0;
+};
+
+DenseClouds DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs) {
+  DenseClouds out;
   for (const std::string& dir : tile_dirs) {
     const fs::path ply = fs::path(dir) / "sfm" / "dense.ply";
     if (!fs::exists(ply)) continue;
-    std::istringstream in(ReadTextFile(ply.string()));
-    std::string line;
-    double cell_m = 0.5;
-    while (std::getline(in, line) && line != "end_header") {
-      const std::size_t at = line.find("one point per ");
-      if (at != std::string::npos) cell_m = std::stod(line.substr(at + 14));
-    }
-    double x, y, z, cost;
-    int r, g, b, filled;
-    while (in >> x >> y >> z >> r >> g >> b >> cost >> filled) {
-      ++*all_cells;
-      *filled_cells += filled != 0;
-      if (measured_only && filled) continue;
-      cloud.means.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
-      const float half_cell = static_cast<float>(std::log(0.5 * cell_m));
-      cloud.log_scales.emplace_back(half_cell, half_cell, std::log(0.05f));
-      cloud.rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
-      cloud.opacity_logits.push_back(4.6f);  // opacity 0.99: opaque
+    const DenseCells cells = ReadDenseCells(ply.string());
+    const float half_cell = static_cast<float>(std::log(0.5 * cells.cell_m));
+    for (std::size_t k = 0; k < cells.points.size(); ++k) {
+      ++out.cells;
+      out.filled += cells.filled[k];
       std::array<float, 3 * kShCoeffsPerChannel> sh{};
-      const int rgb[3] = {r, g, b};
-      for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(rgb[c] / 255.0));
-      cloud.sh.push_back(sh);
+      for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(cells.colours[k][c]));
+      for (GaussianCloud* cloud : {&out.all, &out.measured}) {
+        if (cloud == &out.measured && cells.filled[k]) continue;
+        cloud->means.push_back(cells.points[k]);
+        cloud->log_scales.emplace_back(half_cell, half_cell, std::log(0.05f));
+        cloud->rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
+        cloud->opacity_logits.push_back(4.6f);  // opacity 0.99: opaque
+        cloud->sh.push_back(sh);
+      }
     }
   }
-  return cloud;
+  return out;
 }
 
 json ComparisonJson(const DsmComparison& c) {
@@ -126,9 +122,10 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
                  CityOutcome* outcome, Progress& progress) {
   json dsm = json::array();
   const GaussianCloud scene = ReadGaussiansPly(merged.scene_path);
-  std::size_t filled = 0, cells = 0;
-  const GaussianCloud dense = DenseCellsAsGaussians(tile_dirs, false, &filled, &cells);
-  const GaussianCloud measured = DenseCellsAsGaussians(tile_dirs, true, &filled, &cells);
+  const DenseClouds dense_clouds = DenseCellsAsGaussians(tile_dirs);
+  const GaussianCloud& dense = dense_clouds.all;
+  const GaussianCloud& measured = dense_clouds.measured;
+  const std::size_t filled = dense_clouds.filled, cells = dense_clouds.cells;
   for (const AoiCatalog& a : aois) {
     if (!a.truth) continue;
     Stopwatch clock;

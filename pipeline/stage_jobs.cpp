@@ -55,17 +55,6 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
   return doc.dump(2) + "\n";
 }
 
-// The cell size a dense.ply states in its header comment ("one point per X m cell").
-double DenseCellM(const std::string& path) {
-  std::istringstream in(ReadTextFile(path));
-  std::string line;
-  while (std::getline(in, line) && line != "end_header") {
-    const std::size_t at = line.find("one point per ");
-    if (at != std::string::npos) return std::stod(line.substr(at + 14));
-  }
-  throw Error("splat", path, "states no cell size (expected the dense.ply written by `skyfall dense`)");
-}
-
 // Decides whether the appearance model runs, and says why.
 std::string ResolveAppearance(const std::string& mode, const std::vector<TrainView>& views, TrainOptions* o) {
   const int dates = DistinctAcquisitionDates(views);
@@ -119,6 +108,31 @@ std::string DensePly(const HeightGrid& g) {
 }
 
 }  // namespace
+
+DenseCells ReadDenseCells(const std::string& path) {
+  std::istringstream in(ReadTextFile(path));
+  DenseCells cells;
+  std::string line;
+  std::size_t count = 0;
+  while (std::getline(in, line) && line != "end_header") {
+    const std::size_t at = line.find("one point per ");
+    if (at != std::string::npos) cells.cell_m = std::stod(line.substr(at + 14));
+    if (line.rfind("element vertex", 0) == 0) count = std::stoul(line.substr(15));
+  }
+  if (!(cells.cell_m > 0))
+    throw Error("dense", path, "states no cell size (expected the dense.ply written by `skyfall dense`)");
+  double x, y, z, cost;
+  int r, g, b, filled;
+  while (in >> x >> y >> z >> r >> g >> b >> cost >> filled) {
+    cells.points.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    cells.colours.emplace_back(r / 255.0f, g / 255.0f, b / 255.0f);
+    cells.filled.push_back(filled != 0);
+  }
+  if (cells.points.size() != count)
+    throw Error("dense", path, "holds " + std::to_string(cells.points.size()) + " cells, its header says " +
+                                   std::to_string(count) + " (truncated?)");
+  return cells;
+}
 
 namespace {
 
@@ -216,11 +230,10 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   const std::size_t tie_points = points.size();
   std::unique_ptr<SurfaceDepthPrior> surface;  // the dense heights, to anchor training to
   if (decided.dense_start) {
-    std::vector<Eigen::Vector3f> dense_points, dense_colours;
-    ReadSfmPoints(dense_path.string(), &dense_points, &dense_colours);
+    const DenseCells dense = ReadDenseCells(dense_path.string());
     if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
-      surface = std::make_unique<SurfaceDepthPrior>(dense_points, DenseCellM(dense_path.string()));
-    ThinToGrid(stage.init_spacing_m, dense_points, dense_colours, points, colours, &points, &colours);
+      surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m);
+    ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
   }
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == "on" || (stage.densify == "auto" && !decided.dense_start);

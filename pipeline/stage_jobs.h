@@ -3,6 +3,8 @@
 // tile of `skyfall run` behave alike.
 #pragma once
 
+#include <Eigen/Core>
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -26,6 +28,16 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
 // `extent_enu_m` clips the grid (a tile's extent, in the SfM frame).
 DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
                         const std::optional<GroundBox>& extent_enu_m = std::nullopt);
+
+// The cells of a dense.ply written by RunDenseJob: ENU positions, colours in
+// [0, 1], whether each was filled rather than matched, and the cell size.
+struct DenseCells {
+  double cell_m = 0;
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Eigen::Vector3f> colours;
+  std::vector<std::uint8_t> filled;
+};
+DenseCells ReadDenseCells(const std::string& dense_ply);
 
 // True when `sfm_dir` holds a finished dense stage with the same options
 // over the same extent.

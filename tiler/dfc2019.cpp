@@ -37,18 +37,11 @@ struct AoiFiles {
 };
 
 bool HasRasterExtension(const fs::path& p) {
-  std::string ext = p.extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string ext = ToLower(p.extension().string());
   for (const char* e : {".tif", ".tiff", ".ntf", ".nitf", ".jp2", ".img", ".vrt"})
     if (ext == e) return true;
   const std::string name = p.filename().string();  // DIMAP products open through DIM_*.XML
-  return name.rfind("DIM_", 0) == 0 && (ext == ".xml" || ext == ".XML");
-}
-
-std::string LowerName(const fs::path& p) {
-  std::string s = p.filename().string();
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
+  return name.rfind("DIM_", 0) == 0 && ext == ".xml";
 }
 
 // A plain folder of images with RPCs (GeoTIFF tags, .RPB, _RPC.TXT, DIMAP
@@ -72,7 +65,7 @@ std::map<std::string, AoiFiles> ScanPlainFolder(const fs::path& root) {
       found.skipped.push_back({file.string(), e.what()});
       continue;
     }
-    const std::string name = LowerName(file);
+    const std::string name = ToLower(file.filename().string());
     if (!info.rpc_metadata.empty()) {
       found.images.emplace(file.stem().string(), file.string());
     } else if (name.find("dsm") != std::string::npos && found.truth_dsm_path.empty()) {

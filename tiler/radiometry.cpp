@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cctype>
 #include <cmath>
 #include <deque>
 
@@ -16,11 +15,6 @@
 namespace skyfall {
 namespace {
 
-std::string Lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
 // Band (1-based) whose colour interpretation or description names `colour`; 0 if none.
 int FindBand(GDALDatasetH ds, GDALColorInterp interp, const std::string& name, const std::string& letter) {
   const int count = GDALGetRasterCount(ds);
@@ -28,7 +22,7 @@ int FindBand(GDALDatasetH ds, GDALColorInterp interp, const std::string& name, c
     if (GDALGetRasterColorInterpretation(GDALGetRasterBand(ds, b)) == interp) return b;
   }
   for (int b = 1; b <= count; ++b) {
-    const std::string d = Lower(GDALGetDescription(GDALGetRasterBand(ds, b)));
+    const std::string d = ToLower(GDALGetDescription(GDALGetRasterBand(ds, b)));
     if (d == name || d == letter) return b;
   }
   return 0;

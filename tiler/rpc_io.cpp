@@ -9,17 +9,13 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/format.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
 namespace {
 
 using json = nlohmann::json;
-
-std::string Lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
 
 // Sat-NeRF stores numbers either as JSON numbers or as strings ("+50.8").
 double NumberField(const json& obj, const std::string& key, const std::string& subject) {
@@ -148,7 +144,7 @@ SatNerfCamera ReadSatNerfCamera(const std::string& json_path) {
 }
 
 RpcModel ReadRpcAny(const std::string& path, std::string* source) {
-  const std::string ext = Lower(std::filesystem::path(path).extension().string());
+  const std::string ext = ToLower(std::filesystem::path(path).extension().string());
   std::string kind;
   RpcModel rpc;
   if (ext == ".json") {
