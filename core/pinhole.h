@@ -5,6 +5,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
 
 namespace skyfall {
 
@@ -32,5 +34,26 @@ struct PinholeCamera {
     return {fx * c.x() / c.z() + skew * c.y() / c.z() + cx, fy * c.y() / c.z() + cy};
   }
 };
+
+// A perspective camera at `eye` looking at `target` (ENU: z up), image rows
+// pointing down the vertical through the target, `fov_deg` across the width,
+// square pixels. The view direction must not be vertical.
+inline PinholeCamera LookAtCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, double fov_deg,
+                                  int width_px, int height_px) {
+  const Eigen::Vector3d forward = (target - eye).normalized();
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d down = forward.cross(right);
+  PinholeCamera cam;
+  cam.cam_from_world_rotation.row(0) = right.transpose();
+  cam.cam_from_world_rotation.row(1) = down.transpose();
+  cam.cam_from_world_rotation.row(2) = forward.transpose();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  cam.fx = cam.fy = 0.5 * width_px / std::tan(0.5 * fov_deg * M_PI / 180.0);
+  cam.cx = 0.5 * (width_px - 1);
+  cam.cy = 0.5 * (height_px - 1);
+  cam.width_px = width_px;
+  cam.height_px = height_px;
+  return cam;
+}
 
 }  // namespace skyfall

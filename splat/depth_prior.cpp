@@ -203,18 +203,7 @@ PinholeCamera SamplePseudoCamera(const PseudoCameraOptions& o, const Eigen::Vect
   const double el = (o.min_elevation_deg + (o.max_elevation_deg - o.min_elevation_deg) * u(rng)) * M_PI / 180.0;
   const Eigen::Vector3d eye =
       target + o.radius_m * Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
-  const Eigen::Vector3d f = (target - eye).normalized();
-  const Eigen::Vector3d right = f.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d down = f.cross(right);
-  PinholeCamera cam;
-  cam.cam_from_world_rotation.row(0) = right.transpose();
-  cam.cam_from_world_rotation.row(1) = down.transpose();
-  cam.cam_from_world_rotation.row(2) = f.transpose();
-  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
-  cam.fx = cam.fy = 0.5 * o.size_px / std::tan(0.5 * o.fov_deg * M_PI / 180.0);
-  cam.cx = cam.cy = 0.5 * (o.size_px - 1);
-  cam.width_px = cam.height_px = o.size_px;
-  return cam;
+  return LookAtCamera(eye, target, o.fov_deg, o.size_px, o.size_px);
 }
 
 }  // namespace skyfall

@@ -354,6 +354,45 @@ double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, 
   return SurfaceAnchorLoss(r.depth, r.alpha, surface.depth, surface.valid, anchor, d_depth, d_alpha);
 }
 
+// A training view: a satellite view, or with probability `synthetic_fraction`
+// a synthetic one when there are any (the satellite-only stream of random
+// numbers stays as it was).
+int PickView(const std::vector<int>& satellite, const std::vector<int>& synthetic, double synthetic_fraction,
+             std::mt19937_64& rng) {
+  if (!synthetic.empty()) {
+    const double u = static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0);
+    if (u < synthetic_fraction) return synthetic[rng() % synthetic.size()];
+  }
+  return satellite[rng() % satellite.size()];
+}
+
+// The photometric loss of a view, averaged over its colour targets.
+double ViewPhotometricLoss(const RenderOutput<float>& r, const TrainView& view, const PhotometricLossOptions& o,
+                           std::vector<float>* d_rgb) {
+  const int w = view.camera.width_px, h = view.camera.height_px;
+  double loss = PhotometricLoss(r.rgb, view.rgb, w, h, o, d_rgb);
+  if (view.extra_rgb.empty()) return loss;
+  std::vector<float> d;
+  for (const auto& target : view.extra_rgb) {
+    loss += PhotometricLoss(r.rgb, target, w, h, o, &d);
+    for (std::size_t k = 0; k < d.size(); ++k) (*d_rgb)[k] += d[k];
+  }
+  const float scale = 1.0f / static_cast<float>(1 + view.extra_rgb.size());
+  for (float& g : *d_rgb) g *= scale;
+  return loss * scale;
+}
+
+// lambda times the Pearson depth loss against the view's depth target, over
+// the pixels where the target is finite and the render is opaque.
+double ViewDepthLoss(const RenderOutput<float>& r, const TrainView& view, double lambda, std::vector<float>* d_depth) {
+  std::vector<unsigned char> valid(view.depth_target.size());
+  for (std::size_t k = 0; k < valid.size(); ++k)
+    valid[k] = std::isfinite(view.depth_target[k]) && r.alpha[k] > 0.5f && (view.valid.empty() || view.valid[k]);
+  const double loss = lambda * PearsonDepthLoss(r.depth, view.depth_target, valid, d_depth);
+  for (float& g : *d_depth) g *= static_cast<float>(lambda);
+  return loss;
+}
+
 double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                    const AppearanceState& appearance, const std::vector<int>& train_ids) {
   Eigen::VectorXf mean;
@@ -448,6 +487,8 @@ void TrainOptions::Check() const {
   need(opacity_reg_from >= 0, "opacity_reg_from", opacity_reg_from);
   need(lambda_depth >= 0, "lambda_depth", lambda_depth);
   need(pseudo_interval >= 0, "pseudo_interval", pseudo_interval);
+  need(synthetic_fraction >= 0 && synthetic_fraction <= 1, "synthetic_fraction", synthetic_fraction);
+  need(lambda_view_depth >= 0, "lambda_view_depth", lambda_view_depth);
   need(pseudo.size_px >= 16 && pseudo.radius_m > 0 && pseudo.fov_deg > 0 && pseudo.fov_deg < 170, "pseudo", pseudo.size_px);
   need(checkpoint_interval >= 1, "checkpoint_interval", checkpoint_interval);
   if (appearance.enabled) appearance.Check();
@@ -538,16 +579,24 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   Stopwatch clock;
   TrainResult result;
   result.report.stage = "splat_train";
-  std::vector<int> train_ids;
-  for (int k = 0; k < static_cast<int>(views.size()); ++k)
-    if (!views[k].held_out) train_ids.push_back(k);
+  std::vector<int> train_ids, synthetic_ids;  // satellite training views; synthetic views
+  for (int k = 0; k < static_cast<int>(views.size()); ++k) {
+    if (views[k].held_out) continue;
+    (views[k].synthetic ? synthetic_ids : train_ids).push_back(k);
+  }
   if (train_ids.empty()) throw Error("train", "views", "no training view (all are held out or none given)");
   for (const TrainView& v : views) {
     if (v.rgb.size() != 3u * v.camera.width_px * v.camera.height_px) {
       throw Error("train", v.name, "image size does not match its camera");
     }
     if (!v.valid.empty() && v.valid.size() != v.rgb.size() / 3) throw Error("train", v.name, "mask size does not match its image");
+    for (const auto& extra : v.extra_rgb)
+      if (extra.size() != v.rgb.size()) throw Error("train", v.name, "a further colour target differs in size");
+    if (!v.depth_target.empty() && v.depth_target.size() != v.rgb.size() / 3)
+      throw Error("train", v.name, "depth target size does not match its image");
   }
+  if (o.appearance.enabled && !synthetic_ids.empty())
+    throw Error("train", "appearance", "synthetic views have no acquisition to embed: train them without the appearance model");
 
   const int fused_view = AppearanceViewIndex(o, views);
   Adam adam;
@@ -606,7 +655,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   std::vector<DepthMap> surface_depth(views.size());
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
   for (int it = start + 1; it <= o.iterations; ++it) {
-    const int view_id = train_ids[rng() % train_ids.size()];
+    const int view_id = PickView(train_ids, synthetic_ids, o.synthetic_fraction, rng);
     const TrainView& view = views[view_id];
     std::vector<ColourAffine<float>> affine;
     Eigen::VectorXf embedding;
@@ -618,12 +667,13 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     const std::vector<ColourAffine<float>>* colour_affine = appearance.enabled ? &affine : nullptr;
     const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
     std::vector<float> d_rgb;
-    double loss = PhotometricLoss(r.rgb, view.rgb, view.camera.width_px, view.camera.height_px, photometric, &d_rgb);
+    double loss = ViewPhotometricLoss(r, view, photometric, &d_rgb);
     for (std::size_t p = 0; p < view.valid.size(); ++p) {
       if (!view.valid[p]) d_rgb[3 * p] = d_rgb[3 * p + 1] = d_rgb[3 * p + 2] = 0.0f;  // no data: no pull
     }
     std::vector<float> d_alpha, d_depth;
-    if (anchored) {
+    if (!view.depth_target.empty() && o.lambda_view_depth > 0) loss += ViewDepthLoss(r, view, o.lambda_view_depth, &d_depth);
+    if (anchored && !view.synthetic) {
       DepthMap& target = surface_depth[view_id];
       if (target.depth.empty()) target = surface->DepthRelativeTo(view.camera, view.camera.cam_from_world_translation.z());
       loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &d_depth);

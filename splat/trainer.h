@@ -28,6 +28,16 @@ struct TrainView {
   std::vector<std::uint8_t> valid;
   bool held_out = false;      // evaluation only
   std::string acquisition_time;  // ISO 8601 (UTC) when known, else empty
+  // Synthetic views (the synthesis stage's refined orbit renders) are drawn
+  // with TrainOptions::synthetic_fraction and never anchored to the surface.
+  bool synthetic = false;
+  // Further colour targets of the same view (the refined samples beyond the
+  // first): the photometric loss is the mean over `rgb` and these, so the
+  // optimization settles on their consensus.
+  std::vector<std::vector<float>> extra_rgb;
+  // Depth target of the Pearson depth loss (lambda_view_depth), any affine
+  // scale, NaN where there is none; empty: no depth loss on this view.
+  std::vector<float> depth_target;
 };
 
 // Distinct acquisition dates (YYYY-MM-DD) among the training views; views
@@ -90,6 +100,11 @@ struct TrainOptions {
   int surface_nadir_interval = 2;
   int surface_nadir_size_px = 192;
   double surface_nadir_gsd_m = 0.5;
+  // Synthesis stage: the share of iterations that draw a synthetic view
+  // when there are any (paper: 75 % refined views, 25 % satellite views),
+  // and the weight of the Pearson depth loss on views with a depth target.
+  double synthetic_fraction = 0.75;
+  double lambda_view_depth = 0.5;
   // Per-image appearance (multi-date imagery). The exported cloud is fused
   // with the embedding of `appearance_image` (a training view name; empty:
   // the view whose embedding is nearest the mean).

@@ -1,0 +1,95 @@
+// The synthesis stage of Skyfall-GS: the curriculum iterative dataset update
+// (IDU, paper Sec. 3.2 and Algorithm 1). Over N_e episodes with falling
+// elevation it renders orbit views of the current scene, refines each render
+// N_s times, and trains on the refined views mixed with the satellite views
+// (75 / 25), with L_color averaged over the samples plus lambda_depth times
+// the Pearson depth loss against the depth rendered at the episode's start.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/gaussians.h"
+#include "core/stage.h"
+#include "core/tile.h"
+#include "splat/depth_prior.h"
+#include "splat/orbit.h"
+#include "splat/refiner.h"
+#include "splat/trainer.h"
+
+namespace skyfall {
+
+struct IduOptions {
+  OrbitOptions orbit;
+  // Training iterations per episode (paper: 10,000 on a GPU; a CPU tile
+  // affords a few hundred, which the stage-time budget of at most twice the
+  // reconstruction allows).
+  int iterations_per_episode = 300;
+  int samples = 2;                    // N_s refined samples per view (paper: 2)
+  double synthetic_fraction = 0.75;   // share of iterations on refined views (paper: 75 %)
+  double lambda_depth = 0.5;          // Pearson depth loss on refined views
+  // Densification within each episode (paper: through 90 % of it), from
+  // densify_from_fraction of the episode every densify_interval iterations.
+  bool densify = true;
+  double densify_from_fraction = 0.2;
+  double densify_until_fraction = 0.9;
+  int densify_interval = 100;
+  std::uint64_t seed = 1;
+  RefineRequest request;              // prompts and FlowEdit settings for external refiners
+  void Check() const;                 // throws Error("idu", field, ...)
+};
+
+struct IduEpisode {
+  int episode = 0;
+  double elevation_deg = 0, radius_m = 0;
+  int views = 0;
+  double render_seconds = 0, refine_seconds = 0, train_seconds = 0;
+  double refined_coverage = 0;        // share of orbit pixels with a surface (trained on)
+  double psnr_test_db = 0;            // held-out satellite PSNR after the episode (NaN: none held out)
+  std::size_t gaussians = 0;
+  bool reused = false;                // finished by an earlier, killed run
+};
+
+struct IduResult {
+  GaussianCloud cloud;
+  std::vector<IduEpisode> episodes;
+  StageReport report;
+};
+
+// Runs the episodes on `cloud` (the reconstruction, plain 3DGS colours).
+// `train`: the reconstruction's optimizer settings (learning rates, raster,
+// surface anchor), adapted per episode (iterations, no opacity entropy as in
+// the paper, no appearance model: one fixed appearance). `surface` (may be
+// null) keeps the satellite views anchored to the dense heights. In
+// `out_dir`: episode_<k>/ with the orbit cameras, renders, refined samples
+// and scene.ply, and episode.json written last; a rerun with the same
+// `options_json` resumes after the last finished episode.
+IduResult RunIdu(const IduOptions& options, const TrainOptions& train, GaussianCloud cloud,
+                 const std::vector<TrainView>& satellite, const GroundBox& core, const GeodeticPoint& enu_origin,
+                 const std::function<double(double, double)>& surface_height_m, const SurfaceDepthPrior* surface,
+                 Refiner& refiner, const std::string& out_dir, const std::string& options_json, Progress& progress);
+
+// `--idu auto`: whether the stage can help a tile, from its dense heights.
+struct IduAutoOptions {
+  double step_m = 3.0;                 // a height step between neighbouring cells this tall or taller is a facade
+  double min_facade_ratio = 0.02;      // [m^2 of facade per m^2 of ground] below: flat or low-rise, skipped
+  double min_measured_fraction = 0.05; // below: water, featureless or empty, skipped
+  void Check() const;
+};
+
+struct IduDecision {
+  bool on = false;
+  std::string why;
+  double facade_ratio = 0;        // vertical facade area per ground area in the dense heights
+  double measured_fraction = 0;   // share of grid cells measured (not filled)
+};
+
+// `mode`: "on", "off" or "auto". `points`: the dense cells' ENU positions on
+// a grid of `cell_m`, `filled`: which were filled rather than measured.
+IduDecision DecideIdu(const std::string& mode, const IduAutoOptions& options, const std::vector<Eigen::Vector3f>& points,
+                      const std::vector<std::uint8_t>& filled, double cell_m);
+
+}  // namespace skyfall
