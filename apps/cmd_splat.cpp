@@ -6,6 +6,7 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "pipeline/stage_jobs.h"
+#include "pipeline/view_eval.h"
 #include "splat/trainer.h"
 
 namespace skyfall::cli {
@@ -86,6 +87,52 @@ void AddRender(CLI::App& splat, Runner* runner) {
   });
 }
 
+void AddOrbit(CLI::App& splat, Runner* runner) {
+  auto tile = std::make_shared<std::string>(), out = std::make_shared<std::string>();
+  auto o = std::make_shared<EvalOrbitOptions>();
+  CLI::App* cmd = splat.add_subcommand(
+      "orbit", "Write orbit cameras around a tile (between the synthesis stage's look-at points) as a cameras.json");
+  cmd->add_option("--tile", *tile, "Tile folder (tile.json and sfm/dense.ply)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", *out, "cameras.json to write")->required();
+  cmd->add_option("--elevations", o->elevations_deg, "Elevations [deg]")->delimiter(',')->capture_default_str();
+  cmd->add_option("--views", o->views_per_elevation, "Views per look-at point and elevation")->capture_default_str();
+  cmd->add_option("--size", o->width_px, "Image side [px]")->capture_default_str();
+  cmd->add_option("--fov", o->fov_deg, "Field of view [deg]")->capture_default_str();
+  cmd->callback([=] {
+    *runner = [=] {
+      o->height_px = o->width_px;
+      const int n = WriteEvalOrbitCameras(*tile, *o, *out);
+      spdlog::info("splat orbit: {} cameras -> {}", n, *out);
+      return 0;
+    };
+  });
+}
+
+void AddCompare(CLI::App& splat, Runner* runner) {
+  auto cameras = std::make_shared<std::string>(), truth = std::make_shared<std::string>(), out = std::make_shared<std::string>();
+  auto renders = std::make_shared<std::vector<std::string>>();
+  CLI::App* cmd = splat.add_subcommand("compare", "Masked PSNR and SSIM of renders against truth images, with a gallery");
+  cmd->add_option("--cameras", *cameras, "cameras.json of the views")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--truth", *truth, "Folder of <name>.png and <name>_mask.png (`synth --render-cameras`)")
+      ->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--render", *renders, "Folder of <name>_rgb.png (`splat render`); repeatable")
+      ->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", *out, "Folder for compare.json and gallery.png")->required();
+  cmd->callback([=] {
+    *runner = [=] {
+      ConsoleProgress progress;
+      const ViewComparison c = CompareViews(*cameras, *truth, *renders, *out, progress);
+      for (const auto& [el, psnr] : c.psnr_db) {
+        std::string line;
+        for (std::size_t d = 0; d < psnr.size(); ++d)
+          line += fmt::format("  {}: PSNR {:.2f} dB, SSIM {:.3f}", (*renders)[d], psnr[d], c.ssim.at(el)[d]);
+        spdlog::info("splat compare: elevation {:.0f} deg{}", el, line);
+      }
+      return 0;
+    };
+  });
+}
+
 }  // namespace
 
 void AddSplatCommand(CLI::App& app, Runner* runner) {
@@ -93,6 +140,8 @@ void AddSplatCommand(CLI::App& app, Runner* runner) {
   splat->require_subcommand(1);
   AddTrain(*splat, runner);
   AddRender(*splat, runner);
+  AddOrbit(*splat, runner);
+  AddCompare(*splat, runner);
 }
 
 }  // namespace skyfall::cli

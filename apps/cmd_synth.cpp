@@ -5,6 +5,11 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "splat/dataset.h"
 #include "synth/synth.h"
 
 namespace skyfall::cli {
@@ -12,11 +17,20 @@ namespace skyfall::cli {
 void AddSynthCommand(CLI::App& app, Runner* runner) {
   auto opts = std::make_shared<synth::SynthOptions>();
   auto out = std::make_shared<std::string>();
+  auto render_cameras = std::make_shared<std::string>();
+  auto render_out = std::make_shared<std::string>();
+  auto lighting_view = std::make_shared<int>(0);
   CLI::App* cmd = app.add_subcommand(
       "synth",
       "Write a procedural satellite city as a DFC2019-style tree (RGB crops with RPCs, truth "
       "DSM/CLS, Sat-NeRF JSONs) that `skyfall ingest` reads like real data");
-  cmd->add_option("--out", *out, "Root folder of the tree to write")->required();
+  cmd->add_option("--out", *out, "Root folder of the tree to write");
+  cmd->add_option("--render-cameras", *render_cameras,
+                  "Instead of the tree: truth images of the same city for the cameras of this cameras.json "
+                  "(e.g. orbit views), into --render-out");
+  cmd->add_option("--render-out", *render_out, "Folder for the truth images (<name>.png, <name>_mask.png)");
+  cmd->add_option("--lighting-view", *lighting_view, "Truth images are lit as this image (0-based) of the first AOI")
+      ->capture_default_str();
   cmd->add_option("--aoi", opts->aoi, "AOI name, NAME_NNN")->capture_default_str();
   cmd->add_option("--seed", opts->seed, "Random seed; equal seeds give identical output")
       ->capture_default_str();
@@ -40,9 +54,25 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
       ->capture_default_str();
-  cmd->callback([runner, opts, out] {
-    *runner = [opts, out] {
+  cmd->callback([runner, opts, out, render_cameras, render_out, lighting_view] {
+    *runner = [opts, out, render_cameras, render_out, lighting_view] {
       ConsoleProgress progress;
+      if (!render_cameras->empty()) {
+        if (render_out->empty()) throw Error("synth", "--render-out", "is needed with --render-cameras");
+        nlohmann::json origin;
+        try {
+          origin = nlohmann::json::parse(ReadTextFile(*render_cameras)).at("frame").at("origin");
+        } catch (const nlohmann::json::exception& e) {
+          throw Error("synth", *render_cameras, std::string("no frame.origin: ") + e.what());
+        }
+        const int n = synth::RenderTruthViews(
+            *opts, ReadCameras(*render_cameras),
+            {origin.at("lon_deg").get<double>(), origin.at("lat_deg").get<double>(), origin.at("height_m").get<double>()},
+            *lighting_view, *render_out, progress);
+        spdlog::info("synth: {} truth images in {}", n, *render_out);
+        return 0;
+      }
+      if (out->empty()) throw Error("synth", "--out", "is needed (the root folder of the tree to write)");
       const synth::SynthResult r = synth::RunSynth(*opts, *out, progress);
       spdlog::info("synth: {} AOI(s), {} images, {} buildings, RPC fit max residual {:.2e} px, {:.1f} s",
                    r.aois.size(), r.report.metrics.at("images"), r.city.buildings.size(),

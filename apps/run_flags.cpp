@@ -33,6 +33,11 @@ void RunFlags::AddTileFlags() {
   Add("--densify", +[](RunOptions& o) -> std::string& { return o.train.densify; },
       "Clone/split/prune: 'on', 'off' or 'auto' (off for dense starts)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--idu", +[](RunOptions& o) -> std::string& { return o.idu.mode; },
+      "Synthesis stage (curriculum IDU): 'auto' (where the dense heights show facades), 'on' or 'off'")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--refiner", +[](RunOptions& o) -> std::string& { return o.idu.refiner; },
+      "IDU refiner: 'reproject' (built in) or 'cmd:COMMAND' (e.g. a FlowEdit script; see README)");
 }
 
 RunOptions RunFlags::Resolve() {

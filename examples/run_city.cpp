@@ -17,6 +17,8 @@ int main(int argc, char** argv) {
   skyfall::RunOptions options;         // the product's defaults, shortened:
   options.train.optimizer.iterations = 60;
   options.train.init_max_scale_m = 0;  // few steps: let the initial Gaussians cover the gaps
+  options.idu.options.orbit.episodes = 2;             // a short synthesis stage (where `auto` runs it)
+  options.idu.options.iterations_per_episode = 20;
   options.executor.kind = "inline";    // tiles in this process: no skyfall binary needed
   const skyfall::RunSummary run = skyfall::RunAll(options, {out + "/input", out + "/run", {}}, progress);
   for (const auto& c : run.cities)

@@ -47,6 +47,14 @@ RunOptions ShortRun(int iterations) {
   options.train.optimizer.iterations = iterations;
   options.train.init_max_scale_m = 0;
   options.executor.kind = "inline";
+  // The synthesis stage as the product decides it (auto), shortened: one
+  // episode of a few steps on two small orbit views.
+  IduOptions& idu = options.idu.options;
+  idu.orbit.episodes = 1;
+  idu.orbit.grid = 1;
+  idu.orbit.views_per_point = 2;
+  idu.orbit.width_px = idu.orbit.height_px = 32;
+  idu.iterations_per_episode = 5;
   return options;
 }
 
@@ -101,6 +109,11 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     // Each automatic choice is reported with what decided it.
     EXPECT_EQ(t["decisions"]["densify"]["on"], false) << t.dump();
     EXPECT_FALSE(t["decisions"]["appearance"]["why"].get<std::string>().empty());
+    const json& idu = t["decisions"]["idu"];
+    EXPECT_FALSE(idu["why"].get<std::string>().empty()) << t.dump();
+    EXPECT_GE(idu["facade_ratio"].get<double>(), 0.0);
+    // The tile's merged scene is the synthesis stage's exactly when it ran.
+    EXPECT_EQ(fs::exists(city_dir / "tiles" / t["tile"].get<std::string>() / "idu" / "scene.ply"), idu["on"].get<bool>());
   }
   EXPECT_GE(report["decisions"]["lod_levels"]["levels"].get<int>(), 2);
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));

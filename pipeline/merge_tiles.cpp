@@ -11,6 +11,7 @@
 #include "merge/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
+#include "pipeline/stage_jobs.h"
 #include "splat/ply.h"
 
 namespace skyfall {
@@ -40,7 +41,7 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
     const fs::path dir = fs::path(tiles_dir) / t.at("id").get<std::string>();
     const TileSpec spec = ReadTileSpec((dir / "tile.json").string());
     if (summary.epsg == 0 && fs::exists(dir / "aoi.json")) summary.epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
-    const fs::path scene = dir / "splat" / "scene.ply";
+    const fs::path scene = TileScenePath(dir.string());
     bool ok = false;
     try {
       ok = json::parse(ReadTextFile((dir / "tile_report.json").string())).value("status", "") == "ok" && fs::exists(scene);

@@ -184,6 +184,66 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("appearance_image", t.appearance_image);
   io("raster", t.raster);
 }
+template <class IO> void Visit(IO& io, OrbitOptions& o) {
+  io("grid", o.grid);
+  io("views_per_point", o.views_per_point);
+  io("episodes", o.episodes);
+  io("elevation_start_deg", o.elevation_start_deg);
+  io("elevation_end_deg", o.elevation_end_deg);
+  io("radius_start_per_core", o.radius_start_per_core);
+  io("radius_end_per_core", o.radius_end_per_core);
+  io("min_radius_m", o.min_radius_m);
+  io("fov_deg", o.fov_deg);
+  io("width_px", o.width_px);
+  io("height_px", o.height_px);
+}
+template <class IO> void Visit(IO& io, RefineRequest& o) {
+  io("source_prompt", o.source_prompt);
+  io("target_prompt", o.target_prompt);
+  io("n_min", o.n_min);
+  io("n_max", o.n_max);
+  io("n_avg", o.n_avg);
+  io("steps", o.steps);
+  io("source_guidance_scale", o.source_guidance_scale);
+  io("target_guidance_scale", o.target_guidance_scale);
+}
+template <class IO> void Visit(IO& io, ReprojectOptions& o) {
+  io("visibility_tolerance_m", o.visibility_tolerance_m);
+  io("angle_weight_power", o.angle_weight_power);
+  io("keep_probability", o.keep_probability);
+  io("weight_jitter", o.weight_jitter);
+  io("inpaint", o.inpaint);
+  io("inpaint_radius_px", o.inpaint_radius_px);
+  io("smooth_diameter_px", o.smooth_diameter_px);
+  io("smooth_sigma_colour", o.smooth_sigma_colour);
+  io("smooth_sigma_space_px", o.smooth_sigma_space_px);
+}
+template <class IO> void Visit(IO& io, IduAutoOptions& o) {
+  io("step_m", o.step_m);
+  io("min_facade_ratio", o.min_facade_ratio);
+  io("min_measured_fraction", o.min_measured_fraction);
+}
+template <class IO> void Visit(IO& io, IduStageOptions& o) {
+  IduOptions& i = o.options;
+  io("mode", o.mode);
+  io("refiner", o.refiner);
+  io("orbit", i.orbit);
+  io("iterations_per_episode", i.iterations_per_episode);
+  io("samples", i.samples);
+  io("synthetic_fraction", i.synthetic_fraction);
+  io("lambda_depth", i.lambda_depth);
+  io("lambda_opacity", i.lambda_opacity);
+  io("densify", i.densify);
+  io("densify_from_fraction", i.densify_from_fraction);
+  io("densify_until_fraction", i.densify_until_fraction);
+  io("densify_interval", i.densify_interval);
+  io("geometry", i.geometry);
+  io("anchor_refined_views", i.anchor_refined_views);
+  io("seed", i.seed);
+  io("prompts", i.request);
+  io("reproject", o.reproject);
+  io("auto", o.auto_decision);
+}
 template <class IO> void Visit(IO& io, StitchOptions& o) {
   io("voxel_m", o.voxel_m);
   io("min_opacity", o.min_opacity);
@@ -226,6 +286,7 @@ template <class IO> void Visit(IO& io, RunOptions& o) {
   io("sfm", o.sfm);
   io("dense", o.dense);
   io("train", o.train);
+  io("idu", o.idu);
   io("merge", o.merge);
   io("dsm", o.dsm);
   io("executor", o.executor);
@@ -362,6 +423,15 @@ void TrainStageOptions::Check() const {
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
 }
 
+void IduStageOptions::Check() const {
+  NeedOneOf(mode, {"auto", "on", "off"}, "idu", "mode");
+  if (refiner != "reproject" && (refiner.rfind("cmd:", 0) != 0 || refiner.size() == 4))
+    throw Error("idu", "refiner", "'" + refiner + "' is not 'reproject' or 'cmd:COMMAND'");
+  options.Check();
+  reproject.Check();
+  auto_decision.Check();
+}
+
 void MergeOptions::Check() const {
   stitch.Check();
   try {
@@ -396,6 +466,7 @@ void RunOptions::Check() const {
   CheckSection("sfm", [&] { sfm.Check(); });
   CheckSection("dense", [&] { dense.Check(); });
   CheckSection("train", [&] { train.Check(); });
+  CheckSection("idu", [&] { idu.Check(); });
   CheckSection("merge", [&] { merge.Check(); });
   CheckSection("dsm", [&] { dsm.Check(); });
   CheckSection("executor", [&] { executor.Check(); });
@@ -445,11 +516,18 @@ void SetRunOption(RunOptions* options, const std::string& assignment) {
 }
 
 std::string TileOptionsJson(const RunOptions& o) {
-  const json doc = {{"sfm", ToJson(o.sfm)}, {"dense", ToJson(o.dense)}, {"train", ToJson(o.train)}};
+  const json doc = {{"sfm", ToJson(o.sfm)}, {"dense", ToJson(o.dense)}, {"train", ToJson(o.train)}, {"idu", ToJson(o.idu)}};
   return doc.dump();
 }
 
 std::string DenseOptionsJson(const DenseOptions& options) { return ToJson(options).dump(); }
+
+std::string IduEpisodesJson(const RunOptions& o) {
+  json idu = ToJson(o.idu);
+  idu.erase("mode");
+  idu.erase("auto");
+  return json({{"sfm", ToJson(o.sfm)}, {"dense", ToJson(o.dense)}, {"train", ToJson(o.train)}, {"idu", idu}}).dump();
+}
 
 std::string SfmOptionsJson(const SfmOptions& options) { return ToJson(options).dump(); }
 

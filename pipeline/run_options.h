@@ -14,6 +14,7 @@
 #include "merge/stitch.h"
 #include "sfm/dense.h"
 #include "sfm/sfm.h"
+#include "splat/idu.h"
 #include "splat/trainer.h"
 #include "tiler/dfc2019.h"
 #include "tiler/tiling.h"
@@ -48,6 +49,20 @@ struct TrainStageOptions {
   void Check() const;  // throws Error("train", field, ...)
 };
 
+// The synthesis stage of a tile (curriculum IDU), after training, before merge.
+struct IduStageOptions {
+  // "auto" (run where the dense heights show facades to synthesize; skip
+  // flat, low-rise, water or empty tiles), "on" or "off".
+  std::string mode = "auto";
+  // "reproject" (built in, no model weights) or "cmd:COMMAND" (an external
+  // refiner such as a FlowEdit script; see README).
+  std::string refiner = "reproject";
+  IduOptions options;          // episodes, orbit, samples, mix, prompts
+  ReprojectOptions reproject;  // the built-in refiner
+  IduAutoOptions auto_decision;
+  void Check() const;          // throws Error("idu", field, ...)
+};
+
 struct MergeOptions {
   StitchOptions stitch;
   LodOptions lod;
@@ -78,6 +93,7 @@ struct RunOptions {
   SfmOptions sfm;
   DenseOptions dense;
   TrainStageOptions train;
+  IduStageOptions idu;
   MergeOptions merge;
   DsmOptions dsm;
   ExecutorOptions executor;
@@ -98,12 +114,16 @@ RunOptions RunOptionsFromJson(const std::string& text, const std::string& subjec
 void SetRunOption(RunOptions* options, const std::string& assignment);
 
 // The JSON of the options that decide a tile's products (SfM, dense heights,
-// training); a tile finished under other values is redone.
+// training, synthesis); a tile finished under other values is redone.
 std::string TileOptionsJson(const RunOptions& options);
 
 // The JSON of one stage's options (recorded beside its products, so that a
 // finished stage is reused only under the same options).
 std::string DenseOptionsJson(const DenseOptions& options);
+// What a tile's synthesis episodes depend on (the stages before it and the
+// synthesis options, not the on/off decision): finished episodes are reused
+// only under the same value.
+std::string IduEpisodesJson(const RunOptions& options);
 std::string SfmOptionsJson(const SfmOptions& options);
 
 }  // namespace skyfall

@@ -284,6 +284,75 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   return result;
 }
 
+namespace {
+
+GeodeticPoint CamerasFrameOrigin(const std::string& cameras_json) {
+  try {
+    const nlohmann::json o = nlohmann::json::parse(ReadTextFile(cameras_json)).at("frame").at("origin");
+    return {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
+  } catch (const nlohmann::json::exception& e) {
+    throw Error("idu", cameras_json, std::string("no frame origin: ") + e.what());
+  }
+}
+
+}  // namespace
+
+IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& train, const std::string& sfm_dir,
+                       const std::string& scene_ply, const GroundBox& core, const std::string& out_dir,
+                       const std::string& episodes_stamp, Progress& progress) {
+  options.Check();
+  IduJobResult result;
+  const fs::path dense_path = fs::path(sfm_dir) / "dense.ply";
+  DenseCells dense;
+  if (fs::exists(dense_path)) dense = ReadDenseCells(dense_path.string());
+  result.decision = DecideIdu(options.mode, options.auto_decision, dense.points, dense.filled, dense.cell_m);
+  progress.Info("idu: " + std::string(result.decision.on ? "on" : "off") + " (" + result.decision.why + ")");
+  const fs::path scene_out = fs::path(out_dir) / "scene.ply";
+  if (!result.decision.on) {
+    fs::remove(scene_out);
+    fs::remove(fs::path(out_dir) / "idu_report.json");
+    return result;
+  }
+  const std::vector<TrainView> views = LoadTrainViews(sfm_dir, train.downscale);
+  std::vector<TrainView> satellite_train;
+  for (const TrainView& v : views)
+    if (!v.held_out) satellite_train.push_back(v);
+  std::unique_ptr<SurfaceDepthPrior> surface;
+  if (!dense.points.empty()) surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m);
+  const TrainOptions& t = train.optimizer;
+  const SurfaceDepthPrior* anchor = surface && (t.lambda_surface_depth > 0 || t.lambda_surface_alpha > 0) ? surface.get() : nullptr;
+  auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
+  const std::unique_ptr<Refiner> refiner =
+      MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),
+                  "idu.refiner", options.options.geometry == "surface" ? surface.get() : nullptr);
+  fs::remove(scene_out);  // until this run has finished
+  result.idu = RunIdu(options.options, t, ReadGaussiansPly(scene_ply), views, core,
+                      CamerasFrameOrigin((fs::path(sfm_dir) / "cameras.json").string()), height, anchor, *refiner,
+                      out_dir, episodes_stamp, progress);
+  WriteGaussiansPly(scene_out.string(), result.idu.cloud);
+  nlohmann::json episodes = nlohmann::json::array();
+  for (const IduEpisode& e : result.idu.episodes) {
+    episodes.push_back({{"episode", e.episode}, {"elevation_deg", e.elevation_deg}, {"radius_m", e.radius_m},
+                        {"views", e.views}, {"render_seconds", e.render_seconds}, {"refine_seconds", e.refine_seconds},
+                        {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
+                        {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? nlohmann::json(e.psnr_test_start_db) : nlohmann::json()},
+                        {"psnr_test_db", std::isfinite(e.psnr_test_db) ? nlohmann::json(e.psnr_test_db) : nlohmann::json()},
+                        {"gaussians", e.gaussians}, {"reused", e.reused}});
+  }
+  const nlohmann::json doc = {{"status", "ok"}, {"refiner", options.refiner}, {"seconds", result.idu.report.seconds},
+                              {"decision", {{"on", true}, {"why", result.decision.why},
+                                            {"facade_ratio", result.decision.facade_ratio},
+                                            {"measured_fraction", result.decision.measured_fraction}}},
+                              {"episodes", episodes}};
+  WriteFileAtomic((fs::path(out_dir) / "idu_report.json").string(), doc.dump(2) + "\n");
+  return result;
+}
+
+std::string TileScenePath(const std::string& tile_dir) {
+  const fs::path idu = fs::path(tile_dir) / "idu" / "scene.ply";
+  return fs::exists(idu) ? idu.string() : (fs::path(tile_dir) / "splat" / "scene.ply").string();
+}
+
 void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_json, const std::string& out_dir,
                     int downscale, Progress& progress) {
   const GaussianCloud cloud = ReadGaussiansPly(scene_ply);

@@ -63,6 +63,23 @@ struct TrainJobResult {
 TrainJobResult RunTrainJob(const TrainStageOptions& options, const std::string& sfm_dir, const std::string& out_dir,
                            Progress& progress);
 
+// The synthesis stage of a tile: decided from the dense heights of `sfm_dir`
+// (IduStageOptions::mode), and when on, run on `scene_ply` with the training
+// views of `sfm_dir`, writing out_dir/scene.ply and out_dir/idu_report.json
+// (episodes resume under the same `episodes_stamp`, see IduEpisodesJson).
+// When off, out_dir/scene.ply is removed, so the trained scene is the tile's.
+struct IduJobResult {
+  IduDecision decision;
+  IduResult idu;  // empty when not run
+};
+IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& train, const std::string& sfm_dir,
+                       const std::string& scene_ply, const GroundBox& core, const std::string& out_dir,
+                       const std::string& episodes_stamp, Progress& progress);
+
+// The Gaussians a finished tile contributes to the merge: the synthesis
+// stage's scene when it ran, else the trained one.
+std::string TileScenePath(const std::string& tile_dir);
+
 // Renders the scene (Inria PLY) from every camera of a cameras.json into
 // out_dir: <name>_rgb.png, <name>_depth.png (visualization) and
 // <name>_depth.tif (camera depth in metres, NaN where opacity < 0.5).

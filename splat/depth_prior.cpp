@@ -1,5 +1,8 @@
 #include "splat/depth_prior.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -90,15 +93,17 @@ DepthMap CastRays(const PinholeCamera& cam, double reference_depth_m, Hit hit) {
   out.valid.assign(out.depth.size(), 0);
   const Eigen::Vector3d c = cam.Centre();
   const Eigen::Matrix3d Rt = cam.cam_from_world_rotation.transpose();
-  for (int r = 0; r < H; ++r)
-    for (int col = 0; col < W; ++col) {
-      const double yn = (r - cam.cy) / cam.fy;
-      const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
-      const double t = hit(c, d);
-      if (!std::isfinite(t)) continue;
-      out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(t - reference_depth_m);
-      out.valid[static_cast<size_t>(r) * W + col] = 1;
-    }
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r < rows.end(); ++r)
+      for (int col = 0; col < W; ++col) {
+        const double yn = (r - cam.cy) / cam.fy;
+        const Eigen::Vector3d d = Rt * Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
+        const double t = hit(c, d);
+        if (!std::isfinite(t)) continue;
+        out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(t - reference_depth_m);
+        out.valid[static_cast<size_t>(r) * W + col] = 1;
+      }
+  });
   return out;
 }
 

@@ -94,13 +94,15 @@ double MedianHeight(const GaussianCloud& cloud) {
 TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episode) {
   t.iterations = o.iterations_per_episode;
   t.seed = o.seed + 7919ull * static_cast<std::uint64_t>(episode + 1);
-  t.lambda_opacity = 0.0;            // the paper turns opacity regularization off for IDU
+  t.lambda_opacity = o.lambda_opacity;  // the paper turns opacity regularization off for IDU
+  t.opacity_reg_from = 0;               // the scene is trained: no warm-up
   t.appearance.enabled = false;      // one fixed appearance: the reconstruction's fused cloud
   t.appearance_image.clear();
   t.pseudo_interval = 0;             // the refined views' depth loss takes the pseudo views' place
   t.synthetic_fraction = o.synthetic_fraction;
   t.lambda_view_depth = o.lambda_depth;
   t.keep_snapshots = false;
+  t.anchor_synthetic_views = o.geometry == "surface" && o.anchor_refined_views;
   t.eval_interval = std::max(1, o.iterations_per_episode);
   t.checkpoint_interval = std::max(1, o.iterations_per_episode);
   if (o.densify) {
@@ -117,6 +119,7 @@ json EpisodeJson(const IduEpisode& e) {
   return {{"episode", e.episode},         {"elevation_deg", e.elevation_deg},   {"radius_m", e.radius_m},
           {"views", e.views},             {"render_seconds", e.render_seconds}, {"refine_seconds", e.refine_seconds},
           {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
+          {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? json(e.psnr_test_start_db) : json(nullptr)},
           {"psnr_test_db", std::isfinite(e.psnr_test_db) ? json(e.psnr_test_db) : json(nullptr)},
           {"gaussians", e.gaussians}};
 }
@@ -131,6 +134,7 @@ IduEpisode EpisodeFromJson(const json& j) {
   e.refine_seconds = j.at("refine_seconds");
   e.train_seconds = j.at("train_seconds");
   e.refined_coverage = j.at("refined_coverage");
+  e.psnr_test_start_db = j.at("psnr_test_start_db").is_null() ? NAN : j.at("psnr_test_start_db").get<double>();
   e.psnr_test_db = j.at("psnr_test_db").is_null() ? NAN : j.at("psnr_test_db").get<double>();
   e.gaussians = j.at("gaussians");
   e.reused = true;
@@ -163,9 +167,12 @@ void IduOptions::Check() const {
   need(samples >= 1 && samples <= 16, "samples", samples);
   need(synthetic_fraction >= 0 && synthetic_fraction <= 1, "synthetic_fraction", synthetic_fraction);
   need(lambda_depth >= 0, "lambda_depth", lambda_depth);
+  need(lambda_opacity >= 0, "lambda_opacity", lambda_opacity);
   need(densify_from_fraction >= 0 && densify_from_fraction <= 1, "densify_from_fraction", densify_from_fraction);
   need(densify_until_fraction >= 0 && densify_until_fraction <= 1, "densify_until_fraction", densify_until_fraction);
   need(densify_interval >= 1, "densify_interval", densify_interval);
+  if (geometry != "surface" && geometry != "render")
+    throw Error("idu", "geometry", "'" + geometry + "' is not surface or render");
 }
 
 IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud cloud,
@@ -231,6 +238,12 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
                                               std::to_string(o.samples));
       WriteBytePng((dir / "refined" / (views[v].name + ".png")).string(), views[v].camera.width_px,
                    views[v].camera.height_px, 3, ToBytes(refined[v][0]).data());
+      if (surface && o.geometry == "surface") {
+        const PinholeCamera& cam = views[v].camera;
+        const DepthMap m = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
+        for (std::size_t p = 0; p < m.depth.size(); ++p)
+          if (m.valid[p] && renders[v].valid[p]) renders[v].depth_target[p] = m.depth[p];
+      }
       TrainView t;
       t.name = views[v].name;
       t.camera = views[v].camera;
@@ -246,6 +259,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
                                          nullptr, surface);
     cloud = std::move(trained.cloud);
     ep.train_seconds = train_clock.Seconds();
+    ep.psnr_test_start_db = trained.series.empty() ? NAN : trained.series.front().psnr_test_db;
     ep.psnr_test_db = trained.series.empty() ? NAN : trained.series.back().psnr_test_db;
     ep.gaussians = cloud.size();
     WriteGaussiansPly((dir / "scene.ply").string(), cloud);
@@ -256,7 +270,10 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
   result.report.seconds = clock.Seconds();
   result.report.metrics["episodes"] = static_cast<double>(result.episodes.size());
   result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
-  if (!result.episodes.empty()) result.report.metrics["psnr_test_db"] = result.episodes.back().psnr_test_db;
+  if (!result.episodes.empty()) {
+    result.report.metrics["psnr_test_start_db"] = result.episodes.front().psnr_test_start_db;
+    result.report.metrics["psnr_test_db"] = result.episodes.back().psnr_test_db;
+  }
   return result;
 }
 
@@ -272,12 +289,14 @@ void IduAutoOptions::Check() const {
 IduDecision DecideIdu(const std::string& mode, const IduAutoOptions& o, const std::vector<Eigen::Vector3f>& points,
                       const std::vector<std::uint8_t>& filled, double cell_m) {
   IduDecision d;
-  if (mode == "on" || mode == "off") {
+  if (mode != "auto" && mode != "on" && mode != "off") throw Error("idu", "mode", "'" + mode + "' is not auto, on or off");
+  if (mode != "auto") {
+    // Measured all the same, so that reports compare tiles alike.
+    d = DecideIdu("auto", o, points, filled, cell_m);
     d.on = mode == "on";
     d.why = "idu.mode is '" + mode + "'";
     return d;
   }
-  if (mode != "auto") throw Error("idu", "mode", "'" + mode + "' is not auto, on or off");
   if (points.empty() || !(cell_m > 0)) {
     d.why = "no dense heights (empty or degenerate tile): nothing to render";
     return d;

@@ -56,8 +56,11 @@ TEST(Orbit, EpisodesDescendFromHighToLowAndLookAtAGridOnTheSurface) {
   const GroundBox core = Box(0, 0, 200, 200);
   const double expected[] = {85, 75, 65, 55, 45};
   for (int e = 0; e < 5; ++e) EXPECT_NEAR(EpisodeElevationDeg(o, e), expected[e], kGeometryTol);
+  o.min_radius_m = 0;
   EXPECT_NEAR(EpisodeRadiusM(o, core, 0), 118.0, kGeometryTol);
   EXPECT_NEAR(EpisodeRadiusM(o, core, 4), 98.0, kGeometryTol);
+  o.min_radius_m = 150;  // the floor for small tiles
+  EXPECT_NEAR(EpisodeRadiusM(o, core, 4), 150.0, kGeometryTol);
   const auto grid = LookAtGrid(core, 3, [](double x, double y) { return x < 100 ? 0.1 * x + y * 0.0 : NAN; }, -7.0);
   ASSERT_EQ(grid.size(), 9u);
   EXPECT_NEAR(grid[0].x(), 200.0 / 6, kGeometryTol);
@@ -316,6 +319,7 @@ IduOptions TinyIdu() {
   o.orbit.views_per_point = 2;
   o.orbit.episodes = 2;
   o.orbit.width_px = o.orbit.height_px = 32;
+  o.orbit.min_radius_m = 0;  // orbits of 0.59 -> 0.49 x 32 m around the 40 m plane
   o.iterations_per_episode = 6;
   o.densify = false;
   return o;

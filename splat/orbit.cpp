@@ -19,6 +19,7 @@ void OrbitOptions::Check() const {
   need(elevation_end_deg > 5 && elevation_end_deg < 90, "elevation_end_deg", elevation_end_deg);
   need(radius_start_per_core > 0 && radius_start_per_core <= 10, "radius_start_per_core", radius_start_per_core);
   need(radius_end_per_core > 0 && radius_end_per_core <= 10, "radius_end_per_core", radius_end_per_core);
+  need(min_radius_m >= 0, "min_radius_m", min_radius_m);
   need(fov_deg >= 5 && fov_deg <= 120, "fov_deg", fov_deg);
   need(width_px >= 16 && width_px <= 4096, "width_px", width_px);
   need(height_px >= 16 && height_px <= 4096, "height_px", height_px);
@@ -38,7 +39,7 @@ double EpisodeElevationDeg(const OrbitOptions& o, int episode) {
 double EpisodeRadiusM(const OrbitOptions& o, const GroundBox& core, int episode) {
   const double t = EpisodeFraction(o, episode);
   const double side_m = std::max(core.Width(), core.Height());
-  return side_m * (o.radius_start_per_core + t * (o.radius_end_per_core - o.radius_start_per_core));
+  return std::max(o.min_radius_m, side_m * (o.radius_start_per_core + t * (o.radius_end_per_core - o.radius_start_per_core)));
 }
 
 std::vector<Eigen::Vector3d> LookAtGrid(const GroundBox& core, int grid,

@@ -27,6 +27,10 @@ struct OrbitOptions {
   // units wide; the same proportions are 0.59 -> 0.49 of the grid's side.
   double radius_start_per_core = 0.59;
   double radius_end_per_core = 0.49;
+  // [m] radius floor: keeps the cameras of small tiles above the rooftops
+  // (at 45 deg, 106 m above the look-at point), where the scene is seen from
+  // outside rather than from within the Gaussians of a tower.
+  double min_radius_m = 150.0;
   // The paper gives no field of view for the orbit views; 60 deg (as for
   // the pseudo cameras) sees the neighbouring look-at points at the start
   // radius, so consecutive points' views overlap.

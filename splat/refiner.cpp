@@ -94,8 +94,9 @@ void ReprojectOptions::Check() const {
     throw Error("idu", "reproject.inpaint", "'" + inpaint + "' is not telea, ns or render");
 }
 
-ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster)
-    : satellite_(satellite), options_(std::move(options)), raster_(raster) {
+ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster,
+                                   const SurfaceDepthPrior* surface)
+    : satellite_(satellite), options_(std::move(options)), raster_(raster), surface_(surface) {
   options_.Check();
   if (satellite_.empty()) throw Error("idu", "refiner", "reproject needs satellite views");
 }
@@ -104,6 +105,19 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
                                                      const RefineRequest& request, Progress& progress) {
   std::vector<SatelliteDepth> sat_depth;
   for (const TrainView& s : satellite_) sat_depth.push_back(RenderSatelliteDepth(scene, s, raster_));
+  if (surface_) {
+    // The height field decides visibility where it has an answer.
+    const bool first = surface_in_satellite_.empty();
+    for (std::size_t s = 0; s < satellite_.size(); ++s) {
+      // Relative to the render's reference depth (the camera depth of the
+      // frame origin): satellite depths of ~6e5 m keep centimetres only so.
+      const PinholeCamera& cam = satellite_[s].camera;
+      if (first) surface_in_satellite_.push_back(surface_->DepthRelativeTo(cam, cam.cam_from_world_translation.z()));
+      const DepthMap& m = surface_in_satellite_[s];
+      for (std::size_t q = 0; q < m.depth.size(); ++q)
+        if (m.valid[q]) sat_depth[s].depth[q] = m.depth[q];
+    }
+  }
   const int S = static_cast<int>(satellite_.size());
   std::vector<RefinedSamples> out(views.size());
   progress.Begin("idu refine (reproject)", views.size());
@@ -113,6 +127,14 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
     const int W = cam.width_px, H = cam.height_px;
     const std::size_t n = static_cast<std::size_t>(W) * H;
     if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
+    // Where each pixel's ray meets the surface: the height field's depth
+    // (walls included) where it has one, else the render's.
+    std::vector<float> depth_m = in.depth_m;
+    if (surface_) {
+      const DepthMap m = surface_->DepthRelativeTo(cam, 0.0);
+      for (std::size_t p = 0; p < n; ++p)
+        if (m.valid[p] && std::isfinite(depth_m[p])) depth_m[p] = m.depth[p];
+    }
     // Each satellite view's vote at each pixel (computed once, used by every sample).
     std::vector<std::vector<Vote>> votes(n);
     const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
@@ -121,7 +143,7 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
       for (int y = rows.begin(); y < rows.end(); ++y) {
         for (int x = 0; x < W; ++x) {
           const std::size_t p = static_cast<std::size_t>(y) * W + x;
-          const double depth = in.depth_m[p];
+          const double depth = depth_m[p];
           if (!std::isfinite(depth)) continue;
           const Eigen::Vector3d X = R_t * (K_inv * Eigen::Vector3d(x, y, 1.0) * depth - cam.cam_from_world_translation);
           const Eigen::Vector3d to_orbit = (eye - X).normalized();
@@ -289,8 +311,8 @@ std::vector<RefinedSamples> CommandRefiner::Refine(const GaussianCloud& /*scene*
 
 std::unique_ptr<Refiner> MakeRefiner(const std::string& spec, const std::vector<TrainView>& satellite,
                                      const ReprojectOptions& reproject, const std::string& work_dir,
-                                     const std::string& field) {
-  if (spec == "reproject") return std::make_unique<ReprojectRefiner>(satellite, reproject);
+                                     const std::string& field, const SurfaceDepthPrior* surface) {
+  if (spec == "reproject") return std::make_unique<ReprojectRefiner>(satellite, reproject, RasterOptions{}, surface);
   if (spec.rfind("cmd:", 0) == 0) return std::make_unique<CommandRefiner>(spec.substr(4), work_dir);
   throw Error("idu", field, "'" + spec + "' is not 'reproject' or 'cmd:COMMAND'");
 }

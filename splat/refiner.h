@@ -12,6 +12,7 @@
 #include "core/gaussians.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
+#include "splat/depth_prior.h"
 #include "splat/trainer.h"
 
 namespace skyfall {
@@ -83,7 +84,13 @@ struct ReprojectOptions {
 class ReprojectRefiner final : public Refiner {
  public:
   // `satellite`: the satellite training views (colours and cameras).
-  ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster = {});
+  // `surface` (may be null): a height field (the dense heights) whose
+  // ray-cast depth, vertical walls included, places orbit pixels in 3D and
+  // decides satellite visibility where it has an answer; elsewhere the
+  // depth the scene renders does. The Gaussians of a satellite
+  // reconstruction hardly hold facades, the height field's steps do.
+  ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster = {},
+                   const SurfaceDepthPrior* surface = nullptr);
   std::vector<RefinedSamples> Refine(const GaussianCloud& scene, const std::vector<RefineInput>& views,
                                      const RefineRequest& request, Progress& progress) override;
 
@@ -91,6 +98,8 @@ class ReprojectRefiner final : public Refiner {
   const std::vector<TrainView>& satellite_;
   ReprojectOptions options_;
   RasterOptions raster_;
+  const SurfaceDepthPrior* surface_;
+  std::vector<DepthMap> surface_in_satellite_;  // the surface's depth in each satellite view (computed once)
 };
 
 // External refiner: for each call, writes the renders as IN/<name>.png and
@@ -112,7 +121,7 @@ class CommandRefiner final : public Refiner {
 // "reproject" or "cmd:COMMAND"; throws Error naming `field` otherwise.
 std::unique_ptr<Refiner> MakeRefiner(const std::string& spec, const std::vector<TrainView>& satellite,
                                      const ReprojectOptions& reproject, const std::string& work_dir,
-                                     const std::string& field);
+                                     const std::string& field, const SurfaceDepthPrior* surface = nullptr);
 
 // The seed of sample k of view v in a request.
 inline std::uint64_t SampleSeed(const RefineRequest& r, std::size_t view, int sample) {

@@ -673,7 +673,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     std::vector<float> d_alpha, d_depth;
     if (!view.depth_target.empty() && o.lambda_view_depth > 0) loss += ViewDepthLoss(r, view, o.lambda_view_depth, &d_depth);
-    if (anchored && !view.synthetic) {
+    if (anchored && (!view.synthetic || o.anchor_synthetic_views)) {
       DepthMap& target = surface_depth[view_id];
       if (target.depth.empty()) target = surface->DepthRelativeTo(view.camera, view.camera.cam_from_world_translation.z());
       loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &d_depth);

@@ -105,6 +105,7 @@ struct TrainOptions {
   // and the weight of the Pearson depth loss on views with a depth target.
   double synthetic_fraction = 0.75;
   double lambda_view_depth = 0.5;
+  bool anchor_synthetic_views = false;  // the surface anchor also holds synthetic views
   // Per-image appearance (multi-date imagery). The exported cloud is fused
   // with the embedding of `appearance_image` (a training view name; empty:
   // the view whose embedding is nearest the mean).

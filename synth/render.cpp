@@ -227,7 +227,8 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
       for (int c = 0; c < camera.width_px; ++c) {
         const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
         const Eigen::Vector3d d_enu = camera.RayDirectionEnu(c, r);
-        const double t_start = (start_z - camera.centre_enu_m.z()) / d_enu.z();
+        // (A camera below that height, such as a low orbit view, starts at itself.)
+        const double t_start = std::max(0.0, (start_z - camera.centre_enu_m.z()) / d_enu.z());
         const Eigen::Vector3d o_scene = scene_from_enu.Apply(camera.centre_enu_m + t_start * d_enu);
         const Eigen::Vector3d d_scene = (scene_from_enu.linear * d_enu).normalized();
         const Hit hit = CastDown(city, o_scene, d_scene);

@@ -316,12 +316,17 @@ void SynthOptions::Check() const {
   need(image_margin_px >= 0, "image_margin_px", std::to_string(image_margin_px), "must be >= 0");
 }
 
-SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progress& progress) {
-  o.Check();
-  Stopwatch clock;
-  SynthResult r;
-  r.report.stage = "synth";
-  CityOptions co;
+namespace {
+
+// The city and its georeferencing, as RunSynth and RenderTruthViews share them.
+struct Scene {
+  CityOptions city_options;
+  Georef georef;
+};
+
+Scene MakeScene(const SynthOptions& o, SynthResult* r) {
+  Scene sc;
+  CityOptions& co = sc.city_options;
   co.width_m = o.blocks_x * o.size_m;
   co.height_m = o.blocks_y * o.size_m;
   co.cell_m = 0.5 * o.gsd_m;  // two cells per DSM pixel: DSM pixel centres are cell centres
@@ -334,20 +339,53 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
   co.max_building_m = o.max_building_m;
   co.relief_m = o.relief_m;
   co.water = o.relief_m <= 10.0;
-  r.city = GenerateCity(co);
+  r->city = GenerateCity(co);
 
-  Georef g;
+  Georef& g = sc.georef;
   g.zone = StandardUtmZone(o.lon_deg, o.lat_deg);
   const Eigen::Vector2d centre_en = UtmFromGeodetic(g.zone, o.lon_deg, o.lat_deg);
   g.e0 = std::round(centre_en.x() - 0.5 * co.width_m);
   g.n0 = std::round(centre_en.y() - 0.5 * co.height_m);
   const GeodeticPoint centre = g.GeodeticFromScene({0.5 * co.width_m, 0.5 * co.height_m, co.base_height_m});
   g.frame = EnuFrame(centre);
-  r.enu_origin = centre;
-  r.utm_easting0_m = g.e0;
-  r.utm_northing0_m = g.n0;
-  r.epsg = g.zone.Epsg();
-  r.scene_from_enu = FitSceneFromEnu(g, r.city);
+  r->enu_origin = centre;
+  r->utm_easting0_m = g.e0;
+  r->utm_northing0_m = g.n0;
+  r->epsg = g.zone.Epsg();
+  r->scene_from_enu = FitSceneFromEnu(g, r->city);
+  return sc;
+}
+
+// The light of image v (0-based) of the AOI at block (bx, by); fills the
+// view's time and sun angles.
+Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx, int by, SynthView* view) {
+  const int date = v / o.views_per_date;
+  const Acquisition acq = MakeAcquisition(date, v % o.views_per_date);
+  view->acquisition_time = acq.iso;
+  SunPosition(o.lat_deg, o.lon_deg, acq, &view->sun_elevation_deg, &view->sun_azimuth_deg);
+  Lighting light;
+  light.sun_scene = (r.scene_from_enu.linear *
+                     UnitFromAngles((90.0 - view->sun_elevation_deg) * kDegToRad, view->sun_azimuth_deg * kDegToRad))
+                        .normalized();
+  const double s = o.date_contrast;
+  light.gain = static_cast<float>(1.0 + s * 0.24 * (Frac(0.17 + date * 0.4142 + o.seed * 0.1) - 0.5));
+  light.ambient = static_cast<float>(0.28 + 0.12 * Frac(0.61 + date * 0.7071));
+  light.tint = Eigen::Vector3f(1.0f + static_cast<float>(s * 0.05 * (Frac(date * 0.31) - 0.5)), 1.0f,
+                               1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
+  light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
+  return light;
+}
+
+}  // namespace
+
+SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progress& progress) {
+  o.Check();
+  Stopwatch clock;
+  SynthResult r;
+  r.report.stage = "synth";
+  const Scene scene = MakeScene(o, &r);
+  const CityOptions& co = scene.city_options;
+  const Georef& g = scene.georef;
 
   const fs::path root(root_dir);
   const int dates = (o.views + o.views_per_date - 1) / o.views_per_date;
@@ -382,19 +420,8 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
         view.view_zenith_deg = vg.zenith_deg;
         view.view_azimuth_deg = vg.azimuth_deg;
         view.range_km = vg.range_m / 1000.0;
-        view.acquisition_time = acq.iso;
-        SunPosition(o.lat_deg, o.lon_deg, acq, &view.sun_elevation_deg, &view.sun_azimuth_deg);
-        Lighting& light = view.lighting;
-        light.sun_scene = (r.scene_from_enu.linear *
-                           UnitFromAngles((90.0 - view.sun_elevation_deg) * kDegToRad,
-                                          view.sun_azimuth_deg * kDegToRad))
-                              .normalized();
-        const double s = o.date_contrast;
-        light.gain = static_cast<float>(1.0 + s * 0.24 * (Frac(0.17 + date * 0.4142 + o.seed * 0.1) - 0.5));
-        light.ambient = static_cast<float>(0.28 + 0.12 * Frac(0.61 + date * 0.7071));
-        light.tint = Eigen::Vector3f(1.0f + static_cast<float>(s * 0.05 * (Frac(date * 0.31) - 0.5)), 1.0f,
-                                     1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
-        light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
+        view.lighting = ViewLighting(o, r, v, bx, by, &view);
+        const Lighting& light = view.lighting;
 
         const RpcFitResult fit = FitViewRpc(view.camera, g, r.city);
         view.rpc_fit_max_px = fit.max_residual_px;
@@ -457,6 +484,57 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
   r.report.metrics["images"] = static_cast<double>(done);
   r.report.metrics["buildings"] = static_cast<double>(r.city.buildings.size());
   return r;
+}
+
+int RenderTruthViews(const SynthOptions& o, const std::vector<std::pair<std::string, PinholeCamera>>& cameras,
+                     const GeodeticPoint& cameras_origin, int lighting_view, const std::string& out_dir,
+                     Progress& progress) {
+  o.Check();
+  if (lighting_view < 0 || lighting_view >= o.views)
+    throw Error("synth", "lighting view", std::to_string(lighting_view) + " is not an image of 0.." + std::to_string(o.views - 1));
+  SynthResult r;
+  const Scene scene = MakeScene(o, &r);
+  const EnuFrame given(cameras_origin);
+  const EnuFrame& own = scene.georef.frame;
+  SynthView lit;
+  const Lighting light = ViewLighting(o, r, lighting_view, 0, 0, &lit);
+  // Directions in the cameras' frame from directions in the city's ENU frame
+  // (the two frames differ by the Earth's curvature between their origins).
+  auto own_from_given = [&](const Eigen::Vector3d& p) { return own.EnuFromGeodetic(given.GeodeticFromEnu(p)); };
+  fs::create_directories(out_dir);
+  progress.Begin("synth truth views", cameras.size());
+  int written = 0;
+  for (const auto& [name, cam] : cameras) {
+    if (std::abs(cam.fx - cam.fy) > 1e-6 * cam.fx || std::abs(cam.skew) > 1e-6 * cam.fx)
+      throw Error("synth", name, "truth views need square pixels without skew");
+    const Eigen::Vector3d centre_given = cam.Centre();
+    const Eigen::Vector3d centre_own = own_from_given(centre_given);
+    Eigen::Matrix3d given_from_own;  // columns: the city frame's axes in the cameras' frame
+    constexpr double kStepM = 10.0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d step_own = centre_own + kStepM * Eigen::Vector3d::Unit(k);
+      given_from_own.col(k) = (given.EnuFromGeodetic(own.GeodeticFromEnu(step_own)) - centre_given) / kStepM;
+    }
+    SatelliteCamera sc;
+    sc.cam_from_enu = cam.cam_from_world_rotation * given_from_own;
+    sc.centre_enu_m = centre_own;
+    sc.focal_px = cam.fx;
+    sc.principal_px = {cam.cx, cam.cy};
+    sc.width_px = cam.width_px;
+    sc.height_px = cam.height_px;
+    const RenderedView img = RenderView(r.city, sc, r.scene_from_enu, light);
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(img.width_px) * img.height_px, 0);
+    const double x1 = o.blocks_x * o.size_m, y1 = o.blocks_y * o.size_m;
+    for (std::size_t p = 0; p < mask.size(); ++p) {
+      const Eigen::Vector3f& h = img.hit_scene[p];
+      if (std::isfinite(h.x()) && h.x() >= 0 && h.x() < x1 && h.y() >= 0 && h.y() < y1) mask[p] = 255;
+    }
+    WriteBytePng((fs::path(out_dir) / (name + ".png")).string(), img.width_px, img.height_px, 3, img.rgb.data());
+    WriteBytePng((fs::path(out_dir) / (name + "_mask.png")).string(), img.width_px, img.height_px, 1, mask.data());
+    progress.Advance(++written, name);
+  }
+  progress.End();
+  return written;
 }
 
 }  // namespace skyfall::synth

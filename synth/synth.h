@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/pinhole.h"
 #include "core/stage.h"
 #include "synth/city.h"
 #include "synth/render.h"
@@ -75,5 +76,17 @@ struct SynthResult {
 
 // Generates the city, renders every view and writes the tree under `root`.
 SynthResult RunSynth(const SynthOptions& options, const std::string& root, Progress& progress);
+
+// Truth images of the city `options` describes (the same options that wrote
+// its tree) for any pinhole cameras given in an ENU frame at
+// `cameras_origin` (e.g. the orbit cameras.json of the synthesis stage).
+// Lit as image `lighting_view` (0-based) of the first AOI, without its cars.
+// Writes, per camera, out_dir/<name>.png (RGB) and out_dir/<name>_mask.png
+// (255 where the pixel sees the city inside its AOIs, 0 elsewhere: beyond
+// them, or the sky). Returns the number of images written.
+int RenderTruthViews(const SynthOptions& options,
+                     const std::vector<std::pair<std::string, PinholeCamera>>& cameras,
+                     const GeodeticPoint& cameras_origin, int lighting_view, const std::string& out_dir,
+                     Progress& progress);
 
 }  // namespace skyfall::synth

@@ -323,6 +323,63 @@ TEST(Synth, AdjacentBlocksShareTheirBoundary) {
   EXPECT_EQ(RunIngest(IngestOptions{}, s.root.string(), (s.root / "out").string(), progress).NumIngested(), 2);
 }
 
+// East, north and up of an ENU frame at (lon, lat) in ECEF (geodetic normal).
+Eigen::Matrix3d EnuFromEcef(const GeodeticPoint& g) {
+  const double l = g.lon_deg * M_PI / 180, p = g.lat_deg * M_PI / 180;
+  Eigen::Matrix3d m;
+  m << -std::sin(l), std::cos(l), 0, -std::sin(p) * std::cos(l), -std::sin(p) * std::sin(l), std::cos(p),
+      std::cos(p) * std::cos(l), std::cos(p) * std::sin(l), std::sin(p);
+  return m;
+}
+
+// Truth views of an image's own camera, given in another ENU frame 2 km
+// away, reproduce that image: same frame conversion, lighting and noise;
+// only the cars (absent from truth views) differ.
+TEST(Synth, TruthViewOfAnImagesCameraInAnotherFrameReproducesTheImage) {
+  const SynthOptions o = SmallScene();
+  const Scene scene = MakeScene(o);
+  const int v = 2;
+  const SynthView& view = scene.result.aois[0].views[v];
+  const GeodeticPoint own = scene.result.enu_origin;
+  const GeodeticPoint other{own.lon_deg + 0.02, own.lat_deg - 0.01, own.height_m + 30.0};
+  const EnuFrame own_frame(own), other_frame(other);
+  PinholeCamera cam;
+  cam.fx = cam.fy = view.camera.focal_px;
+  cam.cx = view.camera.principal_px.x();
+  cam.cy = view.camera.principal_px.y();
+  cam.width_px = view.camera.width_px;
+  cam.height_px = view.camera.height_px;
+  // Rotation between the frames from their ECEF axes (independent of the
+  // finite differences the renderer uses).
+  cam.cam_from_world_rotation = view.camera.cam_from_enu * EnuFromEcef(own) * EnuFromEcef(other).transpose();
+  const Eigen::Vector3d centre_other = other_frame.EnuFromGeodetic(own_frame.GeodeticFromEnu(view.camera.centre_enu_m));
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * centre_other;
+  const fs::path out = scene.root / "truth";
+  NullProgress quiet;
+  ASSERT_EQ(RenderTruthViews(o, {{"again", cam}}, other, v, out.string(), quiet), 1);
+  const FloatImage truth = ReadFloatImage((out / "again.png").string());
+  const FloatImage image = ReadFloatImage(view.path);
+  const FloatBand mask = ReadFloatBand((out / "again_mask.png").string());
+  ASSERT_EQ(truth.width_px, image.width_px);
+  ASSERT_EQ(truth.height_px, image.height_px);
+  std::size_t same = 0, inside = 0;
+  const std::size_t n = static_cast<std::size_t>(truth.width_px) * truth.height_px;
+  for (std::size_t p = 0; p < n; ++p) {
+    bool equal = true;
+    for (int c = 0; c < 3; ++c) equal = equal && std::abs(truth.values[3 * p + c] - image.values[3 * p + c]) <= 1.0f;
+    same += equal;
+    inside += mask.values[p] > 127;
+  }
+  // Cars cover ~2 % of the ground, with their shadows a few % of the pixels.
+  EXPECT_GT(static_cast<double>(same) / n, 0.9);
+  // The crop bounds the AOI's footprint, turned by the orbit's heading, plus
+  // a margin: at a 30 deg turn the square fills about 1 / (cos + sin)^2 =
+  // 54 % of its bounding box, less with the margin and the leaning buildings.
+  EXPECT_GT(static_cast<double>(inside) / n, 0.3);
+  EXPECT_LT(inside, n);
+  EXPECT_THROW(RenderTruthViews(o, {{"again", cam}}, other, o.views, out.string(), quiet), Error);
+}
+
 TEST(Synth, OptionsAreChecked) {
   SynthOptions o;
   o.aoi = "no-number";

@@ -260,7 +260,9 @@ TEST(Cli, RunConfigurationFromFileSetAndFlagsReachesTheTileProcesses) {
   // The printed configuration, piped back in, runs a small city with tile
   // processes that read it; the city records exactly that configuration.
   ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 4", dir).exit_code, 0);
-  const std::string flags = " --tile-m 64 --iterations 30 --init-max-scale 0";
+  const std::string flags = " --tile-m 64 --iterations 30 --init-max-scale 0 --idu on --set idu.orbit.episodes=2"
+                            " --set idu.orbit.grid=1 --set idu.orbit.width_px=32 --set idu.orbit.height_px=32"
+                            " --set idu.iterations_per_episode=5";
   const CommandResult print = RunCommand(Skyfall() + " run --print-config" + flags, dir);
   ASSERT_EQ(print.exit_code, 0) << print.err;
   const CommandResult run = RunCommand(Skyfall() + " run --print-config" + flags + " | " + Skyfall() +
@@ -276,6 +278,10 @@ TEST(Cli, RunConfigurationFromFileSetAndFlagsReachesTheTileProcesses) {
   EXPECT_GT(report["peak_tile_rss_mb"].get<double>(), 10.0);
   EXPECT_TRUE(fs::exists(city / "scene" / "scene.ply"));
   EXPECT_TRUE(fs::exists(city / "dsm.tif"));  // a one-AOI city is named after its AOI
+  // The synthesis stage ran in the tile process, and the report says why.
+  EXPECT_EQ(report["tiles"][0]["decisions"]["idu"]["on"], true) << report.dump();
+  EXPECT_TRUE(fs::exists(tile / "idu" / "scene.ply"));
+  EXPECT_TRUE(fs::exists(tile / "idu" / "episode_1" / "episode.json"));
   // The same configuration given to run-tile finds the tile done.
   const CommandResult again = RunCommand(Skyfall() + " run-tile " + tile.string() + " --config " +
                                              (city / "run_config.json").string(), dir);
