@@ -27,12 +27,7 @@ while [ $# -gt 0 ]; do
     *) OUT=$1; shift ;;
   esac
 done
-if [ -z "${SKYFALL_BIN:-}" ]; then
-  [ -x build/bin/skyfall ] || bash scripts/build.sh
-  SKYFALL_BIN=$(pwd)/build/bin/skyfall
-fi
-B=$SKYFALL_BIN
-read -r -a RUN_ARGS <<< "${SKYFALL_RUN_ARGS:-}"
+source scripts/bench_env.sh
 mkdir -p "$OUT"
 
 # name | tuned_on | synth flags ("dfc2019" for the real AOI)

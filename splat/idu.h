@@ -25,9 +25,9 @@ namespace skyfall {
 struct IduOptions {
   OrbitOptions orbit;
   // Training iterations per episode (paper: 10,000 on a GPU; a CPU tile
-  // affords a few hundred, which the stage-time budget of at most twice the
-  // reconstruction allows).
-  int iterations_per_episode = 300;
+  // affords a few hundred within the stage-time budget of at most twice the
+  // reconstruction).
+  int iterations_per_episode = 500;
   int samples = 2;                    // N_s refined samples per view (paper: 2)
   double synthetic_fraction = 0.75;   // share of iterations on refined views (paper: 75 %)
   double lambda_depth = 0.5;          // Pearson depth loss on refined views
@@ -36,7 +36,9 @@ struct IduOptions {
   double lambda_opacity = 0.0;
   // Densification within each episode (paper: through 90 % of it), from
   // densify_from_fraction of the episode every densify_interval iterations.
-  bool densify = true;
+  // Off by default: on the synthetic city it bought ~0.5 dB at 45 deg but
+  // cost 5-6 % of DSM accuracy and half again the time (docs/benchmarks.md).
+  bool densify = false;
   double densify_from_fraction = 0.2;
   double densify_until_fraction = 0.9;
   int densify_interval = 100;
