@@ -134,6 +134,7 @@ template <class IO> void Visit(IO& io, RasterOptions& o) {
   io("min_transmittance", o.min_transmittance);
   io("dilation_px2", o.dilation_px2);
   io("near_m", o.near_m);
+  io("guard_band", o.guard_band);
   io("sigma_extent", o.sigma_extent);
   io("sh_degree", o.sh_degree);
   io("background", o.background);

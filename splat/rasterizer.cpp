@@ -70,6 +70,8 @@ Projection Project(const GaussianCloudT<T>& cloud, std::size_t i, const PinholeC
   p.cov(0, 0) += o.dilation_px2;
   p.cov(1, 1) += o.dilation_px2;
   if (!(p.cov.determinant() > 0) || !p.uv.allFinite()) return p;
+  const double gx = o.guard_band * cam.width_px, gy = o.guard_band * cam.height_px;
+  if (p.uv.x() < -gx || p.uv.x() > cam.width_px + gx || p.uv.y() < -gy || p.uv.y() > cam.height_px + gy) return p;
   const Eigen::Vector3d d = mean - centre;
   p.view_distance = d.norm();
   p.view_dir = d / p.view_distance;
@@ -149,6 +151,7 @@ void RasterOptions::Check() const {
   need(min_transmittance >= 0 && min_transmittance < 1, "min_transmittance", min_transmittance);
   need(dilation_px2 >= 0, "dilation_px2", dilation_px2);
   need(near_m > 0, "near_m", near_m);
+  need(guard_band >= 0, "guard_band", guard_band);
   need(sigma_extent > 0, "sigma_extent", sigma_extent);
   need(sh_degree == 0 || sh_degree == 1, "sh_degree", sh_degree);
 }

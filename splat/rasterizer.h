@@ -25,6 +25,12 @@ struct RasterOptions {
   double min_transmittance = 1e-4;     // early termination of a pixel
   double dilation_px2 = 0.3;           // added to the 2D covariance diagonal (anti-aliasing) [px^2]
   double near_m = 0.2;                 // Gaussians closer than this to the camera plane are culled [m]
+  // Gaussians whose centre projects further than this fraction of the image
+  // size beyond its edges are culled. Near the camera plane of a close,
+  // oblique camera (an orbit view) a Gaussian far to the side projects with
+  // a footprint larger than the image and veils all of it (3DGS clamps the
+  // projection's Jacobian at 1.3 x the half field of view for the same reason).
+  double guard_band = 0.3;
   double sigma_extent = 3.0;           // blend within this many standard deviations (Mahalanobis)
   int sh_degree = 1;                   // 0 or 1
   // Also render the median depth (not differentiable; for DSMs and depth maps).

@@ -1,6 +1,8 @@
 #include "splat/raster_test_support.h"
 #include "splat/rasterizer.h"
 
+#include "core/error.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -163,6 +165,29 @@ TEST(Rasterizer, GaussiansBehindTheCameraAreCulledWithZeroGradient) {
   }
   for (double v : r.rgb) EXPECT_TRUE(std::isfinite(v));
   EXPECT_GT(g.d.means[0].norm(), 0.0);
+}
+
+// A big Gaussian just past the near plane, far to the side, projects
+// beyond the guard band with a footprint larger than the image: culled, so
+// it does not veil the view; the same Gaussian inside the band still blends.
+TEST(Rasterizer, GaussiansFarOutsideTheImageNearTheCameraPlaneAreCulled) {
+  const PinholeCamera cam = LookDownCamera(41.6, 32, 32, 40.0);
+  const Eigen::Vector3d forward = cam.cam_from_world_rotation.row(2).transpose();
+  const Eigen::Vector3d right = cam.cam_from_world_rotation.row(0).transpose();
+  Cloud cloud = RandomCloud(1, 5.0, 1.0, 4);
+  cloud.log_scales[0] = Eigen::Vector3d::Constant(std::log(2.0));
+  cloud.opacity_logits[0] = 4.0;
+  RasterOptions o;
+  // 1 m in front of the camera plane, 5 m to the side: u = 16 + 41.6 * 5 = 224 px, far beyond 32 x 1.3.
+  cloud.means[0] = cam.Centre() + 1.0 * forward + 5.0 * right;
+  const RenderOutput<double> outside = RenderGaussians(cloud, cam, o);
+  EXPECT_EQ(outside.state.radius_px[0], 0);
+  for (double a : outside.alpha) EXPECT_EQ(a, 0.0);
+  o.guard_band = 10.0;  // a band that reaches it: it now covers the image
+  const RenderOutput<double> veiled = RenderGaussians(cloud, cam, o);
+  EXPECT_GT(veiled.alpha[16 * 32 + 16], 0.5);
+  o.guard_band = -1.0;
+  EXPECT_THROW(o.Check(), Error);
 }
 
 TEST(Rasterizer, FootprintIsTheSigmaEllipseAtEveryTileAndImageEdge) {
