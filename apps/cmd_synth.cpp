@@ -5,9 +5,6 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
-#include <nlohmann/json.hpp>
-
-#include "core/atomic_file.h"
 #include "core/error.h"
 #include "splat/dataset.h"
 #include "synth/synth.h"
@@ -59,16 +56,9 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
       ConsoleProgress progress;
       if (!render_cameras->empty()) {
         if (render_out->empty()) throw Error("synth", "--render-out", "is needed with --render-cameras");
-        nlohmann::json origin;
-        try {
-          origin = nlohmann::json::parse(ReadTextFile(*render_cameras)).at("frame").at("origin");
-        } catch (const nlohmann::json::exception& e) {
-          throw Error("synth", *render_cameras, std::string("no frame.origin: ") + e.what());
-        }
-        const int n = synth::RenderTruthViews(
-            *opts, ReadCameras(*render_cameras),
-            {origin.at("lon_deg").get<double>(), origin.at("lat_deg").get<double>(), origin.at("height_m").get<double>()},
-            *lighting_view, *render_out, progress);
+        const int n = synth::RenderTruthViews(*opts, ReadCameras(*render_cameras),
+                                              ReadCamerasFrameOrigin(*render_cameras), *lighting_view, *render_out,
+                                              progress);
         spdlog::info("synth: {} truth images in {}", n, *render_out);
         return 0;
       }

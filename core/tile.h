@@ -66,6 +66,14 @@ struct TileSpec {
   GeodeticPoint enu_origin;       // the city's shared frame
   double min_height_m = 0, max_height_m = 0;  // ellipsoidal
   std::vector<TileImage> images;
+  // The part of the core the tile reconstructs (a city smaller than a tile
+  // clips its core to the tile's extent).
+  GroundBox ReconstructedCore() const {
+    GroundBox b = core;
+    b.min_m = b.min_m.cwiseMax(extent.min_m);
+    b.max_m = b.max_m.cwiseMin(extent.max_m);
+    return b;
+  }
 };
 
 inline Eigen::Vector2i TileGrid::Owner(double east_m, double north_m) const {

@@ -284,19 +284,6 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   return result;
 }
 
-namespace {
-
-GeodeticPoint CamerasFrameOrigin(const std::string& cameras_json) {
-  try {
-    const nlohmann::json o = nlohmann::json::parse(ReadTextFile(cameras_json)).at("frame").at("origin");
-    return {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
-  } catch (const nlohmann::json::exception& e) {
-    throw Error("idu", cameras_json, std::string("no frame origin: ") + e.what());
-  }
-}
-
-}  // namespace
-
 IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& train, const std::string& sfm_dir,
                        const std::string& scene_ply, const GroundBox& core, const std::string& out_dir,
                        const std::string& episodes_stamp, Progress& progress) {
@@ -319,31 +306,20 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
     if (!v.held_out) satellite_train.push_back(v);
   std::unique_ptr<SurfaceDepthPrior> surface;
   if (!dense.points.empty()) surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m);
-  const TrainOptions& t = train.optimizer;
-  const SurfaceDepthPrior* anchor = surface && (t.lambda_surface_depth > 0 || t.lambda_surface_alpha > 0) ? surface.get() : nullptr;
   auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
   const std::unique_ptr<Refiner> refiner =
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),
                   "idu.refiner", options.options.geometry == "surface" ? surface.get() : nullptr);
   fs::remove(scene_out);  // until this run has finished
-  result.idu = RunIdu(options.options, t, ReadGaussiansPly(scene_ply), views, core,
-                      CamerasFrameOrigin((fs::path(sfm_dir) / "cameras.json").string()), height, anchor, *refiner,
+  result.idu = RunIdu(options.options, train.optimizer, ReadGaussiansPly(scene_ply), views, core,
+                      ReadCamerasFrameOrigin((fs::path(sfm_dir) / "cameras.json").string()), height, surface.get(), *refiner,
                       out_dir, episodes_stamp, progress);
   WriteGaussiansPly(scene_out.string(), result.idu.cloud);
-  nlohmann::json episodes = nlohmann::json::array();
-  for (const IduEpisode& e : result.idu.episodes) {
-    episodes.push_back({{"episode", e.episode}, {"elevation_deg", e.elevation_deg}, {"radius_m", e.radius_m},
-                        {"views", e.views}, {"render_seconds", e.render_seconds}, {"refine_seconds", e.refine_seconds},
-                        {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
-                        {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? nlohmann::json(e.psnr_test_start_db) : nlohmann::json()},
-                        {"psnr_test_db", std::isfinite(e.psnr_test_db) ? nlohmann::json(e.psnr_test_db) : nlohmann::json()},
-                        {"gaussians", e.gaussians}, {"reused", e.reused}});
-  }
   const nlohmann::json doc = {{"status", "ok"}, {"refiner", options.refiner}, {"seconds", result.idu.report.seconds},
                               {"decision", {{"on", true}, {"why", result.decision.why},
                                             {"facade_ratio", result.decision.facade_ratio},
                                             {"measured_fraction", result.decision.measured_fraction}}},
-                              {"episodes", episodes}};
+                              {"episodes", nlohmann::json::parse(IduEpisodesJson(result.idu.episodes))}};
   WriteFileAtomic((fs::path(out_dir) / "idu_report.json").string(), doc.dump(2) + "\n");
   return result;
 }
@@ -362,8 +338,7 @@ void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_jso
   for (const auto& [name, full] : cameras) {
     const RenderOutput<float> r = RenderGaussians(cloud, DownscaledCamera(full, downscale), RasterOptions{});
     const int w = r.width_px, h = r.height_px;
-    std::vector<std::uint8_t> rgb(3 * static_cast<size_t>(w) * h), grey(static_cast<size_t>(w) * h);
-    for (size_t k = 0; k < rgb.size(); ++k) rgb[k] = static_cast<std::uint8_t>(std::clamp(r.rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+    std::vector<std::uint8_t> grey(static_cast<size_t>(w) * h);
     // Depth: absolute camera depth as float, and a min-max visualization.
     std::vector<float> depth(r.depth.size());
     float lo = 1e30f, hi = -1e30f;
@@ -376,7 +351,7 @@ void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_jso
       depth[k] = r.alpha[k] >= 0.5f ? static_cast<float>(r.depth[k] + r.reference_depth_m) : NAN;
       grey[k] = r.alpha[k] >= 0.5f && hi > lo ? static_cast<std::uint8_t>(255.0f * (hi - r.depth[k]) / (hi - lo)) : 0;
     }
-    WriteBytePng((fs::path(out_dir) / (name + "_rgb.png")).string(), w, h, 3, rgb.data());
+    WriteUnitPng((fs::path(out_dir) / (name + "_rgb.png")).string(), w, h, 3, r.rgb);
     WriteBytePng((fs::path(out_dir) / (name + "_depth.png")).string(), w, h, 1, grey.data());
     WriteFloatTiff((fs::path(out_dir) / (name + "_depth.tif")).string(), w, h, depth.data());
     progress.Advance(++done, name);

@@ -161,13 +161,8 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   splat.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());
   if (!trained.train.series.empty()) splat.metrics["psnr_test_db"] = trained.train.series.back().psnr_test_db;
   stages.push_back(splat);
-  // Orbit views look at the part of the core the tile reconstructs (a city
-  // smaller than a tile clips its core).
-  GroundBox seen = spec.core;
-  seen.min_m = seen.min_m.cwiseMax(spec.extent.min_m);
-  seen.max_m = seen.max_m.cwiseMin(spec.extent.max_m);
   const IduJobResult idu = RunIduJob(options.idu, options.train, sfm_dir.string(),
-                                     (fs::path(tile_dir) / "splat" / "scene.ply").string(), seen,
+                                     (fs::path(tile_dir) / "splat" / "scene.ply").string(), spec.ReconstructedCore(),
                                      (fs::path(tile_dir) / "idu").string(), IduEpisodesJson(options), progress);
   decisions["idu"] = {{"on", idu.decision.on}, {"why", idu.decision.why},
                       {"facade_ratio", idu.decision.facade_ratio},

@@ -35,9 +35,7 @@ std::vector<float> ReadRgb01(const std::string& path, int* w, int* h) {
 
 int WriteEvalOrbitCameras(const std::string& tile_dir, const EvalOrbitOptions& o, const std::string& out_json) {
   const TileSpec spec = ReadTileSpec((fs::path(tile_dir) / "tile.json").string());
-  GroundBox box = spec.core;
-  box.min_m = box.min_m.cwiseMax(spec.extent.min_m);
-  box.max_m = box.max_m.cwiseMin(spec.extent.max_m);
+  const GroundBox box = spec.ReconstructedCore();
   const fs::path dense = fs::path(tile_dir) / "sfm" / "dense.ply";
   if (!fs::exists(dense)) throw Error("compare", dense.string(), "missing: the tile has no dense heights to look at");
   const DenseCells cells = ReadDenseCells(dense.string());

@@ -101,6 +101,15 @@ std::vector<CameraEntry> ReadCameraEntries(const std::string& path) {
   return out;
 }
 
+GeodeticPoint ReadCamerasFrameOrigin(const std::string& path) {
+  try {
+    const json o = json::parse(ReadTextFile(path)).at("frame").at("origin");
+    return {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
+  } catch (const json::exception& e) {
+    throw Error("splat", path, std::string("no frame.origin: ") + e.what());
+  }
+}
+
 std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& path) {
   std::vector<std::pair<std::string, PinholeCamera>> out;
   for (CameraEntry& e : ReadCameraEntries(path)) out.emplace_back(std::move(e.name), e.camera);

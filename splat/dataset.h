@@ -42,6 +42,10 @@ struct CameraEntry {
 // file for invalid JSON or an entry without a camera or source image.
 std::vector<CameraEntry> ReadCameraEntries(const std::string& cameras_json);
 
+// The origin of the ENU frame a cameras.json's cameras live in ("frame":
+// {"origin": ...}); throws Error naming the file when it has none.
+GeodeticPoint ReadCamerasFrameOrigin(const std::string& cameras_json);
+
 // Cameras of cameras.json (used images), by name, for rendering.
 std::vector<std::pair<std::string, PinholeCamera>> ReadCameras(const std::string& cameras_json);
 

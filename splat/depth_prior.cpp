@@ -166,9 +166,7 @@ DepthMap CommandDepthPrior::Estimate(const PinholeCamera& cam, const std::vector
   const std::string in = (fs::path(work_dir_) / ("pseudo_" + std::to_string(calls_) + ".png")).string();
   const std::string out = (fs::path(work_dir_) / ("pseudo_" + std::to_string(calls_) + "_depth.tif")).string();
   ++calls_;
-  std::vector<std::uint8_t> bytes(rgb.size());
-  for (size_t k = 0; k < rgb.size(); ++k) bytes[k] = static_cast<std::uint8_t>(std::clamp(rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
-  WriteBytePng(in, W, H, 3, bytes.data());
+  WriteUnitPng(in, W, H, 3, rgb);
   std::string cmd = command_;
   cmd.replace(cmd.find("{in}"), 4, "'" + in + "'");
   cmd.replace(cmd.find("{out}"), 5, "'" + out + "'");

@@ -45,12 +45,6 @@ void ForgetOtherRuns(const std::string& out_dir, const std::string& options_json
   WriteFileAtomic(stamp.string(), options_json);
 }
 
-std::vector<std::uint8_t> ToBytes(const std::vector<float>& rgb) {
-  std::vector<std::uint8_t> bytes(rgb.size());
-  for (std::size_t k = 0; k < rgb.size(); ++k) bytes[k] = static_cast<std::uint8_t>(std::clamp(rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
-  return bytes;
-}
-
 // What an episode trains on from one orbit view: the render's surface
 // depth (absolute, for the refiner) and the depth target (relative, for the
 // Pearson loss), both NaN where the render is not opaque.
@@ -81,6 +75,20 @@ OrbitRender RenderOrbitView(const GaussianCloud& cloud, const OrbitView& view, R
     out.valid[k] = 1;
   }
   return out;
+}
+
+// Geometry "surface": where the render is opaque and the height field has an
+// answer, the orbit pixel lies on the height field (its steps are the walls
+// the Gaussians lack) for the refiner and for the depth target alike.
+void PlaceOnSurface(const SurfaceDepthPrior& surface, OrbitRender* render) {
+  const PinholeCamera& cam = render->input.camera;
+  const double reference_m = cam.cam_from_world_translation.z();  // the render's reference depth
+  const DepthMap m = surface.DepthRelativeTo(cam, reference_m);
+  for (std::size_t p = 0; p < m.depth.size(); ++p) {
+    if (!m.valid[p] || !render->valid[p]) continue;
+    render->depth_target[p] = m.depth[p];
+    render->input.depth_m[p] = static_cast<float>(m.depth[p] + reference_m);
+  }
 }
 
 double MedianHeight(const GaussianCloud& cloud) {
@@ -121,7 +129,7 @@ json EpisodeJson(const IduEpisode& e) {
           {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
           {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? json(e.psnr_test_start_db) : json(nullptr)},
           {"psnr_test_db", std::isfinite(e.psnr_test_db) ? json(e.psnr_test_db) : json(nullptr)},
-          {"gaussians", e.gaussians}};
+          {"gaussians", e.gaussians},     {"reused", e.reused}};
 }
 
 IduEpisode EpisodeFromJson(const json& j) {
@@ -158,6 +166,12 @@ std::vector<IduEpisode> FinishedEpisodes(const std::string& out_dir, int episode
 
 }  // namespace
 
+std::string IduEpisodesJson(const std::vector<IduEpisode>& episodes) {
+  json list = json::array();
+  for (const IduEpisode& e : episodes) list.push_back(EpisodeJson(e));
+  return list.dump();
+}
+
 void IduOptions::Check() const {
   orbit.Check();
   auto need = [](bool ok, const char* field, double v) {
@@ -191,6 +205,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     progress.Info("idu: resuming after episode " + std::to_string(last + 1) + " of " + std::to_string(o.orbit.episodes));
   }
   const std::vector<Eigen::Vector3d> look_at = LookAtGrid(core, o.orbit.grid, surface_height_m, MedianHeight(cloud));
+  std::vector<TrainView> mixed = satellite;  // each episode appends its refined views to these
   for (int k = static_cast<int>(result.episodes.size()); k < o.orbit.episodes; ++k) {
     IduEpisode ep;
     ep.episode = k;
@@ -213,11 +228,12 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     std::size_t opaque = 0, pixels = 0;
     for (const OrbitView& v : views) {
       renders.push_back(RenderOrbitView(cloud, v, train.raster));
+      if (surface && o.geometry == "surface") PlaceOnSurface(*surface, &renders.back());
       inputs.push_back(renders.back().input);
       for (std::uint8_t m : renders.back().valid) opaque += m;
       pixels += renders.back().valid.size();
-      WriteBytePng((dir / "renders" / (v.name + ".png")).string(), v.camera.width_px, v.camera.height_px, 3,
-                   ToBytes(renders.back().input.rgb).data());
+      WriteUnitPng((dir / "renders" / (v.name + ".png")).string(), v.camera.width_px, v.camera.height_px, 3,
+                   renders.back().input.rgb);
     }
     ep.refined_coverage = pixels ? static_cast<double>(opaque) / pixels : 0.0;
     ep.render_seconds = phase.Seconds();
@@ -230,20 +246,14 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     const std::vector<RefinedSamples> refined = refiner.Refine(cloud, inputs, request, progress);
     if (refined.size() != views.size()) throw Error("idu", "refiner", "returned a different number of views");
     ep.refine_seconds = refine_clock.Seconds();
-    // The mixed dataset: refined orbit views (synthetic) and the satellite views.
-    std::vector<TrainView> mixed = satellite;
+    // The mixed dataset: the satellite views and this episode's refined orbit views.
+    mixed.resize(satellite.size());
     for (std::size_t v = 0; v < views.size(); ++v) {
       if (static_cast<int>(refined[v].size()) != o.samples)
         throw Error("idu", views[v].name, "the refiner returned " + std::to_string(refined[v].size()) + " samples, not " +
                                               std::to_string(o.samples));
-      WriteBytePng((dir / "refined" / (views[v].name + ".png")).string(), views[v].camera.width_px,
-                   views[v].camera.height_px, 3, ToBytes(refined[v][0]).data());
-      if (surface && o.geometry == "surface") {
-        const PinholeCamera& cam = views[v].camera;
-        const DepthMap m = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
-        for (std::size_t p = 0; p < m.depth.size(); ++p)
-          if (m.valid[p] && renders[v].valid[p]) renders[v].depth_target[p] = m.depth[p];
-      }
+      WriteUnitPng((dir / "refined" / (views[v].name + ".png")).string(), views[v].camera.width_px,
+                   views[v].camera.height_px, 3, refined[v][0]);
       TrainView t;
       t.name = views[v].name;
       t.camera = views[v].camera;

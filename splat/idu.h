@@ -72,6 +72,9 @@ struct IduEpisode {
   bool reused = false;                // finished by an earlier, killed run
 };
 
+// The episodes as a JSON array (the fields of IduEpisode), for reports.
+std::string IduEpisodesJson(const std::vector<IduEpisode>& episodes);
+
 struct IduResult {
   GaussianCloud cloud;
   std::vector<IduEpisode> episodes;
@@ -82,7 +85,9 @@ struct IduResult {
 // `train`: the reconstruction's optimizer settings (learning rates, raster,
 // surface anchor), adapted per episode (iterations, no opacity entropy as in
 // the paper, no appearance model: one fixed appearance). `surface` (may be
-// null) keeps the satellite views anchored to the dense heights. In
+// null), the dense heights' height field: with geometry "surface" it places
+// the refined views' pixels, and the reconstruction's surface anchor (when
+// its weights are not 0) holds the satellite views to it. In
 // `out_dir`: episode_<k>/ with the orbit cameras, renders, refined samples
 // and scene.ply, and episode.json written last; a rerun with the same
 // `options_json` resumes after the last finished episode.

@@ -127,14 +127,6 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
     const int W = cam.width_px, H = cam.height_px;
     const std::size_t n = static_cast<std::size_t>(W) * H;
     if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
-    // Where each pixel's ray meets the surface: the height field's depth
-    // (walls included) where it has one, else the render's.
-    std::vector<float> depth_m = in.depth_m;
-    if (surface_) {
-      const DepthMap m = surface_->DepthRelativeTo(cam, 0.0);
-      for (std::size_t p = 0; p < n; ++p)
-        if (m.valid[p] && std::isfinite(depth_m[p])) depth_m[p] = m.depth[p];
-    }
     // Each satellite view's vote at each pixel (computed once, used by every sample).
     std::vector<std::vector<Vote>> votes(n);
     const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
@@ -143,7 +135,7 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
       for (int y = rows.begin(); y < rows.end(); ++y) {
         for (int x = 0; x < W; ++x) {
           const std::size_t p = static_cast<std::size_t>(y) * W + x;
-          const double depth = depth_m[p];
+          const double depth = in.depth_m[p];
           if (!std::isfinite(depth)) continue;
           const Eigen::Vector3d X = R_t * (K_inv * Eigen::Vector3d(x, y, 1.0) * depth - cam.cam_from_world_translation);
           const Eigen::Vector3d to_orbit = (eye - X).normalized();
@@ -251,10 +243,7 @@ std::vector<RefinedSamples> CommandRefiner::Refine(const GaussianCloud& /*scene*
   for (std::size_t v = 0; v < views.size(); ++v) {
     const RefineInput& in = views[v];
     const int W = in.camera.width_px, H = in.camera.height_px;
-    std::vector<std::uint8_t> bytes(in.rgb.size());
-    for (std::size_t k = 0; k < bytes.size(); ++k)
-      bytes[k] = static_cast<std::uint8_t>(std::clamp(in.rgb[k], 0.0f, 1.0f) * 255.0f + 0.5f);
-    WriteBytePng((in_dir / (in.name + ".png")).string(), W, H, 3, bytes.data());
+    WriteUnitPng((in_dir / (in.name + ".png")).string(), W, H, 3, in.rgb);
     json seeds = json::array();
     for (int k = 0; k < request.samples; ++k) seeds.push_back(SampleSeed(request, v, k));
     list.push_back({{"name", in.name}, {"file", in.name + ".png"}, {"width_px", W}, {"height_px", H},

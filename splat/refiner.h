@@ -22,7 +22,7 @@ struct RefineInput {
   std::string name;               // unique; the file stem for external refiners
   PinholeCamera camera;
   std::vector<float> rgb;         // 3 per pixel in [0, 1]
-  std::vector<float> depth_m;     // camera depth [m] of the rendered surface, NaN where there is none
+  std::vector<float> depth_m;     // camera depth [m] of the surface the pixel shows, NaN where there is none
   double elevation_deg = 0, azimuth_deg = 0;
 };
 
@@ -84,11 +84,12 @@ struct ReprojectOptions {
 class ReprojectRefiner final : public Refiner {
  public:
   // `satellite`: the satellite training views (colours and cameras).
-  // `surface` (may be null): a height field (the dense heights) whose
-  // ray-cast depth, vertical walls included, places orbit pixels in 3D and
-  // decides satellite visibility where it has an answer; elsewhere the
-  // depth the scene renders does. The Gaussians of a satellite
-  // reconstruction hardly hold facades, the height field's steps do.
+  // Orbit pixels lie at RefineInput::depth_m. `surface` (may be null): a
+  // height field (the dense heights) whose ray-cast depth, vertical walls
+  // included, decides satellite visibility where it has an answer;
+  // elsewhere the depth the scene renders does. The Gaussians of a
+  // satellite reconstruction hardly hold facades, the height field's steps
+  // do (the caller places orbit pixels on the same field, see RunIdu).
   ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster = {},
                    const SurfaceDepthPrior* surface = nullptr);
   std::vector<RefinedSamples> Refine(const GaussianCloud& scene, const std::vector<RefineInput>& views,

@@ -676,7 +676,13 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     if (anchored && (!view.synthetic || o.anchor_synthetic_views)) {
       DepthMap& target = surface_depth[view_id];
       if (target.depth.empty()) target = surface->DepthRelativeTo(view.camera, view.camera.cam_from_world_translation.z());
-      loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &d_depth);
+      std::vector<float> anchor_depth;
+      loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &anchor_depth);
+      if (d_depth.empty()) {
+        d_depth = std::move(anchor_depth);
+      } else {  // a view with a depth target too: both gradients count
+        for (std::size_t p = 0; p < d_depth.size(); ++p) d_depth[p] += anchor_depth[p];
+      }
     }
     GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
     AppearanceModel appearance_grad;

@@ -2,6 +2,7 @@
 
 #include <ogr_srs_api.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -181,6 +182,13 @@ void WriteUInt16Tiff(const std::string& path, int width_px, int height_px, int b
 
 void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels) {
   WriteThroughMem(path, "PNG", width_px, height_px, bands, GDT_Byte, pixels, nullptr, {});
+}
+
+void WriteUnitPng(const std::string& path, int width_px, int height_px, int bands, const std::vector<float>& values) {
+  std::vector<std::uint8_t> bytes(values.size());
+  for (std::size_t k = 0; k < bytes.size(); ++k)
+    bytes[k] = static_cast<std::uint8_t>(std::clamp(values[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+  WriteBytePng(path, width_px, height_px, bands, bytes.data());
 }
 
 void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,

@@ -86,5 +86,7 @@ void WriteFloatCog(const std::string& path, int width_px, int height_px, const f
                    const NorthUpGrid& grid);
 // An 8-bit PNG (1 or 3 bands, interleaved by pixel), written atomically.
 void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels);
+// The same from values in [0, 1] (clamped, rounded to 8 bits), `bands` per pixel.
+void WriteUnitPng(const std::string& path, int width_px, int height_px, int bands, const std::vector<float>& values);
 
 }  // namespace skyfall
