@@ -1,4 +1,6 @@
 // skyfall run ROOT --out OUT: the whole batch for every AOI of a DFC2019 tree.
+#include <spdlog/spdlog.h>
+
 #include <iostream>
 
 #include "apps/commands.h"
@@ -7,6 +9,7 @@
 #include "core/error.h"
 #include "pipeline/city_run.h"
 #include "pipeline/exit_codes.h"
+#include "pipeline/run_status.h"
 
 namespace skyfall::cli {
 
@@ -20,6 +23,10 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("root", request->root, "DFC2019 root folder")->check(CLI::ExistingDirectory);
   cmd->add_option("--out", request->out, "Output folder: OUT/<city>/{tiles,scene,run_report.json}, OUT/<AOI>/dsm*");
   cmd->add_option("--aoi", request->aois, "Only these AOIs (repeatable)");
+  cmd->add_option("--wait-lock", request->wait_lock_s,
+                  "When another run holds OUT's lock, wait up to this many seconds for it (default: exit at once "
+                  "with code 7)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--print-config", *print_config,
                 "Print the effective configuration (defaults, --config, --set, flags) as JSON and exit");
   flags->Add("--tile-m", +[](RunOptions& o) -> double& { return o.tiling.tile_m; }, "Tile core side [m]");
@@ -28,8 +35,19 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
   flags->Add("--jobs", +[](RunOptions& o) -> int& { return o.executor.jobs; },
              "Tiles run at once (0 = bounded by cores and memory)");
   flags->Add("--executor", +[](RunOptions& o) -> std::string& { return o.executor.kind; },
-             "'local' (each tile its own process) or 'inline' (tiles in this process, one at a time)")
-      ->check(CLI::IsMember({"local", "inline"}));
+             "'local' (each tile its own process), 'inline' (tiles in this process, one at a time) or 'slurm' "
+             "(tiles as one sbatch array job, merge and DSM as a job depending on it)")
+      ->check(CLI::IsMember({"local", "inline", "slurm"}));
+  flags->Add("--slurm-partition", +[](RunOptions& o) -> std::string& { return o.executor.slurm.partition; },
+             "Slurm partition (empty = the cluster's default)");
+  flags->Add("--slurm-account", +[](RunOptions& o) -> std::string& { return o.executor.slurm.account; },
+             "Slurm account (empty = the user's default)");
+  flags->Add("--slurm-time", +[](RunOptions& o) -> std::string& { return o.executor.slurm.time_limit; },
+             "Time limit per tile job, Slurm syntax, e.g. 2:00:00 (empty = the partition's)");
+  flags->Add("--slurm-cpus", +[](RunOptions& o) -> int& { return o.executor.slurm.cpus_per_task; },
+             "CPUs (and threads) per tile job");
+  flags->Add("--slurm-mem-mb", +[](RunOptions& o) -> int& { return o.executor.slurm.mem_mb; },
+             "Memory per tile job [MB] (0 = the per-tile estimate)");
   cmd->callback([runner, request, print_config, flags] {
     *runner = [request, print_config, flags] {
       const RunOptions options = flags->Resolve();
@@ -41,7 +59,51 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
       if (request->root.empty()) throw Error("run", "ROOT", "is required (only --print-config runs without it)");
       if (request->out.empty()) throw Error("run", "--out", "is required (only --print-config runs without it)");
       ConsoleProgress progress;
-      return RunAll(options, *request, progress).exit_code;
+      const RunSummary summary = RunAll(options, *request, progress);
+      if (summary.exit_code == kExitLocked) {
+        spdlog::error("run: {} is in use by another run ({}); try later or pass --wait-lock SECONDS", request->out,
+                      summary.lock_holder);
+      }
+      return summary.exit_code;
+    };
+  });
+}
+
+void AddFinishCityCommand(CLI::App& app, Runner* runner) {
+  auto city_dir = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(
+      "finish-city", "Merge with LOD, DSM export and comparison, run report and STAC catalog of a city whose tiles "
+                     "have run (what the Slurm executor's second job runs)");
+  cmd->add_option("city_dir", *city_dir, "OUT/<city>, holding city_job.json and run_config.json")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->callback([=] {
+    *runner = [=] {
+      ConsoleProgress progress;
+      const CityOutcome city = FinishCityFromFiles(*city_dir, progress);
+      if (!city.scene) {
+        spdlog::error("finish-city {}: {}", *city_dir, city.error);
+        return kExitNothingDone;
+      }
+      return city.tiles_failed > 0 ? kExitPartial : kExitOk;
+    };
+  });
+}
+
+void AddStatusCommand(CLI::App& app, Runner* runner) {
+  auto out = std::make_shared<std::string>();
+  auto as_json = std::make_shared<bool>(false);
+  auto no_scheduler = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "status", "Where a run stands: per city and tile, from its files and, for the Slurm executor, the scheduler");
+  cmd->add_option("out", *out, "Output folder of `skyfall run`")->required()->check(CLI::ExistingDirectory);
+  cmd->add_flag("--json", *as_json, "Print the status as JSON on stdout");
+  cmd->add_flag("--no-scheduler", *no_scheduler, "Do not ask Slurm (files only)");
+  cmd->callback([=] {
+    *runner = [=] {
+      const nlohmann::json status = RunStatus(*out, !*no_scheduler);
+      std::cout << (*as_json ? status.dump(2) + "\n" : RunStatusText(status));
+      return kExitOk;
     };
   });
 }

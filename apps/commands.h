@@ -22,5 +22,7 @@ void AddDsmCommand(CLI::App& app, Runner* runner);
 void AddReportCommand(CLI::App& app, Runner* runner);
 void AddTileCommands(CLI::App& app, Runner* runner);  // tile, run-tile, merge
 void AddRunCommand(CLI::App& app, Runner* runner);
+void AddFinishCityCommand(CLI::App& app, Runner* runner);
+void AddStatusCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

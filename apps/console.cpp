@@ -1,16 +1,57 @@
 #include "apps/console.h"
 
+#include <spdlog/sinks/base_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
-namespace skyfall::cli {
+#include <mutex>
 
-void SetupLogging(bool quiet, bool verbose) {
-  auto logger = spdlog::stderr_color_mt("skyfall");
-  logger->set_pattern("%^[%H:%M:%S %L]%$ %v");
+#include "pipeline/event_log.h"
+
+namespace skyfall::cli {
+namespace {
+
+const char* LevelName(spdlog::level::level_enum level) {
+  switch (level) {
+    case spdlog::level::trace:
+    case spdlog::level::debug: return "debug";
+    case spdlog::level::warn: return "warning";
+    case spdlog::level::err:
+    case spdlog::level::critical: return "error";
+    default: return "info";
+  }
+}
+
+// Every human log line also goes into the JSON event log, as an event of
+// stage "log" (the pipeline adds structured events of its own).
+class EventLogSink final : public spdlog::sinks::base_sink<std::mutex> {
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    Event event;
+    event.level = LevelName(msg.level);
+    event.stage = "log";
+    event.message.assign(msg.payload.data(), msg.payload.size());
+    Events().Write(event);
+  }
+  void flush_() override {}
+};
+
+}  // namespace
+
+void SetupLogging(bool quiet, bool verbose, const std::string& log_json_path) {
+  auto console = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+  console->set_pattern("%^[%H:%M:%S %L]%$ %v");
+  console->set_level(quiet ? spdlog::level::warn : (verbose ? spdlog::level::debug : spdlog::level::info));
+  std::vector<spdlog::sink_ptr> sinks{console};
+  if (!log_json_path.empty()) {
+    Events().Open(log_json_path);
+    auto json_sink = std::make_shared<EventLogSink>();
+    json_sink->set_level(verbose ? spdlog::level::debug : spdlog::level::info);
+    sinks.push_back(json_sink);
+  }
+  auto logger = std::make_shared<spdlog::logger>("skyfall", sinks.begin(), sinks.end());
+  logger->set_level(verbose ? spdlog::level::debug : spdlog::level::info);
   spdlog::set_default_logger(logger);
-  spdlog::set_level(quiet ? spdlog::level::warn
-                          : (verbose ? spdlog::level::debug : spdlog::level::info));
 }
 
 void ConsoleProgress::Begin(std::string_view task, std::size_t total) {

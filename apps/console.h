@@ -13,8 +13,9 @@
 
 namespace skyfall::cli {
 
-// Sets the global spdlog level from the -q / -v flags.
-void SetupLogging(bool quiet, bool verbose);
+// Sets up the global logger from the -q / -v flags; with a path, every log
+// line also goes to the JSON event log there (see pipeline/event_log.h).
+void SetupLogging(bool quiet, bool verbose, const std::string& log_json_path = "");
 
 class ConsoleProgress final : public Progress {
  public:

@@ -6,6 +6,8 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "core/error.h"
+#include "pipeline/event_log.h"
+#include "pipeline/exit_codes.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -17,6 +19,10 @@ int main(int argc, char** argv) {
   bool quiet = false, verbose = false;
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");
   app.add_flag("-v,--verbose", verbose, "Debug detail on stderr");
+  std::string log_json;
+  app.add_option("--log-json", log_json,
+                 "Also append machine-readable events to this file, one JSON object per line (time, level, stage, "
+                 "aoi, tile, message, figures)");
 
   skyfall::cli::Runner runner;
   skyfall::cli::AddIngestCommand(app, &runner);
@@ -29,20 +35,29 @@ int main(int argc, char** argv) {
   skyfall::cli::AddReportCommand(app, &runner);
   skyfall::cli::AddTileCommands(app, &runner);
   skyfall::cli::AddRunCommand(app, &runner);
+  skyfall::cli::AddFinishCityCommand(app, &runner);
+  skyfall::cli::AddStatusCommand(app, &runner);
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end here with 0; every real parse error is a usage error.
+    return app.exit(e) == 0 ? skyfall::kExitOk : skyfall::kExitUsage;
   }
-  skyfall::cli::SetupLogging(quiet, verbose);
   try {
-    return runner ? runner() : 2;
+    skyfall::cli::SetupLogging(quiet, verbose, log_json);
+  } catch (const skyfall::Error& e) {
+    std::cerr << e.what() << "\n";
+    return skyfall::kExitBadInput;
+  }
+  try {
+    return runner ? runner() : skyfall::kExitUsage;
   } catch (const skyfall::Error& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    skyfall::Events().Write({"error", "", "", "", e.what(), {}});
+    return skyfall::kExitBadInput;
   } catch (const std::exception& e) {
     spdlog::error("internal error: {}", e.what());
-    return 3;
+    return skyfall::kExitInternal;
   }
 }

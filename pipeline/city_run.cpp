@@ -14,10 +14,16 @@
 #include "core/error.h"
 #include "merge/dsm.h"
 #include "merge/dsm_report.h"
+#include "pipeline/event_log.h"
 #include "pipeline/exit_codes.h"
+#include "pipeline/inputs_stamp.h"
 #include "pipeline/merge_tiles.h"
+#include "pipeline/output_lock.h"
+#include "pipeline/slurm.h"
+#include "pipeline/stac.h"
 #include "pipeline/stage_jobs.h"
 #include "pipeline/tile_run.h"
+#include "catalogs/aoi_catalog.h"
 #include "splat/ply.h"
 #include "tiler/dfc2019.h"
 #include "tiler/geo.h"
@@ -28,6 +34,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+
+void Emit(const std::string& level, const std::string& stage, const std::string& aoi, const std::string& tile,
+          const std::string& message, std::map<std::string, double> figures = {}) {
+  Events().Write({level, stage, aoi, tile, message, std::move(figures)});
+}
 
 struct UtmBox {
   Eigen::Vector2d lo, hi;
@@ -160,9 +171,70 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
     }
     dsm.push_back(entry);
     outcome->dsm_mae_m.push_back(c.mae_m);
+    Emit("info", "dsm", a.aoi, "", "DSM compared with the truth",
+         {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
+          {"completeness", c.completeness}, {"within_1m", c.within_fraction}, {"seconds", clock.Seconds()}});
     stages->push_back(StageEntry("dsm " + a.aoi, "ok", clock.Seconds()));
   }
   return dsm;
+}
+
+
+// True when the city's last run finished with these very inputs and
+// options and its products are all there; then `outcome` gets its figures.
+bool UnchangedSinceLastRun(const json& inputs, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
+                           CityOutcome* outcome) {
+  try {
+    if (!fs::exists(outcome->report_path)) return false;
+    const json report = json::parse(ReadTextFile(outcome->report_path));
+    if (report.value("inputs", json()) != inputs || !report.contains("scene")) return false;
+    if (!fs::exists(report.at("scene").get<std::string>())) return false;
+    for (const json& tile : report.at("tiles")) {
+      if (tile.value("status", "failed") == "failed") return false;  // retry failed tiles
+    }
+    std::vector<double> mae;
+    for (const AoiCatalog& a : aois) {
+      if (!a.truth) continue;
+      if (!fs::exists(fs::path(out_dir) / a.aoi / "dsm.tif")) return false;
+      bool found = false;
+      for (const json& entry : report.at("dsm")) {
+        if (entry.at("aoi") == a.aoi) {
+          mae.push_back(entry.at("mae_m").get<double>());
+          found = true;
+        }
+      }
+      if (!found) return false;
+    }
+    outcome->dsm_mae_m = mae;
+    return true;
+  } catch (const std::exception&) {
+    return false;  // an unreadable report: run the city again
+  }
+}
+
+// Redoes the tiles whose images changed; returns how many.
+int ResetChangedTiles(const std::vector<std::string>& tile_dirs, const std::map<std::string, json>& image_stamps,
+                      const std::string& city, Progress& progress) {
+  int reset = 0;
+  for (const std::string& dir : tile_dirs) {
+    if (!ResetTileIfInputsChanged(dir, TileInputsStamp(dir, image_stamps))) continue;
+    ++reset;
+    const std::string tile = fs::path(dir).filename().string();
+    progress.Info("[" + city + "] " + tile + ": its images changed since the last run; redoing it");
+    Emit("info", "tiles", city, tile, "images changed since the last run; tile redone");
+  }
+  return reset;
+}
+
+void EmitTileEvents(const std::string& city, const json& tile_list) {
+  for (const json& t : tile_list) {
+    const std::string status = t.value("status", "failed");
+    std::map<std::string, double> figures = {{"seconds", t.value("seconds", 0.0)},
+                                             {"exit_code", t.value("exit_code", 0)}};
+    if (t.contains("peak_rss_mb")) figures["peak_rss_mb"] = t.at("peak_rss_mb").get<double>();
+    Emit(status == "failed" ? "error" : "info", "tile", city, t.value("tile", ""),
+         "tile " + status + (t.value("message", "").empty() ? "" : ": " + t.value("message", "")), figures);
+  }
 }
 
 }  // namespace
@@ -192,48 +264,59 @@ std::vector<std::vector<AoiCatalog>> GroupCities(const std::vector<AoiCatalog>& 
   return out;
 }
 
-CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
-                    Progress& progress) {
-  options.Check();
-  Stopwatch total, clock;
-  json stages = json::array();
-  const TilePlan plan = PlanTiles(options.tiling, aois);
-  CityOutcome outcome;
-  outcome.city = plan.city;
-  const fs::path city_dir = fs::path(out_dir) / plan.city;
-  outcome.report_path = (city_dir / "run_report.json").string();
-  progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m", plan.city, aois.size(), plan.grid.cols,
-                            plan.grid.rows, plan.grid.tile_m));
-  const TilingResult tiles = WriteTiles(plan, (city_dir / "tiles").string(), progress);
-  stages.push_back(StageEntry("tile", "ok", clock.Seconds()));
-  // The tiles' processes read the options from this file; it is also the
-  // record of what this city was run with.
-  const std::string config_path = (city_dir / "run_config.json").string();
-  WriteFileIfChanged(config_path, RunOptionsToJson(options));
+namespace {
 
-  clock = Stopwatch();
-  const std::vector<TileOutcome> outcomes = RunTiles(tiles.tile_dirs, options, config_path, progress);
+// What the tile half of a city's run hands to its finishing half (in this
+// process, or in the Slurm finish job through OUT/<city>/city_job.json).
+struct CityWork {
+  std::string city;
+  std::string out_dir;
+  fs::path city_dir;
+  std::vector<std::string> tile_dirs;
+  json inputs;
+  json stages = json::array();
+  int tiles_reset = 0;
+};
+
+json CityWorkJson(const CityWork& work, const std::vector<AoiCatalog>& aois) {
+  json catalogs = json::array();
+  for (const AoiCatalog& a : aois) catalogs.push_back(json::parse(AoiCatalogToJson(a)));
+  return {{"schema", "skyfall.city_job/1"}, {"city", work.city},         {"out_dir", work.out_dir},
+          {"aois", catalogs},              {"tile_dirs", work.tile_dirs}, {"inputs", work.inputs},
+          {"stages", work.stages},         {"tiles_reset", work.tiles_reset}};
+}
+
+// Merge with LOD, DSM export and comparison, run report (last) and STAC
+// catalog of a city whose tiles have run.
+CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const CityWork& work,
+                       const std::vector<TileOutcome>& outcomes, const Stopwatch& total, Progress& progress) {
+  CityOutcome outcome;
+  outcome.city = work.city;
+  outcome.report_path = (work.city_dir / "run_report.json").string();
+  outcome.tiles_reset = work.tiles_reset;
+  json stages = work.stages;
   json tile_list = json::array();
   int failed = 0;
   for (const TileOutcome& o : outcomes) {
     failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
     tile_list.push_back(TileEntry(o));
   }
-  stages.push_back(StageEntry("tiles", failed ? "partial" : "ok", clock.Seconds(),
-                              failed ? std::to_string(failed) + " tile(s) failed" : ""));
-  json report = {{"city", plan.city}, {"options", json::parse(RunOptionsToJson(options))}, {"tiles", tile_list}};
+  outcome.tiles_failed = failed;
+  EmitTileEvents(work.city, tile_list);
+  json report = {{"city", work.city}, {"options", json::parse(RunOptionsToJson(options))}, {"tiles", tile_list}};
   json aoi_names = json::array();
   for (const auto& a : aois) aoi_names.push_back(a.aoi);
   report["aois"] = aoi_names;
 
-  clock = Stopwatch();
+  Stopwatch clock;
   MergeSummary merged;
   try {
-    merged = MergeTiles((city_dir / "tiles").string(), (city_dir / "scene").string(), options.merge,
+    merged = MergeTiles((work.city_dir / "tiles").string(), (work.city_dir / "scene").string(), options.merge,
                         options.dsm.export_options, progress);
     stages.push_back(StageEntry("merge", "ok", clock.Seconds()));
   } catch (const Error& e) {
-    progress.Warn("[" + plan.city + "] merge: " + e.what());
+    progress.Warn("[" + work.city + "] merge: " + e.what());
+    Emit("error", "merge", work.city, "", e.what());
     stages.push_back(StageEntry("merge", "failed", clock.Seconds(), e.what()));
     outcome.error = e.what();
     report["stages"] = stages;
@@ -242,7 +325,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
     return outcome;
   }
   outcome.scene = true;
-  report["dsm"] = CompareAois(options, aois, merged, tiles.tile_dirs, out_dir, &stages, &outcome, progress);
+  report["dsm"] = CompareAois(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
   report["decisions"] = {{"lod_levels", {{"levels", merged.lod_levels},
@@ -256,9 +339,160 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   report["scene"] = merged.scene_path;
   report["peak_tile_rss_mb"] = PeakChildRssMb();
   report["seconds"] = total.Seconds();
+  report["inputs"] = work.inputs;  // what the next run compares to skip an unchanged city
   WriteFileAtomic(outcome.report_path, report.dump(2) + "\n");
-  progress.Info(fmt::format("[{}] done in {:.0f} s -> {}", plan.city, total.Seconds(), city_dir.string()));
+  WriteCityStac({work.city, work.out_dir, aois, work.tile_dirs, (work.city_dir / "scene").string(),
+                 outcome.report_path, UtcNowIso()});
+  Emit("info", "city", work.city, "", "done",
+       {{"seconds", total.Seconds()}, {"tiles_failed", static_cast<double>(failed)},
+        {"tiles_reset", static_cast<double>(work.tiles_reset)}, {"peak_tile_rss_mb", PeakChildRssMb()}});
+  progress.Info(fmt::format("[{}] done in {:.0f} s -> {}", work.city, total.Seconds(), work.city_dir.string()));
   return outcome;
+}
+
+// The Slurm path of a city: submit (or find still queued) the tile array and
+// the finish job, wait for the finish job, and read back what it wrote.
+CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, const std::string& config_path,
+                           Progress& progress) {
+  CityOutcome outcome;
+  outcome.city = work.city;
+  outcome.report_path = (work.city_dir / "run_report.json").string();
+  outcome.tiles_reset = work.tiles_reset;
+  SlurmCityJobs jobs;
+  if (ReadSlurmJobs(work.city_dir.string(), &jobs) && !SlurmJobState(jobs.finish_job).empty()) {
+    progress.Info(fmt::format("[{}] Slurm job {} of an earlier run is still queued: waiting for it", work.city,
+                              jobs.finish_job));
+  } else {
+    std::vector<std::string> unfinished;
+    for (const std::string& dir : work.tile_dirs) {
+      if (!TileFinished(dir, options)) unfinished.push_back(dir);
+    }
+    jobs = SubmitSlurmCity(options, work.city_dir.string(), unfinished, config_path);
+    progress.Info(fmt::format("[{}] submitted {} of {} tile(s) as Slurm array job {}, merge and DSM as job {} "
+                              "(scripts under {})",
+                              work.city, unfinished.size(), work.tile_dirs.size(),
+                              jobs.tiles_job.empty() ? "-" : jobs.tiles_job, jobs.finish_job,
+                              (work.city_dir / "slurm").string()));
+    Emit("info", "slurm", work.city, "", "submitted",
+         {{"tiles", static_cast<double>(unfinished.size())},
+          {"tiles_job", jobs.tiles_job.empty() ? -1.0 : std::stod(jobs.tiles_job)},
+          {"finish_job", std::stod(jobs.finish_job)}});
+  }
+  progress.Begin("tiles on Slurm", jobs.tiles.size());
+  std::size_t reported = 0;
+  const std::string end = WaitForSlurmJob(jobs.finish_job, options.executor.slurm.poll_s, [&] {
+    std::size_t finished = 0;
+    for (const std::string& t : jobs.tiles) finished += fs::exists(fs::path(t) / "tile_report.json");
+    if (finished != reported) progress.Advance(reported = finished, "");
+  });
+  progress.End();
+  for (const std::string& dir : work.tile_dirs) {
+    const TileOutcome o = TileOutcomeFromReport(dir);
+    outcome.tiles_failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
+  }
+  const std::string finish_log = (work.city_dir / "slurm" / ("finish_" + jobs.finish_job + ".out")).string();
+  if (end == "dependency_never_satisfied") {
+    outcome.error = fmt::format("{} tile job(s) failed, so the merge job {} was cancelled; see the tiles' run.log "
+                                "and {}/slurm/tile_*.out; a rerun resubmits the unfinished tiles",
+                                std::max(outcome.tiles_failed, 1), jobs.finish_job, work.city_dir.string());
+    progress.Warn("[" + work.city + "] " + outcome.error);
+    Emit("error", "slurm", work.city, "", outcome.error);
+    return outcome;
+  }
+  try {
+    const json report = json::parse(ReadTextFile(outcome.report_path));
+    if (report.value("inputs", json()) == work.inputs && report.contains("scene")) {
+      outcome.scene = true;
+      for (const json& entry : report.value("dsm", json::array())) outcome.dsm_mae_m.push_back(entry.at("mae_m"));
+      return outcome;
+    }
+  } catch (const std::exception&) {
+  }
+  outcome.error = "the Slurm finish job " + jobs.finish_job + " ended without a run report; see " + finish_log;
+  progress.Warn("[" + work.city + "] " + outcome.error);
+  Emit("error", "slurm", work.city, "", outcome.error);
+  return outcome;
+}
+
+}  // namespace
+
+CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
+                    Progress& progress) {
+  options.Check();
+  Stopwatch total, clock;
+  const TilePlan plan = PlanTiles(options.tiling, aois);
+  CityWork work;
+  work.city = plan.city;
+  work.out_dir = out_dir;
+  work.city_dir = fs::path(out_dir) / plan.city;
+  const std::map<std::string, json> image_stamps = ImageStamps(aois);
+  work.inputs = CityInputsStamp(options, aois, image_stamps);
+  CityOutcome unchanged;
+  unchanged.city = plan.city;
+  unchanged.report_path = (work.city_dir / "run_report.json").string();
+  if (UnchangedSinceLastRun(work.inputs, aois, out_dir, &unchanged)) {
+    unchanged.scene = true;
+    unchanged.unchanged = true;
+    progress.Info("[" + plan.city + "] inputs and options unchanged since its last run: nothing to recompute");
+    Emit("info", "city", plan.city, "", "unchanged since the last run; nothing recomputed");
+    return unchanged;
+  }
+  progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m", plan.city, aois.size(), plan.grid.cols,
+                            plan.grid.rows, plan.grid.tile_m));
+  Emit("info", "city", plan.city, "", "start",
+       {{"aois", static_cast<double>(aois.size())}, {"tiles", static_cast<double>(plan.grid.cols * plan.grid.rows)}});
+  const TilingResult tiles = WriteTiles(plan, (work.city_dir / "tiles").string(), progress);
+  work.tile_dirs = tiles.tile_dirs;
+  work.tiles_reset = ResetChangedTiles(tiles.tile_dirs, image_stamps, plan.city, progress);
+  work.stages.push_back(StageEntry("tile", "ok", clock.Seconds()));
+  // The tiles' processes read the options from this file; it is also the
+  // record of what this city was run with.
+  const std::string config_path = (work.city_dir / "run_config.json").string();
+  WriteFileIfChanged(config_path, RunOptionsToJson(options));
+  WriteFileAtomic((work.city_dir / "city_job.json").string(), CityWorkJson(work, aois).dump(2) + "\n");
+  if (options.executor.kind == "slurm") return RunCityOnSlurm(options, work, config_path, progress);
+
+  clock = Stopwatch();
+  const std::vector<TileOutcome> outcomes = RunTiles(tiles.tile_dirs, options, config_path, progress);
+  int failed = 0;
+  for (const TileOutcome& o : outcomes) failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
+  work.stages.push_back(StageEntry("tiles", failed ? "partial" : "ok", clock.Seconds(),
+                                   failed ? std::to_string(failed) + " tile(s) failed" : ""));
+  return FinishCity(options, aois, work, outcomes, total, progress);
+}
+
+CityOutcome FinishCityFromFiles(const std::string& city_dir, Progress& progress) {
+  Stopwatch total;
+  const fs::path dir(city_dir);
+  const std::string job_path = (dir / "city_job.json").string();
+  const std::string config_path = (dir / "run_config.json").string();
+  const RunOptions options = RunOptionsFromJson(ReadTextFile(config_path), config_path);
+  json job;
+  try {
+    job = json::parse(ReadTextFile(job_path));
+  } catch (const json::exception& e) {
+    throw Error("finish-city", job_path, std::string("not valid JSON: ") + e.what());
+  }
+  if (job.value("schema", "") != "skyfall.city_job/1") {
+    throw Error("finish-city", job_path, "schema is not skyfall.city_job/1");
+  }
+  CityWork work;
+  std::vector<AoiCatalog> aois;
+  try {
+    work.city = job.at("city");
+    work.out_dir = job.at("out_dir");
+    work.city_dir = dir;
+    work.tile_dirs = job.at("tile_dirs").get<std::vector<std::string>>();
+    work.inputs = job.at("inputs");
+    work.stages = job.at("stages");
+    work.tiles_reset = job.value("tiles_reset", 0);
+    for (const json& a : job.at("aois")) aois.push_back(AoiCatalogFromJson(a.dump(), job_path));
+  } catch (const json::exception& e) {
+    throw Error("finish-city", job_path, std::string("missing or bad field: ") + e.what());
+  }
+  std::vector<TileOutcome> outcomes;
+  for (const std::string& t : work.tile_dirs) outcomes.push_back(TileOutcomeFromReport(t));
+  return FinishCity(options, aois, work, outcomes, total, progress);
 }
 
 RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress& progress) {
@@ -267,6 +501,15 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   if (request.out.empty()) throw Error("run", "out", "no output folder given");
   Stopwatch clock;
   RunSummary summary;
+  LockHolder holder;
+  const std::optional<OutputLock> lock = OutputLock::Acquire(request.out, request.wait_lock_s, &holder);
+  if (!lock) {
+    summary.exit_code = kExitLocked;
+    summary.lock_holder = DescribeHolder(holder);
+    Emit("error", "run", "", "", request.out + " is locked: " + summary.lock_holder);
+    return summary;
+  }
+  Emit("info", "run", "", "", "start: " + request.root + " -> " + request.out);
   IngestOptions ingest = options.ingest;
   ingest.aois = request.aois;
   const IngestResult ingested = RunIngest(ingest, request.root, (fs::path(request.out) / "catalogs").string(), progress);
@@ -274,8 +517,10 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   for (const auto& a : ingested.aois) {
     if (a.report.status == StageStatus::kOk) {
       catalogs.push_back(a.catalog);
+      Emit("info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
     } else {
       progress.Warn(a.aoi + ": ingest failed: " + a.report.message);
+      Emit("error", "ingest", a.aoi, "", a.report.message);
       ++summary.aois_failed;
     }
   }
@@ -285,7 +530,7 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   progress.Info(fmt::format("run: {} AOI(s) in {} cit{} ({:.1f} s ingest)", catalogs.size(), cities.size(),
                             cities.size() == 1 ? "y" : "ies", clock.Seconds()));
   json list = json::array();
-  int done = 0;
+  int done = 0, unchanged = 0, incomplete = 0;
   for (std::size_t k = 0; k < cities.size(); ++k) {
     progress.Info(fmt::format("run: city {}/{}", k + 1, cities.size()));
     CityOutcome city;
@@ -293,18 +538,31 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
       city = RunCity(options, cities[k], request.out, progress);
     } catch (const Error& e) {
       progress.Warn(std::string("run: ") + e.what());  // one bad city never sinks the batch
+      Emit("error", "city", cities[k].front().aoi, "", e.what());
       city.city = cities[k].front().aoi;
       city.error = e.what();
     }
     done += city.scene;
-    list.push_back({{"city", city.city}, {"scene", city.scene}, {"report", city.report_path}, {"error", city.error}});
+    unchanged += city.unchanged;
+    incomplete += !city.scene || city.tiles_failed > 0;
+    list.push_back({{"city", city.city}, {"scene", city.scene}, {"unchanged", city.unchanged},
+                    {"tiles_failed", city.tiles_failed}, {"tiles_reset", city.tiles_reset},
+                    {"report", city.report_path}, {"error", city.error}});
     summary.cities.push_back(std::move(city));
   }
   summary.seconds = clock.Seconds();
-  summary.exit_code = done > 0 ? kExitOk : kExitBadInput;
+  summary.exit_code = done == 0 ? kExitNothingDone : (incomplete > 0 || summary.aois_failed > 0) ? kExitPartial : kExitOk;
+  WriteRootStacCatalog(request.out);
   WriteFileAtomic((fs::path(request.out) / "run_summary.json").string(),
-                  json{{"root", request.root}, {"cities", list}, {"seconds", summary.seconds}}.dump(2) + "\n");
-  progress.Info(fmt::format("run: {} of {} cities reconstructed in {:.0f} s", done, cities.size(), summary.seconds));
+                  json{{"root", request.root}, {"cities", list}, {"aois_failed", summary.aois_failed},
+                       {"exit_code", summary.exit_code}, {"seconds", summary.seconds}}
+                          .dump(2) + "\n");
+  progress.Info(fmt::format("run: {} of {} cities reconstructed ({} unchanged since the last run) in {:.0f} s", done,
+                            cities.size(), unchanged, summary.seconds));
+  Emit(summary.exit_code == kExitOk ? "info" : "warning", "run", "", "", "end",
+       {{"cities", static_cast<double>(cities.size())}, {"cities_done", static_cast<double>(done)},
+        {"cities_unchanged", static_cast<double>(unchanged)}, {"aois_failed", static_cast<double>(summary.aois_failed)},
+        {"exit_code", static_cast<double>(summary.exit_code)}, {"seconds", summary.seconds}});
   return summary;
 }
 

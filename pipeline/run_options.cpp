@@ -276,10 +276,19 @@ template <class IO> void Visit(IO& io, DsmOptions& o) {
   io("export", o.export_options);
   io("compare", o.compare);
 }
+template <class IO> void Visit(IO& io, SlurmOptions& o) {
+  io("partition", o.partition);
+  io("account", o.account);
+  io("time_limit", o.time_limit);
+  io("cpus_per_task", o.cpus_per_task);
+  io("mem_mb", o.mem_mb);
+  io("poll_s", o.poll_s);
+}
 template <class IO> void Visit(IO& io, ExecutorOptions& o) {
   io("kind", o.kind);
   io("jobs", o.jobs);
   io("program", o.program);
+  io("slurm", o.slurm);
 }
 template <class IO> void Visit(IO& io, RunOptions& o) {
   io("ingest", o.ingest);
@@ -456,9 +465,27 @@ void DsmOptions::Check() const {
   }
 }
 
+void SlurmOptions::Check() const {
+  if (cpus_per_task < 1) throw Error("slurm", "cpus_per_task", "must be >= 1, got " + std::to_string(cpus_per_task));
+  if (mem_mb < 0) throw Error("slurm", "mem_mb", "must be >= 0 (0 = estimated), got " + std::to_string(mem_mb));
+  if (!(poll_s > 0)) throw Error("slurm", "poll_s", "must be > 0, got " + FormatDouble(poll_s));
+  // These go into job scripts: refuse what would break out of an #SBATCH line.
+  for (const auto& [name, value] : {std::pair<const char*, const std::string&>{"partition", partition},
+                                    {"account", account}, {"time_limit", time_limit}}) {
+    if (value.find_first_of(" \t\n'\"$`;\\") != std::string::npos) {
+      throw Error("slurm", name, "'" + value + "' holds a space, quote or shell character");
+    }
+  }
+}
+
 void ExecutorOptions::Check() const {
-  NeedOneOf(kind, {"local", "inline"}, "executor", "kind");
+  NeedOneOf(kind, {"local", "inline", "slurm"}, "executor", "kind");
   if (jobs < 0) throw Error("executor", "jobs", "must be >= 0 (0 = automatic), got " + std::to_string(jobs));
+  try {
+    slurm.Check();
+  } catch (const Error& e) {
+    throw Error("executor", "slurm." + e.subject(), e.detail());
+  }
 }
 
 void RunOptions::Check() const {

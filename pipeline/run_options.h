@@ -76,14 +76,28 @@ struct DsmOptions {
   void Check() const;                // throws Error("dsm", field, ...)
 };
 
+// Resources of the Slurm jobs (executor kind "slurm").
+struct SlurmOptions {
+  std::string partition;   // empty = the cluster's default partition
+  std::string account;     // empty = the user's default account
+  std::string time_limit;  // per tile job, Slurm syntax ("2:00:00"); empty = the partition's limit
+  int cpus_per_task = 2;   // CPUs (and threads) per tile
+  int mem_mb = 0;          // memory per tile job (0 = the per-tile estimate, at least 1024 MB)
+  double poll_s = 5;       // how often the scheduler is asked while waiting
+  void Check() const;
+};
+
 // How tiles are executed.
 struct ExecutorOptions {
   // "local": each tile is its own `skyfall run-tile` process (memory and crash
   // isolation), several at once; "inline": tiles run one after the other in
-  // the calling process (library users without the skyfall binary).
+  // the calling process (library users without the skyfall binary);
+  // "slurm": the tiles go out as one sbatch job array, the city's merge and
+  // DSM export as a job that depends on it (see pipeline/slurm.h).
   std::string kind = "local";
   int jobs = 0;         // tiles at once with "local" (0 = bounded by cores and memory only)
-  std::string program;  // the skyfall executable for "local" (empty = found beside this program)
+  std::string program;  // the skyfall executable for "local" and "slurm" (empty = found beside this program)
+  SlurmOptions slurm;
   void Check() const;   // throws Error("executor", field, ...)
 };
 

@@ -343,10 +343,36 @@ std::vector<TileOutcome> RunTilesInline(const std::vector<std::string>& tile_dir
 
 }  // namespace
 
+double EstimatedTileMemoryMb(const std::string& tile_dir) { return TileMemoryMb(tile_dir); }
+
+std::string TileProgramPath(const ExecutorOptions& executor) { return TileProgram(executor); }
+
+bool TileFinished(const std::string& tile_dir, const RunOptions& options) {
+  StageReport unused;
+  return AlreadyDone(tile_dir, options, &unused);
+}
+
+TileOutcome TileOutcomeFromReport(const std::string& tile_dir) {
+  TileOutcome o;
+  o.dir = tile_dir;
+  try {
+    const json doc = json::parse(ReadTextFile((fs::path(tile_dir) / "tile_report.json").string()));
+    const std::string status = doc.at("status");
+    o.exit_code = status == "degenerate" ? kExitDegenerate : status == "failed" ? kExitBadInput : kExitOk;
+    o.seconds = doc.value("seconds", 0.0);
+    o.message = doc.value("message", "");
+  } catch (const std::exception&) {
+    o.exit_code = kExitBadInput;
+    o.message = "no tile report: the tile did not finish; see " + (fs::path(tile_dir) / "run.log").string();
+  }
+  return o;
+}
+
 std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
                                   const std::string& config_path, Progress& progress) {
   options.executor.Check();
   if (options.executor.kind == "inline") return RunTilesInline(tile_dirs, options, progress);
+  if (options.executor.kind == "slurm") throw Error("run", "executor.kind", "slurm runs whole cities (RunCity), not RunTiles");
   return RunTilesAsProcesses(tile_dirs, options, config_path, progress);
 }
 

@@ -37,4 +37,17 @@ int ParallelTileJobs(const std::vector<std::string>& tile_dirs, int requested, s
 std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
                                   const std::string& config_path, Progress& progress);
 
+// [MB] the memory a tile run is estimated to need (from its crops' pixels).
+double EstimatedTileMemoryMb(const std::string& tile_dir);
+
+// The skyfall executable tile processes and jobs run (see ExecutorOptions::program).
+std::string TileProgramPath(const ExecutorOptions& executor);
+
+// True when the tile's report says it finished (ok, degenerate or skipped)
+// under these options, so a rerun or a resubmission leaves it alone.
+bool TileFinished(const std::string& tile_dir, const RunOptions& options);
+
+// How a tile run by someone else (a Slurm job) ended, from its tile_report.json.
+TileOutcome TileOutcomeFromReport(const std::string& tile_dir);
+
 }  // namespace skyfall

@@ -12,6 +12,8 @@ PACKAGES=(
   libopenvdb-dev libboost-iostreams-dev
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libssl-dev python3 python3-jsonschema
+  slurm-wlm munge
 )
 
 missing=()

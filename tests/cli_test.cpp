@@ -1,11 +1,13 @@
 // End-to-end checks of the `skyfall` binary as a user runs it.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 
 #include "tests/test_support.h"
 
@@ -331,6 +333,202 @@ TEST(Cli, TileWithoutImagesIsSkippedNotFatal) {
                                          (dir / "scene").string(), dir);
   EXPECT_EQ(m.exit_code, 1);
   EXPECT_NE(m.err.find("no finished tile to merge"), std::string::npos) << m.err;
+}
+
+}  // namespace
+}  // namespace skyfall
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+nlohmann::json ReadJsonFile(const fs::path& path) { return nlohmann::json::parse(std::ifstream(path)); }
+
+fs::file_time_type TileReportTime(const fs::path& city_dir) {
+  for (const auto& entry : fs::directory_iterator(city_dir / "tiles")) {
+    if (fs::exists(entry.path() / "tile_report.json")) return fs::last_write_time(entry.path() / "tile_report.json");
+  }
+  return {};
+}
+
+CommandResult ValidateStac(const fs::path& out, const fs::path& scratch) {
+  return RunCommand("/usr/bin/python3 " + std::string(SKYFALL_SOURCE_DIR) + "/tests/stac_validate.py " +
+                        (out / "catalog.json").string() + " " + SharedSchemas().string(),
+                    scratch);
+}
+
+// Two cities (one AOI each, far apart) run as a cron job would: a STAC
+// catalog that validates, a second concurrent run refused by the lock, an
+// unchanged rerun that recomputes nothing, and a changed image that redoes
+// only its own city.
+TEST(Cli, CronSafeIncrementalRunsWithAStacCatalog) {
+  if (!fs::exists(SharedSchemas() / "stac-1.1.0")) GTEST_SKIP() << "no schemas at " << SharedSchemas();
+  const fs::path dir = ScratchDir("cron");
+  const std::string root = (dir / "tree").string(), out = (dir / "out").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --aoi SYN_001 --size-m 64 --views 3 --seed 4", dir)
+                .exit_code, 0);
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --aoi SYN_002 --size-m 64 --views 3 --seed 5"
+                                   " --lon -81.60",
+                       dir).exit_code, 0);
+  const std::string run = Skyfall() + " --log-json " + (dir / "events.jsonl").string() + " run " + root +
+                          " --out " + out + " --tile-m 64 --iterations 30 --init-max-scale 0 --idu off";
+
+  // The first run goes to the background; a second one on the same folder is
+  // refused at once with the lock's exit code and names the holder.
+  ASSERT_EQ(std::system(("(" + run + " >" + (dir / "first.log").string() + " 2>&1; echo $? >" +
+                         (dir / "first.rc").string() + ") &").c_str()), 0);
+  const fs::path lock_file = fs::path(out) / ".skyfall.lock";
+  for (int i = 0; i < 600 && !(fs::exists(lock_file) && fs::file_size(lock_file) > 0); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  const CommandResult refused = RunCommand(Skyfall() + " run " + root + " --out " + out, dir);
+  EXPECT_EQ(refused.exit_code, 7) << refused.err;
+  EXPECT_NE(refused.err.find("PID "), std::string::npos) << refused.err;
+  for (int i = 0; i < 3000 && !fs::exists(dir / "first.rc"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  std::string rc;
+  std::ifstream(dir / "first.rc") >> rc;
+  ASSERT_EQ(rc, "0") << std::ifstream(dir / "first.log").rdbuf();
+
+  // The catalog validates against the official schemas, checksums and gdalinfo.
+  const CommandResult stac = ValidateStac(out, dir);
+  EXPECT_EQ(stac.exit_code, 0) << stac.out << stac.err;
+  EXPECT_NE(stac.out.find("2 collection(s)"), std::string::npos) << stac.out;
+  const auto item = ReadJsonFile(fs::path(out) / "SYN_001" / "SYN_001.json");
+  EXPECT_EQ(item["assets"]["dsm"]["roles"][0], "data");
+  EXPECT_EQ(item["assets"]["dsm"]["unit"], "m");
+  EXPECT_TRUE(item["assets"]["dsm"]["statistics"].contains("mean"));
+
+  // Every line of the JSON log is an event; the DSM figures are there.
+  std::ifstream events(dir / "events.jsonl");
+  int dsm_events = 0;
+  for (std::string line; std::getline(events, line);) {
+    const auto event = nlohmann::json::parse(line);
+    if (event.value("stage", "") == "dsm") {
+      ++dsm_events;
+      EXPECT_GT(event["figures"]["completeness"].get<double>(), 0.5) << line;
+    }
+  }
+  EXPECT_EQ(dsm_events, 2);
+
+  // Nothing changed: nothing is recomputed, in seconds.
+  const auto first_001 = TileReportTime(fs::path(out) / "SYN_001");
+  const auto first_002 = TileReportTime(fs::path(out) / "SYN_002");
+  const auto start = std::chrono::steady_clock::now();
+  const CommandResult again = RunCommand(run, dir);
+  const double again_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_LT(again_s, 10.0);
+  auto summary = ReadJsonFile(fs::path(out) / "run_summary.json");
+  EXPECT_EQ(summary["cities"][0]["unchanged"], true) << summary.dump();
+  EXPECT_EQ(summary["cities"][1]["unchanged"], true) << summary.dump();
+
+  // One image of SYN_002 changes: only its city is redone.
+  const fs::path image = fs::path(root) / "Track3-RGB-crops" / "SYN_002" / "SYN_002_001_RGB.tif";
+  ASSERT_TRUE(fs::exists(image));
+  fs::last_write_time(image, fs::last_write_time(image) + std::chrono::seconds(5));
+  const CommandResult changed = RunCommand(run, dir);
+  ASSERT_EQ(changed.exit_code, 0) << changed.err;
+  summary = ReadJsonFile(fs::path(out) / "run_summary.json");
+  EXPECT_EQ(summary["cities"][0]["unchanged"], true) << summary.dump();
+  EXPECT_EQ(summary["cities"][1]["unchanged"], false) << summary.dump();
+  EXPECT_GE(summary["cities"][1]["tiles_reset"].get<int>(), 1) << summary.dump();
+  EXPECT_EQ(TileReportTime(fs::path(out) / "SYN_001"), first_001);
+  EXPECT_NE(TileReportTime(fs::path(out) / "SYN_002"), first_002);
+  const CommandResult stac_again = ValidateStac(out, dir);
+  EXPECT_EQ(stac_again.exit_code, 0) << stac_again.out << stac_again.err;
+  // The validator catches a product changed behind the catalog's back.
+  std::ofstream(fs::path(out) / "SYN_001" / "dsm_compare" / "report.csv", std::ios::app) << "tampered\n";
+  const CommandResult tampered = ValidateStac(out, dir);
+  EXPECT_EQ(tampered.exit_code, 1) << tampered.out;
+  EXPECT_NE(tampered.out.find("file:checksum does not match dsm_compare/report.csv"), std::string::npos)
+      << tampered.out;
+
+  // A mistyped flag is a usage error, told apart from bad input.
+  EXPECT_EQ(RunCommand(Skyfall() + " run " + root + " --out " + out + " --no-such-flag", dir).exit_code, 2);
+}
+
+}  // namespace
+}  // namespace skyfall
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+// A single-node Slurm cluster for one test, stopped when it ends.
+class LocalSlurm {
+ public:
+  explicit LocalSlurm(const fs::path& dir) : dir_(dir) {
+    const std::string script = std::string(SKYFALL_SOURCE_DIR) + "/scripts/slurm_local.sh";
+    const CommandResult r = RunCommand("bash " + script + " start " + dir.string(), dir.parent_path());
+    exit_code_ = r.exit_code;
+    message_ = r.out + r.err;
+    stop_ = "bash " + script + " stop " + dir.string() + " >/dev/null 2>&1";
+  }
+  ~LocalSlurm() { [[maybe_unused]] const int rc = std::system(stop_.c_str()); }
+  int exit_code() const { return exit_code_; }
+  const std::string& message() const { return message_; }
+  std::string Env() const { return "SLURM_CONF=" + (dir_ / "slurm.conf").string() + " "; }
+
+ private:
+  fs::path dir_;
+  int exit_code_ = 0;
+  std::string message_, stop_;
+};
+
+nlohmann::json DsmFigures(const fs::path& city) {
+  const auto report = nlohmann::json::parse(std::ifstream(city / "run_report.json"));
+  return report.at("dsm").at(0);
+}
+
+// A 2x2-tile city through sbatch (tile array + dependent merge job) gives the
+// DSM figures of the local executor; status reads the jobs; a rerun submits
+// only the tiles that did not finish.
+TEST(Cli, SlurmExecutorRunsTheCityAsTheLocalOneDoes) {
+  const fs::path dir = ScratchDir("slurm");
+  LocalSlurm slurm(dir / "cluster");
+  if (slurm.exit_code() == 77) GTEST_SKIP() << "Slurm cannot run on this machine: " << slurm.message();
+  ASSERT_EQ(slurm.exit_code(), 0) << slurm.message();
+  const std::string root = (dir / "tree").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 4", dir).exit_code, 0);
+  // One thread per tile in both executors, so both compute the same numbers.
+  const std::string flags = " --tile-m 32 --overlap-m 4 --iterations 30 --init-max-scale 0 --idu off";
+  const fs::path local = dir / "local", cluster = dir / "cluster_out";
+  const CommandResult l = RunCommand(Skyfall() + " run " + root + " --out " + local.string() + flags + " --jobs 2", dir);
+  ASSERT_EQ(l.exit_code, 0) << l.err;
+  const std::string on_slurm = slurm.Env() + Skyfall() + " run " + root + " --out " + cluster.string() + flags +
+                               " --executor slurm --slurm-cpus 1 --set executor.slurm.poll_s=0.5";
+  const CommandResult s = RunCommand(on_slurm, dir);
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const fs::path city = cluster / "SYN_001";
+  const auto jobs = nlohmann::json::parse(std::ifstream(city / "slurm" / "jobs.json"));
+  EXPECT_EQ(jobs["tiles"].size(), 4u) << jobs.dump();
+  EXPECT_FALSE(jobs["tiles_job"].get<std::string>().empty());
+  EXPECT_TRUE(fs::exists(city / "slurm" / "finish.sbatch"));
+  const auto want = DsmFigures(local / "SYN_001"), got = DsmFigures(city);
+  for (const char* key : {"mae_m", "rmse_m", "completeness", "within_1m"}) {
+    EXPECT_DOUBLE_EQ(got[key].get<double>(), want[key].get<double>()) << key;
+  }
+
+  const CommandResult status = RunCommand(slurm.Env() + Skyfall() + " status " + cluster.string() + " --json", dir);
+  ASSERT_EQ(status.exit_code, 0) << status.err;
+  const auto st = nlohmann::json::parse(status.out);
+  EXPECT_EQ(st["cities"][0]["state"], "done") << st.dump();
+  EXPECT_EQ(st["cities"][0]["tiles_done"], 4) << st.dump();
+  EXPECT_EQ(st["cities"][0]["slurm"]["finish_job"], jobs["finish_job"]);
+
+  // A tile that did not finish (and no city report): only it is resubmitted.
+  const std::string first_tile = jobs["tiles"][0];
+  fs::remove(fs::path(first_tile) / "tile_report.json");
+  fs::remove(city / "run_report.json");
+  const CommandResult again = RunCommand(on_slurm, dir);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  const auto resubmitted = nlohmann::json::parse(std::ifstream(city / "slurm" / "jobs.json"));
+  ASSERT_EQ(resubmitted["tiles"].size(), 1u) << resubmitted.dump();
+  EXPECT_EQ(resubmitted["tiles"][0], first_tile);
+  EXPECT_NE(resubmitted["finish_job"], jobs["finish_job"]);
+  EXPECT_DOUBLE_EQ(DsmFigures(city)["mae_m"].get<double>(), want["mae_m"].get<double>());
 }
 
 }  // namespace

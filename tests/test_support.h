@@ -21,6 +21,8 @@ namespace fs = std::filesystem;
 
 inline fs::path SharedData() { return fs::path(SKYFALL_SHARED_DATA); }
 inline fs::path Dfc2019Root() { return SharedData() / "dfc2019"; }
+// The official output schemas kept beside the data (see its README).
+inline fs::path SharedSchemas() { return SharedData().parent_path() / "schemas"; }
 inline fs::path Jax068Image(const std::string& nnn) {
   return Dfc2019Root() / "Track3-RGB-crops" / "JAX_068" / ("JAX_068_" + nnn + "_RGB.tif");
 }
