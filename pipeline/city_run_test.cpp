@@ -140,10 +140,28 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   EXPECT_GT(merge["stitch"]["duplicates_removed"].get<int>(), 0);
   EXPECT_TRUE(std::isfinite(report["seam"]["interior_mean_step_m"].get<double>()));
 
-  // Rerun: finished tiles are skipped (their reports stay as they were).
+  // The STAC catalog of the two-AOI city: one collection, an item per AOI
+  // and per tile, valid under the official schemas (tests/stac_validate.py
+  // also checks every link, checksum and GeoTIFF figure).
+  const json collection = ReadJson(city_dir / "collection.json");
+  int items = 0;
+  for (const auto& link : collection["links"]) items += link["rel"] == "item";
+  EXPECT_EQ(items, 2 + 6);
+  if (fs::exists(testing::SharedSchemas() / "stac-1.1.0")) {
+    const std::string log = (dir / "stac.log").string();
+    const std::string validate = "/usr/bin/python3 " + std::string(SKYFALL_SOURCE_DIR) + "/tests/stac_validate.py " +
+                                 (dir / "out" / "catalog.json").string() + " " + testing::SharedSchemas().string() +
+                                 " >" + log + " 2>&1";
+    EXPECT_EQ(std::system(validate.c_str()), 0) << std::ifstream(log).rdbuf();
+  }
+
+  // Rerun: nothing changed, so nothing is recomputed (reports stay as they were).
   const fs::path tile = city_dir / "tiles" / "SYN_001_c1_r0";
   const auto stamp = fs::last_write_time(tile / "tile_report.json");
-  ASSERT_EQ(RunAll(options, request, progress).exit_code, kExitOk);
+  const RunSummary rerun = RunAll(options, request, progress);
+  ASSERT_EQ(rerun.exit_code, kExitOk);
+  EXPECT_TRUE(rerun.cities[0].unchanged);
+  EXPECT_EQ(rerun.cities[0].dsm_mae_m, run.cities[0].dsm_mae_m);
   EXPECT_EQ(fs::last_write_time(tile / "tile_report.json"), stamp);
 
   // A tile killed during SfM export (no sfm_report.json, no tile report) is
