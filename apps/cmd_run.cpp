@@ -16,6 +16,7 @@ namespace skyfall::cli {
 void AddRunCommand(CLI::App& app, Runner* runner) {
   auto request = std::make_shared<RunRequest>();
   auto print_config = std::make_shared<bool>(false);
+  auto tiles3d = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "run", "The whole pipeline for every AOI of a DFC2019 tree: ingest, tile, per-tile SfM, dense heights and splat "
              "training, merge with LOD, DSM export and comparison with the truth; resumable");
@@ -27,6 +28,9 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
                   "When another run holds OUT's lock, wait up to this many seconds for it (default: exit at once "
                   "with code 7)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--3dtiles", *tiles3d,
+                "Also export each city as 3D Tiles 1.1 with SPZ Gaussian splats into OUT/<city>/3dtiles "
+                "(exports.tiles3d)");
   cmd->add_flag("--print-config", *print_config,
                 "Print the effective configuration (defaults, --config, --set, flags) as JSON and exit");
   flags->Add("--tile-m", +[](RunOptions& o) -> double& { return o.tiling.tile_m; }, "Tile core side [m]");
@@ -48,9 +52,10 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
              "CPUs (and threads) per tile job");
   flags->Add("--slurm-mem-mb", +[](RunOptions& o) -> int& { return o.executor.slurm.mem_mb; },
              "Memory per tile job [MB] (0 = the per-tile estimate)");
-  cmd->callback([runner, request, print_config, flags] {
-    *runner = [request, print_config, flags] {
-      const RunOptions options = flags->Resolve();
+  cmd->callback([runner, request, print_config, flags, tiles3d] {
+    *runner = [request, print_config, flags, tiles3d] {
+      RunOptions options = flags->Resolve();
+      if (*tiles3d) options.exports.tiles3d = true;
       options.Check();  // every field and mode, before any stage runs
       if (*print_config) {
         std::cout << RunOptionsToJson(options);

@@ -24,5 +24,6 @@ void AddTileCommands(CLI::App& app, Runner* runner);  // tile, run-tile, merge
 void AddRunCommand(CLI::App& app, Runner* runner);
 void AddFinishCityCommand(CLI::App& app, Runner* runner);
 void AddStatusCommand(CLI::App& app, Runner* runner);
+void AddExportCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

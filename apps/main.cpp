@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddRunCommand(app, &runner);
   skyfall::cli::AddFinishCityCommand(app, &runner);
   skyfall::cli::AddStatusCommand(app, &runner);
+  skyfall::cli::AddExportCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

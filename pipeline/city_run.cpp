@@ -326,6 +326,19 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   }
   outcome.scene = true;
   report["dsm"] = CompareAois(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
+  if (options.exports.tiles3d) {
+    clock = Stopwatch();
+    try {
+      const Tiles3dSummary t = Export3dTiles((work.city_dir / "scene").string(), (work.city_dir / "3dtiles").string(),
+                                             options.exports.tiles3d_options, progress);
+      stages.push_back(StageEntry("3dtiles", "ok", clock.Seconds()));
+      report["tiles3d"] = {{"tileset", t.tileset_path}, {"tiles", t.tiles}, {"contents", t.contents},
+                           {"gaussians", t.gaussians}};
+    } catch (const Error& e) {  // an export that fails does not undo the city
+      progress.Warn("[" + work.city + "] 3D Tiles export: " + e.what());
+      stages.push_back(StageEntry("3dtiles", "failed", clock.Seconds(), e.what()));
+    }
+  }
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
   report["decisions"] = {{"lod_levels", {{"levels", merged.lod_levels},

@@ -261,6 +261,14 @@ template <class IO> void Visit(IO& io, MergeOptions& o) {
   io("lod", o.lod);
   io("seam_gsd_m", o.seam_gsd_m);
 }
+template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
+  io("leaf_m", o.leaf_m);
+  io("max_fractional_bits", o.max_fractional_bits);
+}
+template <class IO> void Visit(IO& io, ExportOptions& o) {
+  io("tiles3d", o.tiles3d);
+  io("tiles3d_options", o.tiles3d_options);
+}
 template <class IO> void Visit(IO& io, DsmExportOptions& o) {
   io("camera_height_m", o.camera_height_m);
   io("min_alpha", o.min_alpha);
@@ -299,6 +307,7 @@ template <class IO> void Visit(IO& io, RunOptions& o) {
   io("idu", o.idu);
   io("merge", o.merge);
   io("dsm", o.dsm);
+  io("exports", o.exports);
   io("executor", o.executor);
 }
 
@@ -465,6 +474,14 @@ void DsmOptions::Check() const {
   }
 }
 
+void ExportOptions::Check() const {
+  try {
+    tiles3d_options.Check();
+  } catch (const Error& e) {
+    throw Error("exports", "tiles3d_options." + e.subject(), e.detail());
+  }
+}
+
 void SlurmOptions::Check() const {
   if (cpus_per_task < 1) throw Error("slurm", "cpus_per_task", "must be >= 1, got " + std::to_string(cpus_per_task));
   if (mem_mb < 0) throw Error("slurm", "mem_mb", "must be >= 0 (0 = estimated), got " + std::to_string(mem_mb));
@@ -497,6 +514,7 @@ void RunOptions::Check() const {
   CheckSection("idu", [&] { idu.Check(); });
   CheckSection("merge", [&] { merge.Check(); });
   CheckSection("dsm", [&] { dsm.Check(); });
+  CheckSection("exports", [&] { exports.Check(); });
   CheckSection("executor", [&] { executor.Check(); });
 }
 

@@ -12,6 +12,7 @@
 #include "merge/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
+#include "merge/tiles3d.h"
 #include "sfm/dense.h"
 #include "sfm/sfm.h"
 #include "splat/idu.h"
@@ -70,6 +71,13 @@ struct MergeOptions {
   void Check() const;       // throws Error("merge", field, ...)
 };
 
+// Exports written at the end of each city's run, beside the scene.
+struct ExportOptions {
+  bool tiles3d = false;           // OUT/<city>/3dtiles: 3D Tiles 1.1 with SPZ Gaussian splats
+  Tiles3dOptions tiles3d_options;
+  void Check() const;
+};
+
 struct DsmOptions {
   DsmExportOptions export_options;   // JSON key "export"
   DsmCompareOptions compare;
@@ -110,6 +118,7 @@ struct RunOptions {
   IduStageOptions idu;
   MergeOptions merge;
   DsmOptions dsm;
+  ExportOptions exports;
   ExecutorOptions executor;
   // Validates every stage's options; throws Error("run options", "<section>.<field>", ...).
   void Check() const;

@@ -1,6 +1,7 @@
 // End-to-end checks of the `skyfall` binary as a user runs it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 #include <sstream>
 #include <thread>
 
+#include "splat/ply.h"
 #include "tests/test_support.h"
 
 namespace skyfall {
@@ -529,6 +531,83 @@ TEST(Cli, SlurmExecutorRunsTheCityAsTheLocalOneDoes) {
   EXPECT_EQ(resubmitted["tiles"][0], first_tile);
   EXPECT_NE(resubmitted["finish_job"], jobs["finish_job"]);
   EXPECT_DOUBLE_EQ(DsmFigures(city)["mae_m"].get<double>(), want["mae_m"].get<double>());
+}
+
+}  // namespace
+}  // namespace skyfall
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+void CollectLeaves(const nlohmann::json& node, std::vector<std::string>* uris) {
+  if (!node.contains("children")) {
+    uris->push_back(node["content"]["uri"]);
+    return;
+  }
+  for (const auto& child : node["children"]) CollectLeaves(child, uris);
+}
+
+// `skyfall run --3dtiles`: the tileset validates against the 3D Tiles 1.1
+// schemas, every GLB passes the Khronos validator, and the SPZ streams,
+// decoded by spz-loader (the decoder CesiumJS uses), give back the finest
+// level's Gaussians: the same count, positions within half a quantization step.
+TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
+  const fs::path web = fs::path(SKYFALL_SOURCE_DIR) / "web";
+  ASSERT_TRUE(fs::exists(web / "node_modules" / "gltf-validator")) << "run scripts/setup.sh (npm ci in web/)";
+  ASSERT_TRUE(fs::exists(SharedSchemas() / "3d-tiles-1.1")) << "no schemas at " << SharedSchemas();
+  const fs::path dir = ScratchDir("tiles3d");
+  const std::string root = (dir / "tree").string(), out = (dir / "out").string();
+  ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 4", dir).exit_code, 0);
+  const CommandResult run = RunCommand(Skyfall() + " run " + root + " --out " + out +
+                                           " --tile-m 64 --iterations 30 --init-max-scale 0 --idu off --3dtiles"
+                                           " --set exports.tiles3d_options.leaf_m=32",
+                                       dir);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const fs::path tiles = fs::path(out) / "SYN_001" / "3dtiles";
+  const CommandResult schema = RunCommand("/usr/bin/python3 " + std::string(SKYFALL_SOURCE_DIR) +
+                                              "/tests/tiles3d_validate.py " + (tiles / "tileset.json").string() +
+                                              " " + SharedSchemas().string(), dir);
+  EXPECT_EQ(schema.exit_code, 0) << schema.out << schema.err;
+
+  const auto tileset = nlohmann::json::parse(std::ifstream(tiles / "tileset.json"));
+  std::vector<std::string> leaves;
+  CollectLeaves(tileset["root"], &leaves);
+  ASSERT_GE(leaves.size(), 4u);  // 64 m city, 32 m leaves
+  std::string files;
+  for (const auto& uri : leaves) files += " " + (tiles / uri).string();
+  const CommandResult checked = RunCommand("node " + (web / "check_splats.mjs").string() + files, dir);
+  ASSERT_EQ(checked.exit_code, 0) << checked.err;
+
+  // The finest level's Gaussians, sorted by x for the search below.
+  const GaussianCloud finest = ReadGaussiansPly((fs::path(out) / "SYN_001" / "scene" / "lod_0.ply").string());
+  std::vector<Eigen::Vector3f> source(finest.means.begin(), finest.means.end());
+  std::sort(source.begin(), source.end(), [](const auto& a, const auto& b) { return a.x() < b.x(); });
+  std::istringstream lines(checked.out);
+  std::size_t decoded = 0, matched = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const auto glb = nlohmann::json::parse(line);
+    EXPECT_TRUE(glb["errors"].empty()) << glb["file"] << ": " << glb["errors"].dump();
+    EXPECT_EQ(glb["version"], 2);
+    const double half_step = 0.5 * std::ldexp(1.0, -glb["fractionalBits"].get<int>());
+    const std::vector<double> p = glb["positions"];
+    ASSERT_EQ(p.size(), 3 * glb["numPoints"].get<std::size_t>());
+    for (std::size_t i = 0; i < p.size(); i += 3, ++decoded) {
+      auto it = std::lower_bound(source.begin(), source.end(), static_cast<float>(p[i] - half_step - 1e-6),
+                                 [](const Eigen::Vector3f& s, float x) { return s.x() < x; });
+      for (; it != source.end() && it->x() <= p[i] + half_step + 1e-6; ++it) {
+        if (std::abs(it->y() - p[i + 1]) <= half_step + 1e-6 && std::abs(it->z() - p[i + 2]) <= half_step + 1e-6) {
+          ++matched;
+          break;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(decoded, finest.size());
+  EXPECT_EQ(matched, decoded);
+  const auto report = nlohmann::json::parse(std::ifstream(fs::path(out) / "SYN_001" / "run_report.json"));
+  EXPECT_EQ(report["tiles3d"]["contents"].get<int>(), report["tiles3d"]["tiles"].get<int>()) << report["tiles3d"];
 }
 
 }  // namespace

@@ -37,6 +37,13 @@ GeodeticPoint EnuFrame::GeodeticFromEnu(const Eigen::Vector3d& enu_m) const {
   return p;
 }
 
+Eigen::Matrix4d EnuFrame::EcefFromEnu() const {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() = enu_from_ecef_.transpose();
+  m.topRightCorner<3, 1>() = ecef_origin_m_;
+  return m;
+}
+
 UtmZone StandardUtmZone(double lon_deg, double lat_deg) {
   if (!std::isfinite(lon_deg) || !std::isfinite(lat_deg) || lat_deg < -80.0 || lat_deg >= 84.0) {
     throw Error("geo", "utm",

@@ -18,6 +18,9 @@ class EnuFrame {
   const GeodeticPoint& origin() const { return origin_; }
   Eigen::Vector3d EnuFromGeodetic(const GeodeticPoint& p) const;
   GeodeticPoint GeodeticFromEnu(const Eigen::Vector3d& enu_m) const;
+  // The rigid transform ENU -> ECEF (EPSG:4978) in metres, e.g. a 3D Tiles
+  // root transform.
+  Eigen::Matrix4d EcefFromEnu() const;
 
  private:
   GeodeticPoint origin_;
