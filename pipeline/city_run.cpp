@@ -19,6 +19,7 @@
 #include "pipeline/inputs_stamp.h"
 #include "pipeline/merge_tiles.h"
 #include "pipeline/output_lock.h"
+#include "pipeline/report_page.h"
 #include "pipeline/slurm.h"
 #include "pipeline/stac.h"
 #include "pipeline/stage_jobs.h"
@@ -570,6 +571,11 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
                   json{{"root", request.root}, {"cities", list}, {"aois_failed", summary.aois_failed},
                        {"exit_code", summary.exit_code}, {"seconds", summary.seconds}}
                           .dump(2) + "\n");
+  try {
+    progress.Info("run: report page " + WriteRunReportPage(request.out));
+  } catch (const Error& e) {  // the page is for people; the products stand without it
+    progress.Warn(std::string("run: report page: ") + e.what());
+  }
   progress.Info(fmt::format("run: {} of {} cities reconstructed ({} unchanged since the last run) in {:.0f} s", done,
                             cities.size(), unchanged, summary.seconds));
   Emit(summary.exit_code == kExitOk ? "info" : "warning", "run", "", "", "end",

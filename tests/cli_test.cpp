@@ -608,6 +608,18 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
   EXPECT_EQ(matched, decoded);
   const auto report = nlohmann::json::parse(std::ifstream(fs::path(out) / "SYN_001" / "run_report.json"));
   EXPECT_EQ(report["tiles3d"]["contents"].get<int>(), report["tiles3d"]["tiles"].get<int>()) << report["tiles3d"];
+
+  // The run report page stands alone: figures, embedded plots and maps, tiles,
+  // decisions, links to the products, and nothing fetched from the network.
+  std::ifstream page_in(fs::path(out) / "report.html");
+  const std::string page((std::istreambuf_iterator<char>(page_in)), {});
+  for (const char* expected : {"MAE [m]", "within 1 m", "data:image/png;base64,", "SYN_001_c0_r0", "peak memory",
+                               "appearance", "3dtiles/tileset.json", "SYN_001/dsm_compare/report.json"}) {
+    EXPECT_NE(page.find(expected), std::string::npos) << expected;
+  }
+  EXPECT_GE(std::count(page.begin(), page.end(), '<') , 100);
+  EXPECT_EQ(page.find("http://"), std::string::npos);
+  EXPECT_EQ(page.find("https://"), std::string::npos);
 }
 
 }  // namespace
