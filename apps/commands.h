@@ -25,5 +25,6 @@ void AddRunCommand(CLI::App& app, Runner* runner);
 void AddFinishCityCommand(CLI::App& app, Runner* runner);
 void AddStatusCommand(CLI::App& app, Runner* runner);
 void AddExportCommand(CLI::App& app, Runner* runner);
+void AddViewCommand(CLI::App& app, Runner* runner);
 
 }  // namespace skyfall::cli

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   skyfall::cli::AddFinishCityCommand(app, &runner);
   skyfall::cli::AddStatusCommand(app, &runner);
   skyfall::cli::AddExportCommand(app, &runner);
+  skyfall::cli::AddViewCommand(app, &runner);
 
   try {
     app.parse(argc, argv);

@@ -14,6 +14,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libssl-dev python3 python3-jsonschema
   slurm-wlm munge
+  chromium
 )
 
 missing=()

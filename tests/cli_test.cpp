@@ -10,6 +10,9 @@
 #include <sstream>
 #include <thread>
 
+#include <signal.h>
+#include <unistd.h>
+
 #include "splat/ply.h"
 #include "tests/test_support.h"
 
@@ -620,6 +623,38 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
   EXPECT_GE(std::count(page.begin(), page.end(), '<') , 100);
   EXPECT_EQ(page.find("http://"), std::string::npos);
   EXPECT_EQ(page.find("https://"), std::string::npos);
+
+  // Both pages in a real browser (headless Chromium, WebGL by SwiftShader),
+  // with every request off this machine refused: the report shows all its
+  // images; the viewer, served by `skyfall view`, loads every visible tile.
+  ASSERT_TRUE(fs::exists("/usr/bin/chromium")) << "run scripts/setup.sh (Debian's chromium)";
+  const std::string check_page = "node " + (web / "check_page.mjs").string() + " ";
+  const CommandResult shown = RunCommand(check_page + "file://" + (fs::path(out) / "report.html").string() + " " +
+                                             (dir / "report.png").string(), dir);
+  ASSERT_EQ(shown.exit_code, 0) << shown.err;
+  const auto report_page = nlohmann::json::parse(shown.out);
+  EXPECT_TRUE(report_page["external"].empty()) << shown.out;
+  EXPECT_TRUE(report_page["errors"].empty()) << shown.out;
+  ASSERT_GE(report_page["images"].size(), 3u) << shown.out;  // plot, error map, histogram
+  for (const auto& image : report_page["images"]) EXPECT_GT(image["width"].get<int>(), 0) << image;
+
+  const int port = 20000 + getpid() % 20000;
+  const fs::path pid_file = dir / "view.pid";
+  ASSERT_EQ(std::system((Skyfall() + " view " + out + " --port " + std::to_string(port) + " >" +
+                         (dir / "view.log").string() + " 2>&1 & echo $! >" + pid_file.string()).c_str()), 0);
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // the server starts
+  const CommandResult viewed = RunCommand(check_page + "http://127.0.0.1:" + std::to_string(port) +
+                                              "/view/index.html " + (dir / "viewer.png").string() + " --viewer", dir);
+  long server = 0;
+  std::ifstream(pid_file) >> server;
+  if (server > 0) kill(static_cast<pid_t>(server), SIGTERM);
+  ASSERT_EQ(viewed.exit_code, 0) << viewed.err << std::ifstream(dir / "view.log").rdbuf();
+  const auto viewer = nlohmann::json::parse(viewed.out);
+  EXPECT_EQ(viewer["status"]["loaded"], true) << viewed.out;
+  EXPECT_TRUE(viewer["status"]["errors"].empty()) << viewed.out;
+  EXPECT_TRUE(viewer["external"].empty()) << viewed.out;
+  EXPECT_TRUE(viewer["errors"].empty()) << viewed.out;
+  EXPECT_GT(fs::file_size(dir / "viewer.png"), 10000u);
 }
 
 }  // namespace
