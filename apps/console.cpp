@@ -4,6 +4,8 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
 #include <mutex>
 
 #include "pipeline/event_log.h"
@@ -60,19 +62,31 @@ void ConsoleProgress::Begin(std::string_view task, std::size_t total) {
   done_ = 0;
   clock_ = Stopwatch();
   last_print_s_ = -1.0;
+  last_print_fraction_ = 0.0;
   spdlog::info("[{}] start ({} items)", task_, total_);
 }
 
 void ConsoleProgress::Advance(std::size_t done, std::string_view item) {
   done_ = done;
-  constexpr double kMinSecondsBetweenLines = 0.5;
   const double now = clock_.Seconds();
-  if (now - last_print_s_ < kMinSecondsBetweenLines && done != total_) {
+  if (!DueForLine(now, done)) {
     spdlog::debug("[{}] {}/{} {}", task_, done, total_, item);
     return;
   }
   last_print_s_ = now;
+  last_print_fraction_ = total_ ? static_cast<double>(done) / total_ : 0.0;
   spdlog::info("[{}] {}/{} {}", task_, done, total_, item);
+}
+
+bool ConsoleProgress::DueForLine(double now_s, std::size_t done) const {
+  if (done == total_) return true;
+  // A person at a terminal sees a line at most twice a second; a log file
+  // (cron, a tile's run.log) gets one every 10 s or every 5 % of the task.
+  static const bool terminal = isatty(STDERR_FILENO) != 0;
+  constexpr double kTerminalSeconds = 0.5, kLogSeconds = 10.0, kLogFraction = 0.05;
+  if (terminal) return now_s - last_print_s_ >= kTerminalSeconds;
+  const double fraction = total_ ? static_cast<double>(done) / total_ : 0.0;
+  return last_print_s_ < 0 || now_s - last_print_s_ >= kLogSeconds || fraction - last_print_fraction_ >= kLogFraction;
 }
 
 void ConsoleProgress::Warn(std::string_view message) { spdlog::warn("{}", message); }

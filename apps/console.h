@@ -2,8 +2,10 @@
 //  - stdout carries only results (numbers, --json documents), so it can be
 //    piped; everything for humans goes to stderr through spdlog.
 //  - `-q` shows warnings and errors only, `-v` adds debug detail.
-//  - Long work reports "[task] done/total item" lines on stderr, at most a
-//    few per second, plus a final line; skipped items are warnings.
+//  - Long work reports "[task] done/total item" lines on stderr: at most two
+//    per second on a terminal, and when stderr is a file or pipe (cron,
+//    tile logs) one every 10 s or 5 % of the task; plus a final line.
+//    Skipped items are warnings.
 #pragma once
 
 #include <chrono>
@@ -29,8 +31,12 @@ class ConsoleProgress final : public Progress {
   std::string task_;
   std::size_t total_ = 0;
   std::size_t done_ = 0;
+  // True when a progress line is due (see the conventions above).
+  bool DueForLine(double now_s, std::size_t done) const;
+
   Stopwatch clock_;
   double last_print_s_ = -1.0;
+  double last_print_fraction_ = 0.0;
 };
 
 }  // namespace skyfall::cli

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <numeric>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -60,16 +61,25 @@ class TreeWriter {
       : levels_(levels), options_(options), out_dir_(out_dir) {}
 
   // The node for `area` at LOD level index `k` (0 = finest) and its subtree;
-  // null when nothing of any level below it lies in the area.
-  json Build(const Area& area, std::size_t k, ZRange* z_out) {
-    const GaussianCloud subset = Select(levels_[k].cloud, area);
+  // null when nothing of any level below it lies in the area. `inside[j]`
+  // lists the Gaussians of level j (j <= k) in the area, so each level is
+  // partitioned once per depth rather than scanned once per node.
+  json Build(const Area& area, std::size_t k, const std::vector<std::vector<std::uint32_t>>& inside, ZRange* z_out) {
+    GaussianCloud subset;
+    for (std::uint32_t i : inside[k]) subset.Append(levels_[k].cloud, i);
     ZRange z = Heights(subset);
     json children = json::array();
     double child_error = 0;
     if (k > 0) {
       for (const Area& a : Split(area)) {
+        std::vector<std::vector<std::uint32_t>> child_inside(k);
+        for (std::size_t j = 0; j < k; ++j) {
+          for (std::uint32_t i : inside[j]) {
+            if (a.Contains(levels_[j].cloud.means[i])) child_inside[j].push_back(i);
+          }
+        }
         ZRange child_z;
-        json child = Build(a, k - 1, &child_z);
+        json child = Build(a, k - 1, child_inside, &child_z);
         if (child.is_null()) continue;
         child_error = std::max(child_error, child.at("geometricError").get<double>());
         z.Add(child_z);
@@ -100,14 +110,6 @@ class TreeWriter {
     if (a.Width() <= options_.leaf_m) return {a};  // no split: the next level refines in place
     const double mx = 0.5 * (a.x0 + a.x1), my = 0.5 * (a.y0 + a.y1);
     return {{a.x0, a.y0, mx, my}, {mx, a.y0, a.x1, my}, {a.x0, my, mx, a.y1}, {mx, my, a.x1, a.y1}};
-  }
-
-  static GaussianCloud Select(const GaussianCloud& cloud, const Area& area) {
-    GaussianCloud out;
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      if (area.Contains(cloud.means[i])) out.Append(cloud, i);
-    }
-    return out;
   }
 
   static ZRange Heights(const GaussianCloud& cloud) {
@@ -258,8 +260,13 @@ Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& ou
                             options.leaf_m));
   fs::create_directories(out / "content");
   TreeWriter writer(levels, options, out);
+  std::vector<std::vector<std::uint32_t>> everything(levels.size());
+  for (std::size_t j = 0; j < levels.size(); ++j) {
+    everything[j].resize(levels[j].cloud.size());
+    std::iota(everything[j].begin(), everything[j].end(), 0u);
+  }
   ZRange z;
-  json root = writer.Build(root_area, levels.size() - 1, &z);
+  json root = writer.Build(root_area, levels.size() - 1, everything, &z);
   const Eigen::Matrix4d ecef_from_enu = EnuFrame(origin).EcefFromEnu();
   std::vector<double> transform(16);
   for (int c = 0; c < 4; ++c)

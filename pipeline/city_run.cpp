@@ -394,7 +394,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
   }
   progress.Begin("tiles on Slurm", jobs.tiles.size());
   std::size_t reported = 0;
-  const std::string end = WaitForSlurmJob(jobs.finish_job, options.executor.slurm.poll_s, [&] {
+  const std::string end = WaitForSlurmJob(jobs.finish_job, jobs.tiles_job, options.executor.slurm.poll_s, [&] {
     std::size_t finished = 0;
     for (const std::string& t : jobs.tiles) finished += fs::exists(fs::path(t) / "tile_report.json");
     if (finished != reported) progress.Advance(reported = finished, "");
@@ -405,6 +405,13 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
     outcome.tiles_failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
   }
   const std::string finish_log = (work.city_dir / "slurm" / ("finish_" + jobs.finish_job + ".out")).string();
+  if (end.rfind("held:", 0) == 0) {
+    outcome.error = fmt::format("Slurm {}; the jobs were cancelled; see {}/slurm/ and the cluster's slurmd log, "
+                                "then rerun", end, work.city_dir.string());
+    progress.Warn("[" + work.city + "] " + outcome.error);
+    Emit("error", "slurm", work.city, "", outcome.error);
+    return outcome;
+  }
   if (end == "dependency_never_satisfied") {
     outcome.error = fmt::format("{} tile job(s) failed, so the merge job {} was cancelled; see the tiles' run.log "
                                 "and {}/slurm/tile_*.out; a rerun resubmits the unfinished tiles",

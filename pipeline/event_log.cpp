@@ -10,25 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "core/format.h"
 
 namespace skyfall {
-namespace {
-
-std::string NowUtcIsoMillis() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
-  const int millis =
-      static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000);
-  std::tm utc{};
-  gmtime_r(&seconds, &utc);
-  char text[40];
-  const std::size_t n = std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%S", &utc);
-  std::snprintf(text + n, sizeof text - n, ".%03dZ", millis);
-  return text;
-}
-
-}  // namespace
-
 std::string EventJson(const Event& event, const std::string& time_utc) {
   nlohmann::json doc = {{"time", time_utc}, {"level", event.level}};
   if (!event.stage.empty()) doc["stage"] = event.stage;
@@ -52,7 +36,7 @@ void EventLog::Open(const std::string& path) {
 
 void EventLog::Write(const Event& event) {
   if (fd_ < 0) return;
-  const std::string line = EventJson(event, NowUtcIsoMillis()) + "\n";
+  const std::string line = EventJson(event, UtcNowIso(true)) + "\n";
   std::lock_guard<std::mutex> lock(mutex_);
   // A log that cannot be written (full disk) must not stop the run.
   [[maybe_unused]] const ssize_t written = write(fd_, line.data(), line.size());

@@ -12,20 +12,12 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/format.h"
 
 namespace skyfall {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string NowUtcIso() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 std::string HostName() {
   char name[256] = {};
@@ -55,7 +47,7 @@ LockHolder ReadHolder(int fd) {
 
 void WriteHolder(int fd, const std::string& path) {
   const std::string record =
-      "pid=" + std::to_string(getpid()) + "\nhost=" + HostName() + "\nstarted=" + NowUtcIso() + "\n";
+      "pid=" + std::to_string(getpid()) + "\nhost=" + HostName() + "\nstarted=" + UtcNowIso() + "\n";
   if (ftruncate(fd, 0) != 0 || pwrite(fd, record.data(), record.size(), 0) != static_cast<ssize_t>(record.size())) {
     throw Error("run", path, std::string("cannot write the lock file: ") + std::strerror(errno));
   }

@@ -204,14 +204,36 @@ std::map<int, std::string> SlurmArrayTaskStates(const std::string& array_job_id)
   return states;
 }
 
-std::string WaitForSlurmJob(const std::string& job_id, double poll_s, const std::function<void()>& on_poll) {
+std::string HeldReason(const std::string& job_id) {
+  std::string output;
+  if (job_id.empty() || RunProgram({"squeue", "-h", "-r", "-j", job_id, "-o", "%T %r"}, &output) != 0) return "";
+  std::istringstream lines(output);
+  for (std::string line; std::getline(lines, line);) {
+    std::string lower = line;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (lower.find("held") != std::string::npos) return Trim(line);
+  }
+  return "";
+}
+
+std::string WaitForSlurmJob(const std::string& job_id, const std::string& watched_job, double poll_s,
+                            const std::function<void()>& on_poll) {
+  std::string unused;
   while (true) {
     const std::string state = SlurmJobState(job_id);
     if (state.empty()) return "done";
     if (state.find("DependencyNeverSatisfied") != std::string::npos) {
-      std::string unused;
       RunProgram({"scancel", job_id}, &unused);
       return "dependency_never_satisfied";
+    }
+    // A job that the scheduler holds (a launch that failed on the node, or an
+    // administrator's hold) would wait forever: give up and say why.
+    for (const std::string& id : {watched_job, job_id}) {
+      const std::string held = HeldReason(id);
+      if (held.empty()) continue;
+      if (!watched_job.empty()) RunProgram({"scancel", watched_job}, &unused);
+      RunProgram({"scancel", job_id}, &unused);
+      return "held: job " + id + " " + held;
     }
     if (on_poll) on_poll();
     std::this_thread::sleep_for(std::chrono::duration<double>(poll_s));

@@ -40,9 +40,16 @@ std::string SlurmJobState(const std::string& job_id);
 std::map<int, std::string> SlurmArrayTaskStates(const std::string& array_job_id);
 
 // Waits until the job leaves the queue, calling `on_poll` every `poll_s`.
-// Returns "done" when it left the queue, or "dependency_never_satisfied"
-// when it can never start (a tile task failed; the job is then cancelled).
-std::string WaitForSlurmJob(const std::string& job_id, double poll_s, const std::function<void()>& on_poll);
+// Returns "done" when it left the queue; "dependency_never_satisfied" when
+// it can never start (a tile task failed; the job is then cancelled); or
+// "held: ..." with the scheduler's reason when it or `watched_job` (the tile
+// array) is held, e.g. after a launch that failed on the node (both are then
+// cancelled).
+std::string WaitForSlurmJob(const std::string& job_id, const std::string& watched_job, double poll_s,
+                            const std::function<void()>& on_poll);
+
+// The scheduler's reason when some task of the job is held; empty otherwise.
+std::string HeldReason(const std::string& job_id);
 
 // Runs a command (argv, no shell) and returns its exit code, with stdout and
 // stderr in *output.

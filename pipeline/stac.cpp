@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/format.h"
 #include "core/sha256.h"
 #include "core/tile.h"
 #include "catalogs/tile_catalog.h"
@@ -51,11 +52,6 @@ json FileAsset(const fs::path& path, const fs::path& doc_dir, const std::string&
           {"file:checksum", Sha256Multihash(Sha256FileHex(path.string()))}};
 }
 
-std::string LowerCase(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
-
 // Projection and band fields of a single-band GeoTIFF, read from the file so
 // that the catalog says what the file holds.
 void AddRasterFields(const fs::path& path, const std::string& unit, json* asset) {
@@ -91,7 +87,7 @@ void AddRasterFields(const fs::path& path, const std::string& unit, json* asset)
       hi = std::max(hi, v);
     }
   }
-  (*asset)["data_type"] = LowerCase(GDALGetDataTypeName(GDALGetRasterDataType(band)));
+  (*asset)["data_type"] = ToLower(GDALGetDataTypeName(GDALGetRasterDataType(band)));
   GDALClose(ds);
   if (has_nodata) (*asset)["nodata"] = std::isnan(nodata) ? json("nan") : json(nodata);
   (*asset)["unit"] = unit;
@@ -253,15 +249,6 @@ json TileAssets(const fs::path& tile_dir, const fs::path& doc_dir) {
 void WriteDoc(const fs::path& path, const json& doc) { WriteFileIfChanged(path.string(), doc.dump(2) + "\n"); }
 
 }  // namespace
-
-std::string UtcNowIso() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 std::string WriteCityStac(const StacCity& city) {
   gdal::EnsureRegistered();

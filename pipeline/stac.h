@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/format.h"  // UtcNowIso
 
 namespace skyfall {
 
@@ -40,8 +41,5 @@ std::string WriteCityStac(const StacCity& city);
 
 // Writes OUT/catalog.json with one child per OUT/*/collection.json.
 std::string WriteRootStacCatalog(const std::string& out_dir);
-
-// The current time as ISO 8601 UTC ("2026-11-23T18:00:00Z").
-std::string UtcNowIso();
 
 }  // namespace skyfall

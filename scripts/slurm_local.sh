@@ -47,6 +47,9 @@ if [ "$cmd" = stop ]; then
   stop_pidfile "$dir/slurmd.pid"
   stop_pidfile "$dir/slurmctld.pid"
   stop_pidfile "$dir/munged.pid"
+  if [ -f "$dir/short" ]; then
+    rm -rf "$(cat "$dir/short")" "$dir/short"
+  fi
   echo "slurm_local: stopped"
   exit 0
 fi
@@ -57,7 +60,12 @@ for tool in slurmctld slurmd munged sbatch squeue scontrol sinfo; do
 done
 [ "$(id -u)" -eq 0 ] || cannot "slurmd must run as root"
 
-mkdir -p "$dir/state" "$dir/spool" "$dir/munge"
+# slurmd makes Unix sockets under its spool folder, whose paths may not
+# exceed 108 bytes: spool and state live in a short folder under /tmp
+# (recorded in DIR/short, removed by stop).
+short=$(mktemp -d /tmp/sfslurm.XXXXXX)
+echo "$short" > "$dir/short"
+mkdir -p "$short/state" "$short/spool" "$dir/munge"
 chown munge:munge "$dir/munge" 2>/dev/null || true
 cpus=$(nproc)
 mem_mb=$(awk '/MemTotal/ {print int($2 / 1024 * 0.9)}' /proc/meminfo)
@@ -71,8 +79,8 @@ SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
 CryptoType=crypto/munge
-StateSaveLocation=$dir/state
-SlurmdSpoolDir=$dir/spool
+StateSaveLocation=$short/state
+SlurmdSpoolDir=$short/spool
 SlurmctldPidFile=$dir/slurmctld.pid
 SlurmdPidFile=$dir/slurmd.pid
 SlurmctldLogFile=$dir/slurmctld.log

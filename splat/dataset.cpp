@@ -75,9 +75,13 @@ void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
 }
 
 std::vector<CameraEntry> ReadCameraEntries(const std::string& path) {
+  return ParseCameraEntries(ReadTextFile(path), path);
+}
+
+std::vector<CameraEntry> ParseCameraEntries(const std::string& text, const std::string& path) {
   json doc;
   try {
-    doc = json::parse(ReadTextFile(path));
+    doc = json::parse(text);
   } catch (const json::exception& e) {
     throw Error("splat", path, std::string("not valid JSON: ") + e.what());
   }

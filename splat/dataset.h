@@ -41,6 +41,8 @@ struct CameraEntry {
 // The used images of cameras.json, in file order; throws Error naming the
 // file for invalid JSON or an entry without a camera or source image.
 std::vector<CameraEntry> ReadCameraEntries(const std::string& cameras_json);
+// The same from the file's text; `subject` names it in errors.
+std::vector<CameraEntry> ParseCameraEntries(const std::string& text, const std::string& subject);
 
 // The origin of the ENU frame a cameras.json's cameras live in ("frame":
 // {"origin": ...}); throws Error naming the file when it has none.

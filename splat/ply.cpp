@@ -48,8 +48,9 @@ void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int 
   WriteFileAtomic(path, GaussiansToPly(cloud, sh_degree));
 }
 
-GaussianCloud ReadGaussiansPly(const std::string& path) {
-  const std::string data = ReadTextFile(path);
+GaussianCloud ReadGaussiansPly(const std::string& path) { return ParseGaussiansPly(ReadTextFile(path), path); }
+
+GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path) {
   const size_t end = data.find("end_header\n");
   if (data.rfind("ply\n", 0) != 0 || end == std::string::npos) {
     throw Error("ply", path, "not a PLY file (missing 'ply' magic or 'end_header')");
@@ -93,9 +94,16 @@ GaussianCloud ReadGaussiansPly(const std::string& path) {
   while (col.count("f_rest_" + std::to_string(rest_count))) ++rest_count;
   if (rest_count % 3 != 0) throw Error("ply", path, "f_rest_* count " + std::to_string(rest_count) + " is not 3 * k");
   const int rest_per_channel = rest_count / 3;
-  std::vector<float> values(count * props.size());
   const char* body = data.data() + end + std::strlen("end_header\n");
   const size_t body_size = data.size() - (end + std::strlen("end_header\n"));
+  // The declared count must fit the data before anything is allocated: a
+  // binary value takes 4 bytes, an ASCII one at least 2 characters.
+  const size_t min_value_bytes = format == "binary_little_endian" ? sizeof(float) : 2;
+  if (props.empty() || count > body_size / min_value_bytes / props.size() + 1) {
+    throw Error("ply", path, "declares " + std::to_string(count) + " vertices of " + std::to_string(props.size()) +
+                                 " properties, more than its " + std::to_string(body_size) + " bytes of data hold");
+  }
+  std::vector<float> values(count * props.size());
   if (format == "binary_little_endian") {
     if (body_size < values.size() * sizeof(float)) {
       throw Error("ply", path, "truncated: " + std::to_string(body_size) + " bytes of data, " +

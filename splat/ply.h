@@ -19,5 +19,7 @@ void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int 
 // coefficients beyond degree 1 are dropped. Throws Error("ply", path, ...)
 // naming the missing property or the bad header line.
 GaussianCloud ReadGaussiansPly(const std::string& path);
+// The same from the file's bytes; `path` names it in errors.
+GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path);
 
 }  // namespace skyfall

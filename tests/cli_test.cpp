@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <numeric>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -157,6 +158,15 @@ TEST(Cli, SynthIngestSfmChain) {
                                              " --init-max-scale 0",
                                          dir);
   ASSERT_EQ(train.exit_code, 0) << train.err;
+  // stderr is a file here, as in cron: progress comes every 5 % of the steps
+  // (or 10 s), not once per step: at most 20 lines for the 30 steps + start/end.
+  const auto progress_lines = [&] {
+    std::size_t n = 0;
+    for (std::size_t at = train.err.find("[splat train]"); at != std::string::npos;
+         at = train.err.find("[splat train]", at + 1)) ++n;
+    return n;
+  }();
+  EXPECT_LE(progress_lines, 22u) << train.err;
   const auto train_report = nlohmann::json::parse(std::ifstream(dir / "splat" / "train_report.json"));
   EXPECT_EQ(train_report["series"].back()["iteration"], 30);
   EXPECT_TRUE(fs::exists(dir / "splat" / "checkpoints" / "checkpoint.bin"));
@@ -502,7 +512,8 @@ TEST(Cli, SlurmExecutorRunsTheCityAsTheLocalOneDoes) {
   const fs::path local = dir / "local", cluster = dir / "cluster_out";
   const CommandResult l = RunCommand(Skyfall() + " run " + root + " --out " + local.string() + flags + " --jobs 2", dir);
   ASSERT_EQ(l.exit_code, 0) << l.err;
-  const std::string on_slurm = slurm.Env() + Skyfall() + " run " + root + " --out " + cluster.string() + flags +
+  // A run that cannot finish must fail the test, not hang it.
+  const std::string on_slurm = "timeout 300 env " + slurm.Env() + Skyfall() + " run " + root + " --out " + cluster.string() + flags +
                                " --executor slurm --slurm-cpus 1 --set executor.slurm.poll_s=0.5";
   const CommandResult s = RunCommand(on_slurm, dir);
   ASSERT_EQ(s.exit_code, 0) << s.err;
@@ -585,8 +596,13 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
 
   // The finest level's Gaussians, sorted by x for the search below.
   const GaussianCloud finest = ReadGaussiansPly((fs::path(out) / "SYN_001" / "scene" / "lod_0.ply").string());
-  std::vector<Eigen::Vector3f> source(finest.means.begin(), finest.means.end());
-  std::sort(source.begin(), source.end(), [](const auto& a, const auto& b) { return a.x() < b.x(); });
+  std::vector<std::size_t> order(finest.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return finest.means[a].x() < finest.means[b].x(); });
+  // What spz-loader gives back, against the PLY: the conversions of the export
+  // (log-scale -> scale, logit -> opacity, (w, x, y, z) -> (x, y, z, w), SH
+  // layout) checked on every Gaussian, within SPZ's quantization steps.
+  constexpr double kEps = 1e-5;
   std::istringstream lines(checked.out);
   std::size_t decoded = 0, matched = 0;
   for (std::string line; std::getline(lines, line);) {
@@ -594,16 +610,35 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
     EXPECT_TRUE(glb["errors"].empty()) << glb["file"] << ": " << glb["errors"].dump();
     EXPECT_EQ(glb["version"], 2);
     const double half_step = 0.5 * std::ldexp(1.0, -glb["fractionalBits"].get<int>());
-    const std::vector<double> p = glb["positions"];
+    const std::vector<double> p = glb["positions"], alphas = glb["alphas"], scales = glb["scales"],
+                              rotations = glb["rotations"], colours = glb["colors"], sh = glb["sh"];
     ASSERT_EQ(p.size(), 3 * glb["numPoints"].get<std::size_t>());
-    for (std::size_t i = 0; i < p.size(); i += 3, ++decoded) {
-      auto it = std::lower_bound(source.begin(), source.end(), static_cast<float>(p[i] - half_step - 1e-6),
-                                 [](const Eigen::Vector3f& s, float x) { return s.x() < x; });
-      for (; it != source.end() && it->x() <= p[i] + half_step + 1e-6; ++it) {
-        if (std::abs(it->y() - p[i + 1]) <= half_step + 1e-6 && std::abs(it->z() - p[i + 2]) <= half_step + 1e-6) {
-          ++matched;
-          break;
+    ASSERT_EQ(sh.size(), 9 * glb["numPoints"].get<std::size_t>());  // degree 1
+    for (std::size_t n = 0; 3 * n < p.size(); ++n, ++decoded) {
+      auto it = std::lower_bound(order.begin(), order.end(), p[3 * n] - half_step - kEps,
+                                 [&](std::size_t s, double x) { return finest.means[s].x() < x; });
+      for (; it != order.end() && finest.means[*it].x() <= p[3 * n] + half_step + kEps; ++it) {
+        const Eigen::Vector3f& m = finest.means[*it];
+        if (std::abs(m.y() - p[3 * n + 1]) > half_step + kEps || std::abs(m.z() - p[3 * n + 2]) > half_step + kEps) continue;
+        ++matched;
+        const std::size_t i = *it;
+        EXPECT_NEAR(alphas[n], 1 / (1 + std::exp(-finest.opacity_logits[i])), 0.5 / 255 + kEps);
+        for (int a = 0; a < 3; ++a) EXPECT_NEAR(std::log(scales[3 * n + a]), finest.log_scales[i][a], 0.5 / 16 + kEps);
+        Eigen::Vector4d q = finest.rotations[i].cast<double>().normalized();  // (w, x, y, z)
+        if (q[0] < 0) q = -q;
+        for (int a = 0; a < 3; ++a) EXPECT_NEAR(rotations[4 * n + a], q[a + 1], 0.5 / 127.5 + kEps);
+        for (int c = 0; c < 3; ++c) {
+          // spz-loader turns the DC coefficient into colour with a rounded SH
+          // constant (0.282 against 0.2820948): up to 2e-4 more for |dc| <= 2.
+          constexpr double kLoaderShConstantSlack = 2e-4;
+          EXPECT_NEAR(colours[3 * n + c], 0.5 + 0.28209479177387814 * finest.sh[i][c * 4],
+                      0.28209479177387814 * 0.5 / (0.15 * 255) + kLoaderShConstantSlack);
+          for (int k = 1; k < 4; ++k) {  // spz: coefficient-major, channel-minor
+            EXPECT_NEAR(sh[9 * n + 3 * (k - 1) + c], std::clamp(finest.sh[i][c * 4 + k], -1.0f, 127.0f / 128),
+                        4.0 / 128 + kEps);
+          }
         }
+        break;
       }
     }
   }

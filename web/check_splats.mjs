@@ -2,7 +2,8 @@
 // the Khronos glTF validator and the spz-loader decoder (the one CesiumJS
 // uses). Usage: node check_splats.mjs FILE.glb...
 // Prints one JSON object per file: {file, errors, ignored, numPoints,
-// shDegree, version, fractionalBits, positions, alphas, scales} (decoded values as the loader gives
+// shDegree, version, fractionalBits, positions, alphas, scales, rotations,
+// colors, sh} (decoded values as the loader gives
 // them, coordinates as stored).
 import fs from "node:fs";
 import zlib from "node:zlib";
@@ -54,5 +55,8 @@ for (const file of process.argv.slice(2)) {
     positions: Array.from(cloud.positions),
     alphas: Array.from(cloud.alphas),
     scales: Array.from(cloud.scales),
+    rotations: Array.from(cloud.rotations),
+    colors: Array.from(cloud.colors),
+    sh: Array.from(cloud.sh),
   }));
 }
