@@ -1,6 +1,7 @@
 // skyfall: multi-view satellite imagery -> tiled 3D Gaussian-splat city scenes.
 #include <spdlog/spdlog.h>
 
+#include <csignal>
 #include <iostream>
 
 #include "apps/commands.h"
@@ -8,8 +9,13 @@
 #include "core/error.h"
 #include "pipeline/event_log.h"
 #include "pipeline/exit_codes.h"
+#include "pipeline/tile_run.h"
 
 int main(int argc, char** argv) {
+  skyfall::DieWithParentIfAsked();  // a tile process of a killed run ends with it
+  // A full disk or a file-size limit makes writes fail (EFBIG, ENOSPC) and
+  // the atomic writers name the file, instead of the process being killed.
+  signal(SIGXFSZ, SIG_IGN);
   CLI::App app{
       "skyfall " SKYFALL_VERSION
       ": batch tiler from multi-view satellite imagery (DFC2019 + RPC) to 3D Gaussian-splat "

@@ -87,7 +87,8 @@ Radiometry RadiometryFromJson(const std::string& text, const std::string& subjec
   Radiometry r;
   try {
     const json j = json::parse(text);
-    const auto bands = j.at("bands").get<std::vector<int>>();
+    std::vector<int> bands;
+    for (const json& b : j.at("bands")) bands.push_back(catalogs::JsonInt(b, subject, "bands[]"));
     if (bands.size() != 3) throw Error("catalog", subject + ".bands", "must list 3 bands (red, green, blue)");
     for (int k = 0; k < 3; ++k) {
       if (bands[k] < 1) throw Error("catalog", subject + ".bands", "band numbers start at 1, got " + std::to_string(bands[k]));
@@ -132,9 +133,9 @@ ImageRecord ImageFromJson(const json& j) {
   ImageRecord im;
   im.name = j.at("name").get<std::string>();
   im.path = j.at("path").get<std::string>();
-  im.width_px = j.at("width_px").get<int>();
-  im.height_px = j.at("height_px").get<int>();
-  im.bands = j.at("bands").get<int>();
+  im.width_px = catalogs::JsonInt(j.at("width_px"), "images[]", "width_px");
+  im.height_px = catalogs::JsonInt(j.at("height_px"), "images[]", "height_px");
+  im.bands = catalogs::JsonInt(j.at("bands"), "images[]", "bands");
   im.dtype = j.at("dtype").get<std::string>();
   // Catalogs written before radiometry was recorded: measured when read.
   if (j.contains("radiometry") && !j.at("radiometry").is_null())
@@ -175,11 +176,11 @@ TruthGrid TruthFromJson(const json& j) {
   t.dsm_path = j.at("dsm_path").get<std::string>();
   t.dsm_txt_path = j.at("dsm_txt_path").get<std::string>();
   t.cls_path = j.at("cls_path").is_null() ? "" : j.at("cls_path").get<std::string>();
-  t.epsg = j.at("epsg").get<int>();
+  t.epsg = catalogs::JsonInt(j.at("epsg"), "truth", "epsg");
   t.lower_left_easting_m = j.at("lower_left_easting_m").get<double>();
   t.lower_left_northing_m = j.at("lower_left_northing_m").get<double>();
-  t.width_px = j.at("width_px").get<int>();
-  t.height_px = j.at("height_px").get<int>();
+  t.width_px = catalogs::JsonInt(j.at("width_px"), "truth", "width_px");
+  t.height_px = catalogs::JsonInt(j.at("height_px"), "truth", "height_px");
   t.gsd_m = j.at("gsd_m").get<double>();
   t.min_height_m = j.at("min_height_m").get<double>();
   t.max_height_m = j.at("max_height_m").get<double>();
@@ -218,9 +219,9 @@ AoiCatalog AoiCatalogFromJson(const std::string& text, const std::string& subjec
     const json& o = doc.at("enu_origin");
     c.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(),
                     o.at("height_m").get<double>()};
-    c.utm_zone = doc.at("utm").at("zone").get<int>();
+    c.utm_zone = catalogs::JsonInt(doc.at("utm").at("zone"), subject, "utm.zone");
     c.utm_north = doc.at("utm").at("north").get<bool>();
-    c.epsg = doc.at("utm").at("epsg").get<int>();
+    c.epsg = catalogs::JsonInt(doc.at("utm").at("epsg"), subject, "utm.epsg");
     c.footprint_lonlat = LonLatListFrom(doc.at("footprint_lonlat"));
     c.footprint_source = doc.value("footprint_source", std::string());
     c.min_height_m = doc.at("height_range_m").at(0).get<double>();

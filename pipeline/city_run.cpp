@@ -11,6 +11,7 @@
 #include <numeric>
 
 #include "core/atomic_file.h"
+#include "core/crash_point.h"
 #include "core/error.h"
 #include "merge/dsm.h"
 #include "merge/dsm_report.h"
@@ -147,6 +148,7 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
     const DsmComparison c = CompareSceneWithTruth(scene, merged.enu_origin, *a.truth, truth, options.dsm.compare, &pred,
                                                   options.dsm.export_options);
     WriteDsm((aoi_dir / "dsm.tif").string(), pred);
+    CrashPoint("dsm_written");
     WriteDsmComparison(c, truth.dsm, options.dsm.compare,
                        {(aoi_dir / "dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
                        (aoi_dir / "dsm_compare").string());
@@ -311,6 +313,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
 
   Stopwatch clock;
   MergeSummary merged;
+  CrashPoint("merge");
   try {
     merged = MergeTiles((work.city_dir / "tiles").string(), (work.city_dir / "scene").string(), options.merge,
                         options.dsm.export_options, progress);
@@ -326,6 +329,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
     return outcome;
   }
   outcome.scene = true;
+  CrashPoint("dsm");
   report["dsm"] = CompareAois(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
   if (options.exports.tiles3d) {
     clock = Stopwatch();
@@ -354,7 +358,9 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   report["peak_tile_rss_mb"] = PeakChildRssMb();
   report["seconds"] = total.Seconds();
   report["inputs"] = work.inputs;  // what the next run compares to skip an unchanged city
+  CrashPoint("report");
   WriteFileAtomic(outcome.report_path, report.dump(2) + "\n");
+  CrashPoint("stac");
   WriteCityStac({work.city, work.out_dir, aois, work.tile_dirs, (work.city_dir / "scene").string(),
                  outcome.report_path, UtcNowIso()});
   Emit("info", "city", work.city, "", "done",
@@ -574,6 +580,7 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   summary.seconds = clock.Seconds();
   summary.exit_code = done == 0 ? kExitNothingDone : (incomplete > 0 || summary.aois_failed > 0) ? kExitPartial : kExitOk;
   WriteRootStacCatalog(request.out);
+  CrashPoint("summary");
   WriteFileAtomic((fs::path(request.out) / "run_summary.json").string(),
                   json{{"root", request.root}, {"cities", list}, {"aois_failed", summary.aois_failed},
                        {"exit_code", summary.exit_code}, {"seconds", summary.seconds}}

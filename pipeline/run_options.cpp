@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <limits>
 #include <set>
 #include <type_traits>
 
@@ -357,9 +358,16 @@ class Reader {
       if (!v.is_number_integer()) Fail(path, "must be a whole number, got " + v.dump());
       if (std::is_unsigned_v<T> && v.get<std::int64_t>() < 0 && !v.is_number_unsigned())
         Fail(path, "must not be negative, got " + v.dump());
+      const bool fits = v.is_number_unsigned()
+                            ? v.get<std::uint64_t>() <= static_cast<std::uint64_t>(std::numeric_limits<T>::max())
+                            : v.get<std::int64_t>() >= static_cast<std::int64_t>(std::numeric_limits<T>::min()) &&
+                                  (std::is_unsigned_v<T> || v.get<std::int64_t>() <= static_cast<std::int64_t>(
+                                                                                          std::numeric_limits<T>::max()));
+      if (!fits) Fail(path, "is out of range, got " + v.dump());
       value = v.get<T>();
     } else if constexpr (std::is_floating_point_v<T>) {
       if (!v.is_number()) Fail(path, "must be a number, got " + v.dump());
+      if (std::abs(v.get<double>()) > std::numeric_limits<T>::max()) Fail(path, "is out of range, got " + v.dump());
       value = v.get<T>();
     } else if constexpr (std::is_same_v<T, std::string>) {
       if (!v.is_string()) Fail(path, "must be a string, got " + v.dump());

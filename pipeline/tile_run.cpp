@@ -1,6 +1,8 @@
 #include "pipeline/tile_run.h"
 
+#include <signal.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <fmt/format.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -18,6 +20,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "core/crash_point.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/stage_jobs.h"
 #include "core/format.h"
@@ -134,6 +137,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
       return WriteTileReport(tile_dir, spec, options, report, stages);
     }
   }
+  CrashPoint("sfm");
   json decisions = json::object();
   if (options.train.init_points == "sparse") {
     decisions["dense"] = {{"ran", false}, {"why", "train.init_points is 'sparse'"}};
@@ -144,6 +148,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
     stages.push_back(dense.report);
     if (dense.report.status != StageStatus::kOk) progress.Warn(spec.id + ": " + dense.report.message);
   }
+  CrashPoint("dense");
   const TrainJobResult trained = RunTrainJob(options.train, sfm_dir.string(), (fs::path(tile_dir) / "splat").string(),
                                              progress);
   decisions["initial_points"] = trained.decisions.dense_start ? "dense" : "sparse";
@@ -167,6 +172,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   decisions["idu"] = {{"on", idu.decision.on}, {"why", idu.decision.why},
                       {"facade_ratio", idu.decision.facade_ratio},
                       {"measured_fraction", idu.decision.measured_fraction}};
+  CrashPoint("idu");
   std::size_t gaussians = trained.train.cloud.size();
   if (idu.decision.on) {
     StageReport synthesis = idu.idu.report;
@@ -175,6 +181,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   }
   report.seconds = clock.Seconds();
   report.metrics["gaussians"] = static_cast<double>(gaussians);
+  CrashPoint("tile");
   return WriteTileReport(tile_dir, spec, options, report, stages, decisions);
 }
 
@@ -277,6 +284,15 @@ std::vector<TileOutcome> RunTilesAsProcesses(const std::vector<std::string>& til
   std::map<pid_t, std::pair<std::size_t, std::chrono::steady_clock::time_point>> running;
   std::size_t next = 0, done = 0;
   progress.Begin("tiles", tile_dirs.size());
+  // The tile processes die with this one (see kParentPidEnv), so a rerun
+  // after a kill never races with orphans writing the same tiles.
+  const std::string parent = std::string(kParentPidEnv) + "=" + std::to_string(getpid());
+  std::vector<char*> child_env;
+  for (char** e = environ; *e; ++e) {
+    if (std::strncmp(*e, kParentPidEnv, std::strlen(kParentPidEnv)) != 0) child_env.push_back(*e);
+  }
+  child_env.push_back(const_cast<char*>(parent.c_str()));
+  child_env.push_back(nullptr);
   auto launch = [&](std::size_t k) {
     outcomes[k].dir = tile_dirs[k];
     std::vector<std::string> args = {program, "-q", "run-tile", tile_dirs[k], "--config", config_path,
@@ -290,7 +306,7 @@ std::vector<TileOutcome> RunTilesAsProcesses(const std::vector<std::string>& til
     posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
     posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
     pid_t pid = 0;
-    const int rc = posix_spawn(&pid, program.c_str(), &actions, nullptr, argv.data(), environ);
+    const int rc = posix_spawn(&pid, program.c_str(), &actions, nullptr, argv.data(), child_env.data());
     posix_spawn_file_actions_destroy(&actions);
     if (rc != 0) throw Error("run", tile_dirs[k], std::string("cannot start a tile process: ") + std::strerror(rc));
     running[pid] = {k, std::chrono::steady_clock::now()};
@@ -342,6 +358,14 @@ std::vector<TileOutcome> RunTilesInline(const std::vector<std::string>& tile_dir
 }
 
 }  // namespace
+
+void DieWithParentIfAsked() {
+  const char* parent = std::getenv(kParentPidEnv);
+  if (!parent || !*parent) return;
+  prctl(PR_SET_PDEATHSIG, SIGKILL);
+  // The parent may have died before the request took effect.
+  if (getppid() != static_cast<pid_t>(std::strtol(parent, nullptr, 10))) _exit(kExitInternal);
+}
 
 double EstimatedTileMemoryMb(const std::string& tile_dir) { return TileMemoryMb(tile_dir); }
 

@@ -27,6 +27,14 @@ struct TileOutcome {
   std::string message;   // why it failed (the end of DIR/run.log for a process)
 };
 
+// Environment variable the local executor gives its tile processes: the
+// parent's PID. A process that finds it asks the kernel to kill it when the
+// parent dies (and exits at once when the parent is already gone).
+inline constexpr const char* kParentPidEnv = "SKYFALL_PARENT_PID";
+
+// Call first in a process that may be a tile process (see kParentPidEnv).
+void DieWithParentIfAsked();
+
 // How many tiles run at once: at most `requested` (0 = number of cores),
 // cores, and what the available memory allows given an estimate per tile.
 int ParallelTileJobs(const std::vector<std::string>& tile_dirs, int requested, std::string* why);

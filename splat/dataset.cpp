@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "catalogs/aoi_catalog.h"
 #include "tiler/radiometry.h"
+#include "catalogs/json_doc.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -22,18 +23,20 @@ using json = nlohmann::json;
 
 PinholeCamera CameraFromJson(const json& j) {
   PinholeCamera c;
+  // at(): a short or malformed matrix is a json::exception (named by the
+  // caller), never a read past the end.
   const auto K = j.at("K"), R = j.at("R"), t = j.at("t");
-  c.fx = K[0][0];
-  c.skew = K[0][1];
-  c.cx = K[0][2];
-  c.fy = K[1][1];
-  c.cy = K[1][2];
+  c.fx = K.at(0).at(0);
+  c.skew = K.at(0).at(1);
+  c.cx = K.at(0).at(2);
+  c.fy = K.at(1).at(1);
+  c.cy = K.at(1).at(2);
   for (int r = 0; r < 3; ++r) {
-    for (int k = 0; k < 3; ++k) c.cam_from_world_rotation(r, k) = R[r][k];
-    c.cam_from_world_translation[r] = t[r];
+    for (int k = 0; k < 3; ++k) c.cam_from_world_rotation(r, k) = R.at(r).at(k);
+    c.cam_from_world_translation[r] = t.at(r);
   }
-  c.width_px = j.at("width_px");
-  c.height_px = j.at("height_px");
+  c.width_px = catalogs::JsonInt(j.at("width_px"), "cameras.json", "width_px");
+  c.height_px = catalogs::JsonInt(j.at("height_px"), "cameras.json", "height_px");
   return c;
 }
 

@@ -109,7 +109,7 @@ GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path
       throw Error("ply", path, "truncated: " + std::to_string(body_size) + " bytes of data, " +
                                    std::to_string(values.size() * sizeof(float)) + " expected");
     }
-    std::memcpy(values.data(), body, values.size() * sizeof(float));
+    if (!values.empty()) std::memcpy(values.data(), body, values.size() * sizeof(float));
   } else {
     std::istringstream in(std::string(body, body_size));
     for (size_t k = 0; k < values.size(); ++k)
@@ -117,23 +117,25 @@ GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path
   }
   GaussianCloud c;
   c.resize(count);
-  const int x = need("x"), dc = need("f_dc_0"), op = need("opacity"), sc = need("scale_0"), rot = need("rot_0");
-  need("f_dc_2");
-  need("scale_2");
-  need("rot_3");
+  // Every property by its own name: a header may list them in any order.
+  const int px = need("x"), py = need("y"), pz = need("z");
+  const int dc[3] = {need("f_dc_0"), need("f_dc_1"), need("f_dc_2")};
+  const int op = need("opacity");
+  const int sc[3] = {need("scale_0"), need("scale_1"), need("scale_2")};
+  const int rot[4] = {need("rot_0"), need("rot_1"), need("rot_2"), need("rot_3")};
+  std::vector<int> rest(rest_count);
+  for (int k = 0; k < rest_count; ++k) rest[k] = col["f_rest_" + std::to_string(k)];
   for (size_t i = 0; i < count; ++i) {
     const float* v = &values[i * props.size()];
-    c.means[i] = Eigen::Vector3f(v[x], v[x + 1], v[x + 2]);
+    c.means[i] = Eigen::Vector3f(v[px], v[py], v[pz]);
     c.sh[i].fill(0.0f);
     for (int ch = 0; ch < 3; ++ch) {
-      c.sh[i][ch * 4] = v[dc + ch];
-      for (int j = 1; j < 4 && j <= rest_per_channel; ++j) {
-        c.sh[i][ch * 4 + j] = v[col["f_rest_0"] + ch * rest_per_channel + (j - 1)];
-      }
+      c.sh[i][ch * 4] = v[dc[ch]];
+      for (int j = 1; j < 4 && j <= rest_per_channel; ++j) c.sh[i][ch * 4 + j] = v[rest[ch * rest_per_channel + (j - 1)]];
     }
     c.opacity_logits[i] = v[op];
-    c.log_scales[i] = Eigen::Vector3f(v[sc], v[sc + 1], v[sc + 2]);
-    c.rotations[i] = Eigen::Vector4f(v[rot], v[rot + 1], v[rot + 2], v[rot + 3]);
+    c.log_scales[i] = Eigen::Vector3f(v[sc[0]], v[sc[1]], v[sc[2]]);
+    c.rotations[i] = Eigen::Vector4f(v[rot[0]], v[rot[1]], v[rot[2]], v[rot[3]]);
     for (int a = 0; a < 3; ++a) {
       if (!std::isfinite(c.means[i][a]) || !std::isfinite(c.log_scales[i][a])) {
         throw Error("ply", path, "Gaussian " + std::to_string(i) + " has a non-finite position or scale");

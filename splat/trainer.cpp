@@ -1,5 +1,7 @@
 #include "splat/trainer.h"
 
+#include "core/crash_point.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -761,6 +763,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
                           ExportCloud(cloud, appearance, ExportView(appearance, fused_view, train_ids)));
       }
     }
+    CrashPoint("train", it);
     progress.Advance(static_cast<std::size_t>(it), "");
   }
   progress.End();
