@@ -241,11 +241,11 @@ TEST(Synth, IngestReadsTheSceneLikeRealData) {
 }
 
 // Stiff and extreme geometry (docs/reliability.md lists each case and its
-// outcome): far north, steep views, a 300 m tower, fine and coarse GSD. In
-// each the written RPCs reproduce the true cameras within kRpcFitTolPx, and
-// ingest reads the viewing geometry back from the RPCs alone within 0.1 deg.
-// The southern hemisphere and the antimeridian are open findings (see the
-// docs), not cases that pass.
+// outcome): far north and south, a UTM zone boundary, steep views, a 300 m
+// tower, fine and coarse GSD. In each the written RPCs reproduce the true
+// cameras within kRpcFitTolPx, and ingest reads the viewing geometry back
+// from the RPCs alone within 0.1 deg. The antimeridian is an open finding
+// (see the docs), not a case that passes.
 struct ExtremeCase {
   const char* name;
   std::function<void(SynthOptions&)> set;
@@ -254,6 +254,11 @@ struct ExtremeCase {
 TEST(Synth, ExtremeScenesKeepTheirRpcsAndViewGeometry) {
   const std::vector<ExtremeCase> cases = {
       {"lat 80 N", [](SynthOptions& o) { o.lat_deg = 80.0; o.lon_deg = 15.0; }},
+      {"lat 79.9 S", [](SynthOptions& o) { o.lat_deg = -79.9; o.lon_deg = -57.0; }},
+      // On the boundary of zones 20 and 21: the images' centre falls in one,
+      // the truth grid (DSM.txt, no CRS) was written in the other.
+      {"UTM zone boundary", [](SynthOptions& o) { o.lon_deg = -60.0; }},
+      {"zone boundary, 60 S", [](SynthOptions& o) { o.lat_deg = -60.0; o.lon_deg = -60.0; }},
       {"45 deg off nadir", [](SynthOptions& o) { o.min_off_nadir_deg = 40.0; o.max_off_nadir_deg = 45.0; }},
       {"300 m tower", [](SynthOptions& o) { o.max_building_m = 300.0; }},
       {"GSD 0.3 m", [](SynthOptions& o) { o.gsd_m = 0.3; o.size_m = 60.0; }},

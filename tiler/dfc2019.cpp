@@ -264,6 +264,23 @@ TruthGrid ReadGeoreferencedTruth(const AoiFiles& files) {
   return t;
 }
 
+// Of `standard` and its two neighbours (same hemisphere), the UTM zone in
+// which the centre of the truth grid falls nearest to `images_lonlat`.
+UtmZone ZoneThatPlacesGridOver(const TruthGrid& t, const UtmZone& standard, const Eigen::Vector2d& images_lonlat) {
+  const double e = t.lower_left_easting_m + 0.5 * t.width_px * t.gsd_m;
+  const double n = t.lower_left_northing_m + 0.5 * t.height_px * t.gsd_m;
+  UtmZone best = standard;
+  double best_deg = INFINITY;
+  for (int step : {0, -1, 1}) {
+    UtmZone z = standard;
+    z.zone = (standard.zone - 1 + step + 60) % 60 + 1;
+    const Eigen::Vector2d ll = GeodeticFromUtm(z, e, n);
+    const double d = std::hypot(std::remainder(ll.x() - images_lonlat.x(), 360.0), ll.y() - images_lonlat.y());
+    if (d < best_deg) best_deg = d, best = z;
+  }
+  return best;
+}
+
 double WrapDegrees360(double deg) {
   deg = std::fmod(deg, 360.0);
   return deg < 0 ? deg + 360.0 : deg;
@@ -397,9 +414,15 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
   UtmZone zone = StandardUtmZone(centre.x(), centre.y());
   if (c.truth) {
-    // A georeferenced truth names its zone; DFC2019 truth is in the standard
-    // UTM zone of the AOI.
-    if (c.truth->epsg) zone = UtmZoneFromEpsg(c.truth->epsg);
+    // A georeferenced truth names its zone. A DFC2019 _DSM.txt does not: it
+    // is in the standard zone of the AOI, which for an AOI on a zone
+    // boundary may be the neighbour of the images' centre's zone; take the
+    // zone that puts the grid over the images.
+    if (c.truth->epsg) {
+      zone = UtmZoneFromEpsg(c.truth->epsg);
+    } else {
+      zone = ZoneThatPlacesGridOver(*c.truth, zone, centre);
+    }
     c.truth->epsg = zone.Epsg();
     const TruthGrid& t = *c.truth;
     const double e0 = t.lower_left_easting_m, n0 = t.lower_left_northing_m;
