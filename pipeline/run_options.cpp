@@ -536,7 +536,11 @@ RunOptions RunOptionsFromJson(const std::string& text, const std::string& subjec
     throw Error("run options", subject, std::string("not valid JSON: ") + e.what());
   }
   if (!doc.is_object()) throw Error("run options", subject, "must be a JSON object");
-  const std::string schema = doc.value("schema", std::string(kSchema));
+  const auto found = doc.find("schema");
+  if (found != doc.end() && !found->is_string()) {
+    throw Error("run options", subject, "schema must be a string, got " + found->dump());
+  }
+  const std::string schema = found != doc.end() ? found->get<std::string>() : std::string(kSchema);
   if (schema != kSchema) throw Error("run options", subject, "schema is '" + schema + "', expected '" + kSchema + "'");
   RunOptions options;
   Reader reader(doc, "", subject);
