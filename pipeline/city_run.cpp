@@ -291,6 +291,31 @@ json CityWorkJson(const CityWork& work, const std::vector<AoiCatalog>& aois) {
 
 // Merge with LOD, DSM export and comparison, run report (last) and STAC
 // catalog of a city whose tiles have run.
+// A city none of whose tiles produced a scene has nothing to merge: say why
+// its tiles did not (one image, no overlap...), not merely that the merge is
+// empty. Tiles are judged by their reports (a skipped tile exits 0).
+void ThrowIfNoTileFinished(const std::string& city, const std::vector<TileOutcome>& outcomes) {
+  std::map<std::string, int> by_status;
+  std::string first_reason;
+  for (const TileOutcome& o : outcomes) {
+    std::string status = o.exit_code == kExitOk ? "ok" : "failed", reason = o.message;
+    try {
+      const json report = json::parse(ReadTextFile((fs::path(o.dir) / "tile_report.json").string()));
+      status = report.value("status", status);
+      reason = report.value("message", reason);
+    } catch (const std::exception&) {  // no report: the exit code and the log tail stand
+    }
+    if (status == "ok") return;
+    ++by_status[status];
+    if (first_reason.empty()) first_reason = reason;
+  }
+  if (outcomes.empty()) return;
+  std::string counts;
+  for (const auto& [status, n] : by_status) counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + status;
+  throw Error("city", city, fmt::format("no tile produced a scene ({} of {}); first: {}", counts, outcomes.size(),
+                                        first_reason));
+}
+
 CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const CityWork& work,
                        const std::vector<TileOutcome>& outcomes, const Stopwatch& total, Progress& progress) {
   CityOutcome outcome;
@@ -315,6 +340,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   MergeSummary merged;
   CrashPoint("merge");
   try {
+    ThrowIfNoTileFinished(work.city, outcomes);
     merged = MergeTiles((work.city_dir / "tiles").string(), (work.city_dir / "scene").string(), options.merge,
                         options.dsm.export_options, progress);
     stages.push_back(StageEntry("merge", "ok", clock.Seconds()));
@@ -541,7 +567,15 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   ingest.aois = request.aois;
   const IngestResult ingested = RunIngest(ingest, request.root, (fs::path(request.out) / "catalogs").string(), progress);
   std::vector<AoiCatalog> catalogs;
+  json aoi_list = json::array();  // every AOI found, with what was left out of it and why
   for (const auto& a : ingested.aois) {
+    json skipped = json::array();
+    for (const Skipped& s : a.skipped_images) skipped.push_back({{"file", s.what}, {"reason", s.reason}});
+    aoi_list.push_back({{"aoi", a.aoi},
+                        {"ingest", a.report.status == StageStatus::kOk ? "ok" : "failed"},
+                        {"error", a.report.status == StageStatus::kOk ? "" : a.report.message},
+                        {"images", a.catalog.images.size()},
+                        {"skipped_images", skipped}});
     if (a.report.status == StageStatus::kOk) {
       catalogs.push_back(a.catalog);
       Emit("info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
@@ -582,7 +616,7 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   WriteRootStacCatalog(request.out);
   CrashPoint("summary");
   WriteFileAtomic((fs::path(request.out) / "run_summary.json").string(),
-                  json{{"root", request.root}, {"cities", list}, {"aois_failed", summary.aois_failed},
+                  json{{"root", request.root}, {"aois", aoi_list}, {"cities", list}, {"aois_failed", summary.aois_failed},
                        {"exit_code", summary.exit_code}, {"seconds", summary.seconds}}
                           .dump(2) + "\n");
   try {

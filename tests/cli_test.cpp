@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
+#include <tuple>
 #include <numeric>
 #include <chrono>
 #include <cmath>
@@ -14,6 +16,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include "core/atomic_file.h"
 #include "core/sha256.h"
 #include "splat/ply.h"
 #include "tests/test_support.h"
@@ -118,6 +121,96 @@ TEST(Cli, IngestExitsNonZeroOnlyWhenNothingWasIngested) {
       Skyfall() + " ingest " + root.string() + " --out " + (dir / "out").string() + " --json", dir);
   EXPECT_EQ(mixed.exit_code, 0) << mixed.err;
   EXPECT_EQ(nlohmann::json::parse(mixed.out)["failed"], 1);
+}
+
+// The bad-input corpus (scripts/make_bad_inputs.sh): one `skyfall run` over
+// a tree of broken AOIs and images processes the sound AOIs and names every
+// defect, with its file and value, in run_summary.json. The table in
+// docs/reliability.md lists the same cases.
+TEST(Cli, BadInputCorpusNamesEveryDefect) {
+  const fs::path dir = ScratchDir("cli_bad_inputs");
+  const fs::path tree = dir / "tree", out = dir / "out";
+  const CommandResult made = RunCommand("bash " + std::string(SKYFALL_SOURCE_DIR) + "/scripts/make_bad_inputs.sh " +
+                                            tree.string() + " " + Skyfall(), dir);
+  ASSERT_EQ(made.exit_code, 0) << made.err;
+  const CommandResult run = RunCommand(Skyfall() + " --quiet run " + tree.string() + " --out " + out.string() +
+                                           " --tile-m 64 --iterations 30 --init-max-scale 0 --idu off",
+                                       dir);
+  EXPECT_EQ(run.exit_code, 5) << "partial: some AOIs failed, the others finished\n" << run.err;
+  const auto summary = nlohmann::json::parse(ReadTextFile((out / "run_summary.json").string()));
+
+  std::map<std::string, nlohmann::json> aois;
+  for (const auto& a : summary["aois"]) aois[a["aoi"]] = a;
+  ASSERT_EQ(aois.size(), 10u) << summary.dump(1);  // the empty folder is listed too
+  const fs::path truth = tree / "Track3-Truth";
+  // AOI-level defects: the AOI fails at ingest; the error names the file and the value.
+  const std::vector<std::tuple<std::string, std::string, std::string>> aoi_cases = {
+      {"EMPTY_001", (tree / "Track3-RGB-crops" / "EMPTY_001").string(), "holds no image"},
+      {"TXTFIELDS_001", (truth / "TXTFIELDS_001_DSM.txt").string(), "found 3"},
+      {"TXTNEG_001", (truth / "TXTNEG_001_DSM.txt").string(), "-128 is not a positive"},
+      {"TXTTEXT_001", (truth / "TXTTEXT_001_DSM.txt").string(), "'easting'"},
+      {"TRUTHSIZE_001", (truth / "TRUTHSIZE_001_DSM.tif").string(), "64x64 px"},
+      {"APART_001", "APART_001", "no common area"},
+  };
+  for (const auto& [aoi, file, value] : aoi_cases) {
+    ASSERT_TRUE(aois.count(aoi)) << aoi;
+    EXPECT_EQ(aois[aoi]["ingest"], "failed") << aoi;
+    const std::string error = aois[aoi]["error"];
+    EXPECT_NE(error.find(file), std::string::npos) << aoi << ": " << error;
+    EXPECT_NE(error.find(value), std::string::npos) << aoi << ": " << error;
+  }
+  EXPECT_EQ(summary["aois_failed"], aoi_cases.size());
+
+  // Image-level defects: the image is left out with its reason; its AOI goes on.
+  const nlohmann::json& images = aois["IMAGES_001"];
+  EXPECT_EQ(images["ingest"], "ok");
+  EXPECT_EQ(images["images"], 3);
+  std::map<std::string, std::string> reasons;
+  for (const auto& s : images["skipped_images"])
+    reasons[fs::path(s["file"].get<std::string>()).filename().string()] = s["reason"];
+  const std::vector<std::pair<std::string, std::string>> image_cases = {
+      {"IMAGES_001_004_RGB.tif", "truncated or corrupt"},           // truncated TIFF
+      {"IMAGES_001_005_RGB.tif", "not a readable raster"},          // wrong magic
+      {"IMAGES_001_006_RGB.tif", "HEIGHT_OFF: is not finite (nan)"},
+      {"IMAGES_001_007_RGB.tif", "LONG_SCALE: is zero"},
+      {"IMAGES_001_008_RGB.tif", "LINE_DEN_COEFF[0]: denominator is zero"},
+      {"IMAGES_001_009_RGB.tif", "duplicate of " + (tree / "Track3-RGB-crops" / "IMAGES_001" / "IMAGES_001_001_RGB.tif").string()},
+      {"IMAGES_001_010_RGB.tif", "image is 1x1 px"},
+      {"IMAGES_001_011_RGB.tif", "has no valid pixel"},
+      {"IMAGES_001_012_RGB.vrt", "outside its RPC's reach"},        // 40000 x 40000 sparse VRT
+  };
+  EXPECT_EQ(reasons.size(), image_cases.size());
+  for (const auto& [file, reason] : image_cases) {
+    ASSERT_TRUE(reasons.count(file)) << file << " was not reported";
+    EXPECT_NE(reasons[file].find(reason), std::string::npos) << file << ": " << reasons[file];
+    EXPECT_NE(reasons[file].find(file), std::string::npos) << "the reason names the file: " << reasons[file];
+  }
+
+  // Cities: the sound AOIs, the one left with three good images and the AOI
+  // on a UTM zone boundary are reconstructed and compared; one image is not enough.
+  std::map<std::string, nlohmann::json> cities;
+  for (const auto& c : summary["cities"]) cities[c["city"]] = c;
+  for (const std::string aoi : {"GOOD_001", "IMAGES_001", "ZONE_001"}) {
+    ASSERT_TRUE(cities.count(aoi)) << aoi;
+    EXPECT_TRUE(cities[aoi]["scene"].get<bool>()) << aoi << ": " << cities[aoi]["error"];
+    EXPECT_TRUE(fs::exists(out / aoi / "dsm.tif")) << aoi;
+  }
+  ASSERT_TRUE(cities.count("ONE_001"));
+  EXPECT_FALSE(cities["ONE_001"]["scene"].get<bool>());
+  EXPECT_NE(cities["ONE_001"]["error"].get<std::string>().find("fewer than 2 images"), std::string::npos)
+      << cities["ONE_001"]["error"];
+  // The zone-boundary AOI lands where its truth is (18 zones apart would be kilometres off).
+  const auto zone_report = nlohmann::json::parse(ReadTextFile((out / "ZONE_001" / "run_report.json").string()));
+  EXPECT_LT(zone_report["dsm"][0]["mae_m"].get<double>(), 1.0) << zone_report["dsm"].dump();
+
+  // An output folder that cannot be created: a bad-input exit naming it, nothing written.
+  std::ofstream(dir / "a_file") << "x";
+  const std::string unwritable = (dir / "a_file" / "out").string();
+  const CommandResult refused = RunCommand(Skyfall() + " run " + tree.string() + " --out " + unwritable, dir);
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  EXPECT_NE(refused.err.find(unwritable), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("Not a directory"), std::string::npos) << refused.err;
+  EXPECT_EQ(ReadTextFile((dir / "a_file").string()), "x");
 }
 
 TEST(Cli, SynthIngestSfmChain) {

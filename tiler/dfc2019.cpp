@@ -34,6 +34,7 @@ struct AoiFiles {
   // GDAL format; empty for DFC2019 trees (their truth is in truth_dir).
   std::string truth_dsm_path, truth_cls_path;
   std::vector<Skipped> skipped;  // files of the folder that are neither images nor truth
+  std::string empty_folder;      // set when the AOI is a folder holding no image at all
 };
 
 bool HasRasterExtension(const fs::path& p) {
@@ -85,8 +86,9 @@ std::map<std::string, AoiFiles> ScanPlainFolder(const fs::path& root) {
   return {{aoi, found}};
 }
 
-// DFC2019 image names: <AOI>_<NNN>_RGB.tif, e.g. JAX_068_001_RGB.tif.
-const std::regex kImageName(R"(^(.+)_(\d+)_RGB\.tiff?$)", std::regex::icase);
+// DFC2019 image names: <AOI>_<NNN>_RGB.tif, e.g. JAX_068_001_RGB.tif (a GDAL
+// VRT under the same name, e.g. a window of a large scene, is read as well).
+const std::regex kImageName(R"(^(.+)_(\d+)_RGB\.(tiff?|vrt)$)", std::regex::icase);
 
 std::vector<fs::path> ImageFolders(const fs::path& root) {
   // Crops first: when an image is in both layouts, the crop wins (it is what
@@ -120,6 +122,17 @@ std::map<std::string, AoiFiles> ScanRoot(const fs::path& root) {
       AoiFiles& aoi = aois[m[1].str()];
       aoi.images.emplace(file.stem().string(), file.string());  // first wins
     }
+    // An AOI folder without a single image is named as such, not passed over
+    // in silence (a cron job would never notice the missing AOI).
+    for (const auto& entry : fs::directory_iterator(folder)) {
+      if (!entry.is_directory()) continue;
+      const std::string name = entry.path().filename().string();
+      bool any_image = false;
+      for (const auto& f : fs::recursive_directory_iterator(entry.path())) {
+        any_image = any_image || std::regex_match(f.path().filename().string(), kImageName);
+      }
+      if (!any_image && !aois.count(name)) aois[name].empty_folder = entry.path().string();
+    }
   }
   for (auto& [name, files] : aois) {
     files.truth_dir = (root / "Track3-Truth").string();
@@ -141,10 +154,19 @@ std::vector<std::string> ReadNameList(const fs::path& path) {
   return names;
 }
 
+// Below this many pixels a side an image holds too few features to match or
+// a matching window to score: refused (a 1x1 "image" is a broken export).
+constexpr int kMinImageSidePx = 16;
+
 // One image's raster facts, RPC, date and sun angles. Throws on bad input.
 ImageRecord ReadImage(const std::string& stem, const std::string& path, const AoiFiles& files,
                       const IngestOptions& options, std::optional<SatNerfCamera>* satnerf) {
   const RasterInfo info = ReadRasterInfo(path);
+  if (info.width_px < kMinImageSidePx || info.height_px < kMinImageSidePx) {
+    throw Error("ingest", path,
+                "image is " + std::to_string(info.width_px) + "x" + std::to_string(info.height_px) +
+                    " px; at least " + std::to_string(kMinImageSidePx) + " px a side are needed");
+  }
   if (options.verify_pixels) VerifyRasterPixels(path);
   ImageRecord im;
   im.name = stem;
@@ -344,6 +366,52 @@ HeightRange ChooseHeightRange(const std::optional<TruthGrid>& truth,
   return {mid - half, mid + half, "rpc"};
 }
 
+// Each image's ground footprint at `height_m`. An image whose corners its own
+// RPC cannot place (a raster far larger than the RPC's validity, say) is
+// left out with the reason, instead of sinking its AOI.
+void LocateFootprints(double height_m, std::vector<ImageRecord>* images, std::vector<Skipped>* skipped,
+                      Progress& progress) {
+  std::vector<ImageRecord> kept;
+  for (ImageRecord& im : *images) {
+    try {
+      im.footprint_lonlat = ImageFootprint(im, height_m);
+      kept.push_back(std::move(im));
+    } catch (const Error& e) {
+      const std::string why = std::string("image corners lie outside its RPC's reach (") + e.what() + ")";
+      skipped->push_back({im.path, Error("ingest", im.path, why).what()});
+      progress.Warn("skipping image: " + skipped->back().reason);
+    }
+  }
+  *images = std::move(kept);
+}
+
+bool SameView(const ImageRecord& a, const ImageRecord& b) {
+  const RpcModel &p = a.rpc, &q = b.rpc;
+  return a.width_px == b.width_px && a.height_px == b.height_px && p.line_off == q.line_off &&
+         p.samp_off == q.samp_off && p.lat_off == q.lat_off && p.lon_off == q.lon_off &&
+         p.height_off == q.height_off && p.line_scale == q.line_scale && p.samp_scale == q.samp_scale &&
+         p.lat_scale == q.lat_scale && p.lon_scale == q.lon_scale && p.height_scale == q.height_scale &&
+         p.line_num == q.line_num && p.line_den == q.line_den && p.samp_num == q.samp_num &&
+         p.samp_den == q.samp_den;
+}
+
+// Two rasters of one size with the same RPC are the same view (a copied
+// file): kept twice, it would be a zero-baseline pair that SfM matches
+// perfectly and triangulates nowhere. The first in name order stays.
+void SkipDuplicateViews(std::vector<ImageRecord>* images, std::vector<Skipped>* skipped, Progress& progress) {
+  std::vector<ImageRecord> kept;
+  for (ImageRecord& im : *images) {
+    const auto first = std::find_if(kept.begin(), kept.end(), [&](const ImageRecord& k) { return SameView(k, im); });
+    if (first == kept.end()) {
+      kept.push_back(std::move(im));
+      continue;
+    }
+    skipped->push_back({im.path, Error("ingest", im.path, "duplicate of " + first->path + " (same size and RPC)").what()});
+    progress.Warn("skipping image: " + skipped->back().reason);
+  }
+  *images = std::move(kept);
+}
+
 // The lon/lat box common to all image footprints, counter-clockwise.
 std::vector<Eigen::Vector2d> FootprintOverlap(const std::vector<ImageRecord>& images,
                                               const std::string& aoi) {
@@ -393,6 +461,7 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
     progress.Advance(++done, stem);
   }
   progress.End();
+  if (!files.empty_folder.empty()) throw Error("ingest", files.empty_folder, "AOI folder holds no image (*_NNN_RGB.tif)");
   if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
 
   const bool has_truth = fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.tif")) ||
@@ -409,7 +478,9 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   c.height_range_source = range.source;
   const double mid_height_m = 0.5 * (c.min_height_m + c.max_height_m);
 
-  for (auto& im : c.images) im.footprint_lonlat = ImageFootprint(im, mid_height_m);
+  LocateFootprints(mid_height_m, &c.images, &result.skipped_images, progress);
+  SkipDuplicateViews(&c.images, &result.skipped_images, progress);
+  if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
   const std::vector<Eigen::Vector2d> overlap = FootprintOverlap(c.images, aoi);
   Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
   UtmZone zone = StandardUtmZone(centre.x(), centre.y());

@@ -125,12 +125,6 @@ Radiometry MeasureRadiometry(const std::string& path, const RadiometryOptions& o
   r.nodata = GDALGetRasterNoDataValue(GDALGetRasterBand(ds.handle, r.bands[0]), &has_nodata);
   r.has_nodata = has_nodata != 0;
   const GDALDataType type = GDALGetRasterDataType(GDALGetRasterBand(ds.handle, r.bands[0]));
-  if (type == GDT_Byte && !options.stretch_byte) {
-    r.method = "type_range";
-    r.low = 0;
-    r.high = 255;
-    return r;
-  }
   const int w = GDALGetRasterXSize(ds.handle), h = GDALGetRasterYSize(ds.handle);
   const double step = std::max(1.0, std::sqrt(static_cast<double>(w) * h / options.max_sample_px));
   const int sw = std::max(1, static_cast<int>(w / step)), sh = std::max(1, static_cast<int>(h / step));
@@ -143,6 +137,12 @@ Radiometry MeasureRadiometry(const std::string& path, const RadiometryOptions& o
     for (int c = 0; c < 3; ++c) values.push_back(rgb[3 * k + c]);
   }
   if (values.empty()) throw Error("radiometry", path, "has no valid pixel (all nodata, NaN or zero fill)");
+  if (type == GDT_Byte && !options.stretch_byte) {  // display-scaled already: keep its range
+    r.method = "type_range";
+    r.low = 0;
+    r.high = 255;
+    return r;
+  }
   r.method = "percentile";
   r.low = Quantile(values, options.low_percentile);
   r.high = Quantile(values, options.high_percentile);
