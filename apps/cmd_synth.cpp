@@ -49,6 +49,9 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]")->capture_default_str();
   cmd->add_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)")
       ->capture_default_str();
+  cmd->add_option("--rpc-height-offset-m", opts->rpc_height_offset_m,
+                  "Put the RPCs' HEIGHT_OFF this far from the scene (a stiff case) [m]")
+      ->capture_default_str();
   cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
       ->capture_default_str();
   cmd->callback([runner, opts, out, render_cameras, render_out, lighting_view] {

@@ -138,9 +138,18 @@ Eigen::Vector2d RpcModel::Project(double lon_deg, double lat_deg, double height_
   return Project(lon_deg, lat_deg, height_m, nullptr);
 }
 
+double LongitudeDeltaDeg(double lon_deg, double ref_deg) {
+  const double d = lon_deg - ref_deg;
+  if (d >= -180.0 && d < 180.0) return d;  // the usual case, left exact
+  const double m = std::fmod(d + 180.0, 360.0);
+  return (m < 0 ? m + 360.0 : m) - 180.0;
+}
+
+double WrapLongitudeDeg(double lon_deg) { return LongitudeDeltaDeg(lon_deg, 0.0); }
+
 Eigen::Vector2d RpcModel::Project(double lon_deg, double lat_deg, double height_m,
                                   Eigen::Matrix2d* d_colrow_d_lonlat) const {
-  const double L = (lon_deg - lon_off) / lon_scale;
+  const double L = LongitudeDeltaDeg(lon_deg, lon_off) / lon_scale;
   const double P = (lat_deg - lat_off) / lat_scale;
   const double H = (height_m - height_off) / height_scale;
   const Terms m = Monomials(L, P, H);
@@ -202,7 +211,7 @@ Eigen::Vector2d Localize(const RpcModel& rpc, double col, double row, double hei
     Eigen::Matrix2d next_J = J;
     for (int halvings = 0; halvings < 30; ++halvings, t *= 0.5) {
       next = lonlat + t * step;
-      const double L = (next.x() - rpc.lon_off) / rpc.lon_scale;
+      const double L = LongitudeDeltaDeg(next.x(), rpc.lon_off) / rpc.lon_scale;
       const double P = (next.y() - rpc.lat_off) / rpc.lat_scale;
       if (std::abs(L) > options.max_normalized || std::abs(P) > options.max_normalized) continue;
       next_residual = rpc.Project(next.x(), next.y(), height_m, &next_J) - target;

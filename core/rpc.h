@@ -19,6 +19,12 @@
 
 namespace skyfall {
 
+// `lon_deg - ref_deg` taken into [-180, 180): the signed way round the
+// circle, for longitudes on both sides of the antimeridian.
+double LongitudeDeltaDeg(double lon_deg, double ref_deg);
+// `lon_deg` moved by whole turns into [-180, 180).
+double WrapLongitudeDeg(double lon_deg);
+
 struct RpcModel {
   // Normalization: x_normalized = (x - offset) / scale.
   double line_off = 0.0;      // row offset [px]
@@ -46,7 +52,8 @@ struct RpcModel {
   void Validate() const;
 
   // (lon, lat, height) -> (col, row). Throws Error if a denominator is zero at
-  // that point.
+  // that point. Longitudes are taken modulo 360 around LONG_OFF, so an AOI
+  // astride the antimeridian projects alike with 179.9999 or -180.0001.
   Eigen::Vector2d Project(double lon_deg, double lat_deg, double height_m) const;
 
   // Same, plus the Jacobian d(col, row)/d(lon_deg, lat_deg).

@@ -169,6 +169,9 @@ RpcFitResult FitRpc(const std::function<Eigen::Vector2d(double, double, double)>
       best.rational = true;
     }
   }
+  // A domain astride the antimeridian may centre past 180; RPC00B offsets
+  // live in [-180, 180) and Project takes longitudes modulo 360 around them.
+  best.rpc.lon_off = WrapLongitudeDeg(best.rpc.lon_off);
   best.rpc.Validate();
   return best;
 }

@@ -89,6 +89,24 @@ TEST(Rpc, LocalizeReportsNonConvergenceInsteadOfAWrongPoint) {
   EXPECT_THROW(Localize(good, 1e9, -1e9, 0.0), Error);
 }
 
+// Astride the antimeridian a longitude may arrive as 179.9999 or -180.0001:
+// both are the same meridian, and the model must say so.
+TEST(Rpc, LongitudesAreTakenModulo360AroundTheOffset) {
+  EXPECT_EQ(LongitudeDeltaDeg(-81.5, -81.6), -81.5 - -81.6);  // the usual case is left exact
+  EXPECT_NEAR(LongitudeDeltaDeg(-179.9999, 179.9999), 0.0002, 1e-12);
+  EXPECT_NEAR(LongitudeDeltaDeg(179.9999, -179.9999), -0.0002, 1e-12);
+  EXPECT_NEAR(LongitudeDeltaDeg(540.5, 0.0), -179.5, 1e-12);
+  EXPECT_NEAR(WrapLongitudeDeg(180.0002), -179.9998, 1e-12);
+  EXPECT_EQ(WrapLongitudeDeg(-180.0), -180.0);
+  RpcModel rpc = MakeTestRpc();
+  const double lon = rpc.lon_off + 0.3 * rpc.lon_scale, lat = rpc.lat_off - 0.2 * rpc.lat_scale;
+  const Eigen::Vector2d p = rpc.Project(lon, lat, rpc.height_off);
+  // A whole turn added rounds the longitude at ~6e-14 deg (the ulp of 280),
+  // a few 1e-7 px at this fixture's scales: 1e-6 px bounds it.
+  EXPECT_NEAR((rpc.Project(lon + 360.0, lat, rpc.height_off) - p).norm(), 0.0, 1e-6);
+  EXPECT_NEAR((rpc.Project(lon - 720.0, lat, rpc.height_off) - p).norm(), 0.0, 1e-6);
+}
+
 TEST(Rpc, CroppedModelIsAnExactShift) {
   const RpcModel rpc = MakeTestRpc();
   const RpcModel crop = rpc.Cropped(1234.0, -567.5);

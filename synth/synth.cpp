@@ -176,9 +176,13 @@ ViewGeometry MakeCamera(const SynthOptions& o, const Georef& g, const City& city
   return vg;
 }
 
-RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city) {
-  const double z0 = city.min_height_m - kRpcHeightPadM, z1 = city.max_height_m + kRpcHeightPadM;
+RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city, double height_offset_m) {
+  const double z0 = std::min(city.min_height_m - kRpcHeightPadM, city.min_height_m + 2 * height_offset_m);
+  const double z1 = std::max(city.max_height_m + kRpcHeightPadM, city.max_height_m + 2 * height_offset_m);
   RpcFitDomain d{1e9, -1e9, 1e9, -1e9, z0, z1};
+  // Longitudes are unwrapped around the frame's origin, so that a domain
+  // astride the antimeridian is 179.9992..180.0002, not -180..180.
+  const double lon_ref = g.frame.GeodeticFromEnu(Eigen::Vector3d::Zero()).lon_deg;
   // The ground under the image corners at both ends of the height range.
   for (double col : {-0.5, cam.width_px - 0.5})
     for (double row : {-0.5, cam.height_px - 0.5}) {
@@ -186,8 +190,9 @@ RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City&
       for (double z : {z0, z1}) {
         const Eigen::Vector3d p = cam.centre_enu_m + ((z - cam.centre_enu_m.z()) / dir.z()) * dir;
         const GeodeticPoint q = g.frame.GeodeticFromEnu(p);
-        d.min_lon_deg = std::min(d.min_lon_deg, q.lon_deg);
-        d.max_lon_deg = std::max(d.max_lon_deg, q.lon_deg);
+        const double lon = lon_ref + LongitudeDeltaDeg(q.lon_deg, lon_ref);
+        d.min_lon_deg = std::min(d.min_lon_deg, lon);
+        d.max_lon_deg = std::max(d.max_lon_deg, lon);
         d.min_lat_deg = std::min(d.min_lat_deg, q.lat_deg);
         d.max_lat_deg = std::max(d.max_lat_deg, q.lat_deg);
       }
@@ -312,6 +317,8 @@ void SynthOptions::Check() const {
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
        FormatDouble(orbit_height_m), "must be 200..2000 km");
+  need(std::abs(rpc_height_offset_m) <= 5000, "rpc_height_offset_m", FormatDouble(rpc_height_offset_m),
+       "must be -5000..5000 m");
   need(cars_per_block >= 0, "cars_per_block", std::to_string(cars_per_block), "must be >= 0");
   need(image_margin_px >= 0, "image_margin_px", std::to_string(image_margin_px), "must be >= 0");
 }
@@ -423,7 +430,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
         view.lighting = ViewLighting(o, r, v, bx, by, &view);
         const Lighting& light = view.lighting;
 
-        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city);
+        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city, o.rpc_height_offset_m);
         view.rpc_fit_max_px = fit.max_residual_px;
         view.rpc_fit_rms_px = fit.rms_residual_px;
         worst_fit = std::max(worst_fit, fit.max_residual_px);

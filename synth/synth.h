@@ -42,6 +42,10 @@ struct SynthOptions {
   // Strength of the radiometric change between dates (sun gain and colour
   // tint); 1 is the default variety, 3 a strong one (gain 0.64-1.36).
   double date_contrast = 1.0;
+  // Shifts the RPCs' height normalization: the fit domain reaches this far
+  // above (or below) the scene, so HEIGHT_OFF lies far from the ground, as in
+  // a vendor RPC of a whole mountain scene seen from a valley AOI [m].
+  double rpc_height_offset_m = 0.0;
   void Check() const;            // throws Error("synth", field, ...)
 };
 

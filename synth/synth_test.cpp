@@ -15,6 +15,7 @@
 #include "tests/test_support.h"
 #include "tiler/dfc2019.h"
 #include "tiler/geo.h"
+#include "tiler/height_probe.h"
 #include "tiler/raster.h"
 #include "tiler/rpc_io.h"
 
@@ -259,6 +260,13 @@ TEST(Synth, ExtremeScenesKeepTheirRpcsAndViewGeometry) {
       // the truth grid (DSM.txt, no CRS) was written in the other.
       {"UTM zone boundary", [](SynthOptions& o) { o.lon_deg = -60.0; }},
       {"zone boundary, 60 S", [](SynthOptions& o) { o.lat_deg = -60.0; o.lon_deg = -60.0; }},
+      // Astride the antimeridian: the AOI spans 179.9992 E to 179.9998 W.
+      {"antimeridian", [](SynthOptions& o) { o.lon_deg = 179.9995; }},
+      {"antimeridian, 60 S", [](SynthOptions& o) { o.lat_deg = -60.0; o.lon_deg = -179.9995; }},
+      // HEIGHT_OFF 1500 m above and 800 m below the ground: the scene sits
+      // at one face of the RPCs' validity cube.
+      {"RPC HEIGHT_OFF 1500 m above", [](SynthOptions& o) { o.rpc_height_offset_m = 1500.0; }},
+      {"RPC HEIGHT_OFF 800 m below", [](SynthOptions& o) { o.rpc_height_offset_m = -800.0; }},
       {"45 deg off nadir", [](SynthOptions& o) { o.min_off_nadir_deg = 40.0; o.max_off_nadir_deg = 45.0; }},
       {"300 m tower", [](SynthOptions& o) { o.max_building_m = 300.0; }},
       {"GSD 0.3 m", [](SynthOptions& o) { o.gsd_m = 0.3; o.size_m = 60.0; }},
@@ -285,6 +293,38 @@ TEST(Synth, ExtremeScenesKeepTheirRpcsAndViewGeometry) {
                                  [](const SynthView& a, const SynthView& b) { return a.rpc_fit_max_px < b.rpc_fit_max_px; })
                     ->rpc_fit_max_px);
   }
+}
+
+// Without truth or Sat-NeRF altitudes the height range comes from the RPCs.
+// Their HEIGHT_OFF may lie far from the AOI's ground (the middle of a
+// vendor's whole scene): ingest then finds the ground where the views agree.
+// Near HEIGHT_OFF, the range stays centred on it as before.
+TEST(Synth, RpcOnlyHeightRangeFindsTheGroundFarFromHeightOff) {
+  for (const double offset_m : {1500.0, -800.0, 0.0}) {
+    SynthOptions o = SmallScene();
+    o.size_m = 64.0;
+    o.views = 3;
+    o.rpc_height_offset_m = offset_m;
+    const Scene s = MakeScene(o);
+    fs::remove_all(s.root / "Track3-Truth");
+    fs::remove_all(s.root / "satnerf-rpcs");
+    NullProgress progress;
+    const IngestResult r = RunIngest(IngestOptions{}, s.root.string(), (s.root / "out").string(), progress);
+    ASSERT_EQ(r.NumIngested(), 1) << "offset " << offset_m << ": " << r.aois.at(0).report.message;
+    const AoiCatalog& c = r.aois.at(0).catalog;
+    EXPECT_EQ(c.height_range_source, offset_m == 0.0 ? "rpc" : "rpc_height_probe") << offset_m;
+    // The whole scene, ground to roofs, inside the searched range.
+    EXPECT_LE(c.min_height_m, s.result.city.min_height_m) << offset_m;
+    EXPECT_GE(c.max_height_m, s.result.city.max_height_m) << offset_m;
+    std::printf("[figures] HEIGHT_OFF %+.0f m from the ground: range %.1f..%.1f m (%s), scene %.1f..%.1f m\n",
+                offset_m, c.min_height_m, c.max_height_m, c.height_range_source.c_str(),
+                static_cast<double>(s.result.city.min_height_m), static_cast<double>(s.result.city.max_height_m));
+    // One view cannot place anything.
+    EXPECT_FALSE(ProbeSceneHeight({c.images.front()}).has_value());
+  }
+  HeightProbeOptions bad;
+  bad.fine_step_m = 5.0;  // coarser than the coarse step
+  EXPECT_NE(ErrorText([&] { bad.Check(); }).find("fine_step_m"), std::string::npos);
 }
 
 TEST(Synth, TruthFilesFollowTheJax068Conventions) {

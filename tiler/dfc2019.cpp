@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/format.h"
 #include "tiler/geo.h"
+#include "tiler/height_probe.h"
 #include "tiler/raster.h"
 #include "tiler/rpc_io.h"
 
@@ -363,6 +364,14 @@ HeightRange ChooseHeightRange(const std::optional<TruthGrid>& truth,
   }
   std::nth_element(offsets.begin(), offsets.begin() + offsets.size() / 2, offsets.end());
   const double mid = offsets[offsets.size() / 2];
+  // HEIGHT_OFF is the middle of the vendor's whole scene, which may be a
+  // kilometre from this AOI's ground: where the views agree decides instead
+  // when it falls outside the range around HEIGHT_OFF.
+  if (const auto probe = ProbeSceneHeight(images)) {
+    if (std::abs(probe->height_m - mid) > half - o.height_margin_m) {
+      return {probe->height_m - half, probe->height_m + half, "rpc_height_probe"};
+    }
+  }
   return {mid - half, mid + half, "rpc"};
 }
 
@@ -416,9 +425,13 @@ void SkipDuplicateViews(std::vector<ImageRecord>* images, std::vector<Skipped>* 
 std::vector<Eigen::Vector2d> FootprintOverlap(const std::vector<ImageRecord>& images,
                                               const std::string& aoi) {
   Eigen::Vector2d lo(-1e9, -1e9), hi(1e9, 1e9);
+  // Longitudes unwrapped around the first corner: each image's RPC keeps its
+  // own branch, and an AOI astride the antimeridian has corners at 179.9 and -179.9.
+  const double lon_ref = images.front().footprint_lonlat.front().x();
   for (const auto& im : images) {
     Eigen::Vector2d a(1e9, 1e9), b(-1e9, -1e9);
-    for (const auto& p : im.footprint_lonlat) {
+    for (Eigen::Vector2d p : im.footprint_lonlat) {
+      p.x() = lon_ref + LongitudeDeltaDeg(p.x(), lon_ref);
       a = a.cwiseMin(p);
       b = b.cwiseMax(p);
     }
@@ -483,6 +496,7 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
   const std::vector<Eigen::Vector2d> overlap = FootprintOverlap(c.images, aoi);
   Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
+  centre.x() = WrapLongitudeDeg(centre.x());
   UtmZone zone = StandardUtmZone(centre.x(), centre.y());
   if (c.truth) {
     // A georeferenced truth names its zone. A DFC2019 _DSM.txt does not: it
