@@ -289,8 +289,6 @@ json CityWorkJson(const CityWork& work, const std::vector<AoiCatalog>& aois) {
           {"stages", work.stages},         {"tiles_reset", work.tiles_reset}};
 }
 
-// Merge with LOD, DSM export and comparison, run report (last) and STAC
-// catalog of a city whose tiles have run.
 // A city none of whose tiles produced a scene has nothing to merge: say why
 // its tiles did not (one image, no overlap...), not merely that the merge is
 // empty. Tiles are judged by their reports (a skipped tile exits 0).
@@ -316,6 +314,8 @@ void ThrowIfNoTileFinished(const std::string& city, const std::vector<TileOutcom
                                         first_reason));
 }
 
+// Merge with LOD, DSM export and comparison, run report (last) and STAC
+// catalog of a city whose tiles have run.
 CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const CityWork& work,
                        const std::vector<TileOutcome>& outcomes, const Stopwatch& total, Progress& progress) {
   CityOutcome outcome;
