@@ -7,9 +7,27 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "core/error.h"
+#include "core/simd.h"
 #include "pipeline/event_log.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/tile_run.h"
+
+namespace {
+
+// The version and the SIMD path the kernels run on (core/simd.h).
+std::string VersionText() {
+  std::string paths;
+  for (skyfall::SimdPath p : skyfall::SupportedSimdPaths()) paths += std::string(paths.empty() ? "" : ", ") + SimdPathName(p);
+  std::string active;
+  try {
+    active = SimdPathName(skyfall::ActiveSimdPath());
+  } catch (const skyfall::Error& e) {
+    active = e.what();
+  }
+  return "skyfall " SKYFALL_VERSION "\nSIMD path: " + active + " (this CPU runs: " + paths + ")";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   skyfall::DieWithParentIfAsked();  // a tile process of a killed run ends with it
@@ -20,7 +38,7 @@ int main(int argc, char** argv) {
       "skyfall " SKYFALL_VERSION
       ": batch tiler from multi-view satellite imagery (DFC2019 + RPC) to 3D Gaussian-splat "
       "city scenes with LOD and DSM exports"};
-  app.set_version_flag("--version", "skyfall " SKYFALL_VERSION);
+  app.set_version_flag("--version", VersionText());
   app.require_subcommand(1);
   bool quiet = false, verbose = false;
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");

@@ -119,6 +119,7 @@ template <class IO> void Visit(IO& io, PseudoCameraOptions& o) {
 }
 // `enabled` is decided by TrainStageOptions::appearance, so it is not listed.
 template <class IO> void Visit(IO& io, AppearanceOptions& o) {
+  io("model", o.model);
   io("image_dim", o.image_dim);
   io("gaussian_dim", o.gaussian_dim);
   io("hidden", o.hidden);

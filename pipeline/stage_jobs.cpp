@@ -14,6 +14,7 @@
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/simd.h"
 #include "sfm/export.h"
 #include "splat/dataset.h"
 #include "splat/ply.h"
@@ -24,6 +25,13 @@ namespace skyfall {
 namespace {
 
 namespace fs = std::filesystem;
+
+// Mean milliseconds per training step, by phase (trainer.h, StepProfile).
+nlohmann::json StepMsJson(const StepProfile& p) {
+  nlohmann::json j = {{"steps", p.steps}, {"step", p.StepMs()}};
+  for (int k = 0; k < StepProfile::kCount; ++k) j[StepProfile::kPhases[k]] = p.MeanMs(k);
+  return j;
+}
 
 std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views,
                             const std::string& appearance_reason) {
@@ -50,7 +58,10 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
                    {"appearance_model", o.appearance.enabled},
                    {"pseudo_camera_depth", o.pseudo_interval > 0}}},
       {"appearance", {{"reason", appearance_reason},
+                      {"model", o.appearance.enabled ? nlohmann::json(o.appearance.model) : nlohmann::json()},
                       {"fused_image", r.appearance_image.empty() ? nlohmann::json() : nlohmann::json(r.appearance_image)}}},
+      {"step_ms", StepMsJson(r.profile)},
+      {"simd_path", SimdPathName(ActiveSimdPath())},
       {"series", series}};
   return doc.dump(2) + "\n";
 }

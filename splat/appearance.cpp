@@ -79,6 +79,96 @@ void CheckCloud(const AppearanceModelT<T>& m, const GaussianCloudT<T>& cloud) {
 
 std::size_t Blocks(std::size_t n) { return (n + kBlock - 1) / kBlock; }
 
+// Bilinear form: per-Gaussian features [g; c; 1] have gaussian_dim + 4 rows.
+template <typename T>
+int FeatureDim(const AppearanceModelT<T>& m) {
+  return m.gaussian_dim() + 4;
+}
+
+// The image's matrix M (6 x features) and the hidden activations behind it.
+template <typename T>
+struct ImageMatrix {
+  Vec<T> hidden;
+  Mat<T> m;
+};
+template <typename T>
+ImageMatrix<T> BilinearImageMatrix(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
+  if (embedding.size() != m.image_dim()) {
+    throw Error("appearance", "embedding", "has " + std::to_string(embedding.size()) + " values, the model takes " +
+                                               std::to_string(m.image_dim()));
+  }
+  ImageMatrix<T> im;
+  im.hidden = (m.w1 * embedding + m.b1).cwiseMax(T(0));
+  const Vec<T> flat = m.w2 * im.hidden + m.b2;
+  im.m = Eigen::Map<const Mat<T>>(flat.data(), 6, FeatureDim(m));
+  return im;
+}
+
+// M [g; c; 1] for Gaussians [a, a + n).
+template <typename T>
+Mat<T> BilinearBlock(const AppearanceModelT<T>& m, const Mat<T>& im, const GaussianCloudT<T>& cloud, std::size_t a,
+                     std::size_t n) {
+  const int dg = m.gaussian_dim();
+  Mat<T> out = im.leftCols(dg) * m.gaussian_embeddings.middleCols(a, n) + im.middleCols(dg, 3) * BaseColours(cloud, a, n);
+  out.colwise() += im.col(dg + 3);
+  return out;
+}
+
+template <typename T>
+std::vector<ColourAffine<T>> EvaluateBilinear(const AppearanceModelT<T>& m, const Vec<T>& embedding,
+                                              const GaussianCloudT<T>& cloud) {
+  const Mat<T> im = BilinearImageMatrix(m, embedding).m;
+  std::vector<ColourAffine<T>> affine(cloud.size());
+  tbb::parallel_for(std::size_t{0}, Blocks(cloud.size()), [&](std::size_t b) {
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
+    const Mat<T> out = BilinearBlock(m, im, cloud, a, n);
+    for (std::size_t k = 0; k < n; ++k) {
+      affine[a + k] = out.col(k);
+      affine[a + k].template head<3>().array() += T(1);
+    }
+  });
+  return affine;
+}
+
+template <typename T>
+Vec<T> BackwardBilinear(const AppearanceModelT<T>& m, const Vec<T>& embedding, const GaussianCloudT<T>& cloud,
+                        const std::vector<ColourAffine<T>>& d_affine, AppearanceModelT<T>* grad,
+                        std::vector<std::array<T, 3 * kShCoeffsPerChannel>>* d_sh) {
+  const int dg = m.gaussian_dim();
+  const ImageMatrix<T> im = BilinearImageMatrix(m, embedding);
+  // dL/dM is summed per block, then over blocks in block order, so the
+  // result does not depend on thread scheduling.
+  const std::size_t blocks = Blocks(cloud.size());
+  std::vector<Mat<T>> partial(blocks);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
+    Mat<T> d_out(6, n);
+    for (std::size_t k = 0; k < n; ++k) d_out.col(k) = d_affine[a + k];
+    const Mat<T> colour = BaseColours(cloud, a, n);
+    Mat<T>& d_m = partial[b];
+    d_m.resize(6, FeatureDim(m));
+    d_m.leftCols(dg) = d_out * m.gaussian_embeddings.middleCols(a, n).transpose();
+    d_m.middleCols(dg, 3) = d_out * colour.transpose();
+    d_m.col(dg + 3) = d_out.rowwise().sum();
+    grad->gaussian_embeddings.middleCols(a, n) += im.m.leftCols(dg).transpose() * d_out;
+    if (d_sh) {
+      const Mat<T> d_colour = im.m.middleCols(dg, 3).transpose() * d_out;
+      for (std::size_t k = 0; k < n; ++k)
+        for (int ch = 0; ch < 3; ++ch) (*d_sh)[a + k][ch * 4] += T(kShC0) * d_colour(ch, k);
+    }
+  });
+  Mat<T> d_m = Mat<T>::Zero(6, FeatureDim(m));
+  for (const Mat<T>& p : partial) d_m += p;
+  // Through the image MLP: flat = w2 h + b2, h = relu(w1 e + b1).
+  const Eigen::Map<const Vec<T>> d_flat(d_m.data(), d_m.size());
+  grad->w2 += d_flat * im.hidden.transpose();
+  grad->b2 += d_flat;
+  const Vec<T> d_z = (m.w2.transpose() * d_flat).cwiseProduct((im.hidden.array() > T(0)).matrix().template cast<T>());
+  grad->w1 += d_z * embedding.transpose();
+  grad->b1 += d_z;
+  return m.w1.transpose() * d_z;
+}
+
 }  // namespace
 
 void AppearanceOptions::Check() const {
@@ -90,6 +180,7 @@ void AppearanceOptions::Check() const {
   need(hidden >= 1 && hidden <= 4096, "hidden", hidden);
   for (double lr : {lr_image, lr_gaussian, lr_mlp}) need(lr > 0 && std::isfinite(lr), "learning rate", lr);
   need(init_std > 0 && std::isfinite(init_std), "init_std", init_std);
+  if (model != "mlp" && model != "bilinear") throw Error("appearance", "model", "'" + model + "' is not 'mlp' or 'bilinear'");
 }
 
 template <typename T>
@@ -128,6 +219,16 @@ AppearanceModel InitAppearance(const AppearanceOptions& o, int images, std::size
                                             1.0f / std::sqrt(static_cast<float>(fan_in)));
     return Eigen::MatrixXf(Eigen::MatrixXf::NullaryExpr(rows, cols, [&] { return u(rng); }));
   };
+  if (o.model == "bilinear") {
+    const int out = 6 * (o.gaussian_dim + 4);
+    m.w1 = uniform(o.hidden, o.image_dim, o.image_dim);
+    m.b1 = uniform(o.hidden, 1, o.image_dim);
+    m.w2.setZero(out, o.hidden);  // M = 0: gamma = 1, beta = 0 until training moves it
+    m.b2.setZero(out);
+    m.w3.resize(0, 0);
+    m.b3.resize(0);
+    return m;
+  }
   m.w1 = uniform(o.hidden, in, in);
   m.b1 = uniform(o.hidden, 1, in);
   m.w2 = uniform(o.hidden, o.hidden, o.hidden);
@@ -142,6 +243,10 @@ template <typename T>
 std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
                                                 const GaussianCloudT<T>& cloud, AppearanceActivations<T>* keep) {
   CheckCloud(m, cloud);
+  if (m.bilinear()) {
+    if (keep) *keep = AppearanceActivations<T>{{}, {}, cloud.size()};
+    return EvaluateBilinear(m, embedding, cloud);
+  }
   const Vec<T> image_term = ImageTerm(m, embedding);
   std::vector<ColourAffine<T>> affine(cloud.size());
   const std::size_t blocks = Blocks(cloud.size());
@@ -176,6 +281,7 @@ Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
                                                       std::to_string(cloud.size()));
   }
   if (d_affine.size() != cloud.size()) throw Error("appearance", "d_affine", "size differs from the cloud");
+  if (m.bilinear()) return BackwardBilinear(m, embedding, cloud, d_affine, grad, d_sh);
   const int de = m.image_dim(), dg = m.gaussian_dim();
   const Vec<T> image_term = ImageTerm(m, embedding);
   // Weight gradients are summed per block, then over blocks in block order,

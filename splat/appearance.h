@@ -7,14 +7,22 @@
 // static SH colours for a chosen embedding (FuseAppearance) renders exactly
 // what the model renders with that embedding.
 //
-// The MLP is in -> hidden -> hidden -> 6 with ReLU; its output o gives
-// gamma = 1 + o[0..2] and beta = o[3..5], and the last layer starts at zero,
-// so training starts from the plain 3DGS colours.
+// Two forms of f, both starting at gamma = 1, beta = 0 (the plain 3DGS
+// colours), since their last layer starts at zero:
+// - "mlp" (the paper's): in -> hidden -> hidden -> 6 with ReLU on the
+//   concatenated input [e_j; g_i; c_i]; its output o gives gamma = 1 + o[0..2]
+//   and beta = o[3..5]. About 20k multiply-adds per Gaussian and step, forward.
+// - "bilinear": a small MLP of the image embedding alone (e_j -> hidden -> 6
+//   x (gaussian_dim + 4), ReLU) gives a matrix M_j, and o = M_j [g_i; c_i; 1].
+//   Every Gaussian still has its own transform in every image, but the
+//   per-Gaussian cost is one 6 x (gaussian_dim + 4) product (168
+//   multiply-adds at the paper's sizes), about 120 times less.
 #pragma once
 
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/gaussians.h"
@@ -23,6 +31,7 @@ namespace skyfall {
 
 struct AppearanceOptions {
   bool enabled = false;
+  std::string model = "mlp";  // "mlp" or "bilinear" (see above)
   int image_dim = 32;        // per-image embedding size (paper: 32)
   int gaussian_dim = 24;     // per-Gaussian embedding size (paper: 24)
   int hidden = 128;          // width of the two hidden layers (paper: 2 x 128, ReLU)
@@ -46,9 +55,14 @@ struct AppearanceModelT {
   using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
   Mat image_embeddings;     // image_dim x images
   Mat gaussian_embeddings;  // gaussian_dim x Gaussians (column i belongs to Gaussian i)
-  Mat w1, w2, w3;           // layers: (hidden x in), (hidden x hidden), (6 x hidden)
+  // "mlp": layers (hidden x in), (hidden x hidden), (6 x hidden).
+  // "bilinear": (hidden x image_dim), (6 (gaussian_dim + 4) x hidden), w3
+  // and b3 empty.
+  Mat w1, w2, w3;
   Vec b1, b2, b3;
 
+  bool bilinear() const { return w3.size() == 0; }
+  const char* kind() const { return bilinear() ? "bilinear" : "mlp"; }
   int image_dim() const { return static_cast<int>(image_embeddings.rows()); }
   int gaussian_dim() const { return static_cast<int>(gaussian_embeddings.rows()); }
   // The same shapes, all zero (gradients, optimizer moments).

@@ -53,8 +53,9 @@ Cloud SmallCloud(int n, std::uint64_t seed) {
 
 // A model in double with every layer random (the trained state, not the
 // identity start, so every weight has a gradient).
-Model RandomModel(int gaussians, std::uint64_t seed) {
+Model RandomModel(int gaussians, std::uint64_t seed, const std::string& kind) {
   AppearanceOptions o;
+  o.model = kind;
   o.image_dim = 5;
   o.gaussian_dim = 4;
   o.hidden = 16;
@@ -68,6 +69,11 @@ Model RandomModel(int gaussians, std::uint64_t seed) {
   m.b2 = f.b2.cast<double>();
   std::mt19937_64 rng(seed + 1);
   std::uniform_real_distribution<double> u(-0.3, 0.3);
+  if (kind == "bilinear") {  // the output layer is w2 (zero at the start)
+    m.w2 = Eigen::MatrixXd::NullaryExpr(m.w2.rows(), m.w2.cols(), [&] { return u(rng); });
+    m.b2 = Eigen::VectorXd::NullaryExpr(m.b2.size(), [&] { return u(rng); });
+    return m;
+  }
   m.w3 = Eigen::MatrixXd::NullaryExpr(6, o.hidden, [&] { return u(rng); });
   m.b3 = Eigen::VectorXd::NullaryExpr(6, [&] { return u(rng); });
   return m;
@@ -76,14 +82,16 @@ Model RandomModel(int gaussians, std::uint64_t seed) {
 using testing::SmoothRasterOptions;
 using testing::ToFloat;
 
+const char* const kKinds[] = {"mlp", "bilinear"};
+
 struct Scene {
   Cloud cloud = SmallCloud(12, 5);
-  Model model = RandomModel(12, 6);
+  Model model;
   Eigen::VectorXd embedding;
   PinholeCamera cam = TopCamera(40, 30.0);
   RasterOptions raster = SmoothRasterOptions();
   std::vector<double> weights;
-  Scene() {
+  explicit Scene(const std::string& kind = "mlp") : model(RandomModel(12, 6, kind)) {
     embedding = model.image_embeddings.col(1);
     std::mt19937_64 rng(8);
     std::uniform_real_distribution<double> u(-1, 1);
@@ -139,12 +147,24 @@ TEST(Appearance, FreshModelIsTheIdentityTransform) {
   EXPECT_EQ(m.gaussian_embeddings.rows(), 24);
   EXPECT_EQ(m.w1.cols(), 32 + 24 + 3);
   EXPECT_EQ(m.w2.rows(), 128);
-  const auto affine = EvaluateAppearance(m, Eigen::VectorXf(m.image_embeddings.col(2)), cloud);
-  for (const auto& a : affine) EXPECT_EQ(a, (ColourAffine<float>() << 1, 1, 1, 0, 0, 0).finished());
+  EXPECT_STREQ(m.kind(), "mlp");
+  AppearanceOptions bilinear;
+  bilinear.model = "bilinear";
+  const AppearanceModel b = InitAppearance(bilinear, 4, cloud.size(), 3);
+  EXPECT_STREQ(b.kind(), "bilinear");
+  EXPECT_EQ(b.w1.cols(), 32);
+  EXPECT_EQ(b.w2.rows(), 6 * (24 + 4));
+  EXPECT_STREQ(b.ZerosLike().kind(), "bilinear");
+  for (const AppearanceModel* model : {&m, &b}) {
+    const auto affine = EvaluateAppearance(*model, Eigen::VectorXf(model->image_embeddings.col(2)), cloud);
+    for (const auto& a : affine) EXPECT_EQ(a, (ColourAffine<float>() << 1, 1, 1, 0, 0, 0).finished()) << model->kind();
+  }
 }
 
 TEST(Appearance, GradientsOfMlpWeightsMatchFiniteDifferences) {
-  Scene s;
+  for (const char* kind : kKinds) {
+  SCOPED_TRACE(kind);
+  Scene s(kind);
   const Gradients g = Analytic(s);
   for (auto [param, grad, name] : {std::tuple{&s.model.w1, &g.model.w1, "w1"}, std::tuple{&s.model.w2, &g.model.w2, "w2"},
                                    std::tuple{&s.model.w3, &g.model.w3, "w3"}}) {
@@ -160,10 +180,13 @@ TEST(Appearance, GradientsOfMlpWeightsMatchFiniteDifferences) {
   // Guard against a vacuous pass: the weights do matter.
   EXPECT_GT(g.model.w2.norm(), 1e-3);
   EXPECT_GT(g.model.w1.norm(), 1e-3);
+  }
 }
 
 TEST(Appearance, GradientsOfEmbeddingsAndBaseColourMatchFiniteDifferences) {
-  Scene s;
+  for (const char* kind : kKinds) {
+  SCOPED_TRACE(kind);
+  Scene s(kind);
   const Gradients g = Analytic(s);
   for (Eigen::Index k = 0; k < s.embedding.size(); ++k)
     ExpectMatches(s, &s.embedding[k], g.embedding[k], "image embedding " + std::to_string(k));
@@ -177,6 +200,7 @@ TEST(Appearance, GradientsOfEmbeddingsAndBaseColourMatchFiniteDifferences) {
       ExpectMatches(s, &s.cloud.sh[i][k], g.sh[i][k], "sh of Gaussian " + std::to_string(i) + "[" + std::to_string(k) + "]");
   }
   EXPECT_GT(g.embedding.norm(), 1e-4);
+  }
 }
 
 TEST(Appearance, KeptActivationsGiveTheSameGradients) {
@@ -245,7 +269,9 @@ TEST(Appearance, ClampedChannelGetsNoGradient) {
 
 TEST(Appearance, FusedCloudRendersLikeTheModel) {
   const GaussianCloud cloud = ToFloat(SmallCloud(40, 12));
-  const Model md = RandomModel(static_cast<int>(cloud.size()), 4);
+  for (const char* kind : kKinds) {
+  SCOPED_TRACE(kind);
+  const Model md = RandomModel(static_cast<int>(cloud.size()), 4, kind);
   AppearanceModel m;
   m.image_embeddings = md.image_embeddings.cast<float>();
   m.gaussian_embeddings = md.gaussian_embeddings.cast<float>();
@@ -270,6 +296,7 @@ TEST(Appearance, FusedCloudRendersLikeTheModel) {
   }
   EXPECT_LT(max_diff, kFusedTol);
   EXPECT_GT(spread, 0.01) << "the transform must change the image, or fusing proves nothing";
+  }
 }
 
 TEST(Appearance, GatherKeepsEmbeddingsWithTheirGaussians) {

@@ -3,6 +3,7 @@
 #include "core/crash_point.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -11,6 +12,8 @@
 #include <random>
 #include <set>
 #include <sstream>
+
+#include <tbb/parallel_for.h>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -85,14 +88,23 @@ std::vector<ParamBlock> Blocks(AppearanceModel& x, const AppearanceOptions& o) {
 void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, const AppearanceOptions& o) {
   const double bc1 = 1 - std::pow(kAdamBeta1, step), bc2 = 1 - std::pow(kAdamBeta2, step);
   const auto p = Blocks(a.model, o), m = Blocks(a.m, o), v = Blocks(a.v, o), g = Blocks(grad, o);
-  for (std::size_t k = 0; k < p.size(); ++k) AdamUpdate(p[k].data, m[k].data, v[k].data, g[k].data, p[k].size, p[k].lr, bc1, bc2);
+  // Elementwise, so chunks of a block can run in parallel (the Gaussian
+  // embeddings are 24 values per Gaussian).
+  constexpr std::size_t kChunk = 16384;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    tbb::parallel_for(std::size_t{0}, (p[k].size + kChunk - 1) / kChunk, [&](std::size_t c) {
+      const std::size_t a = c * kChunk, n = std::min(kChunk, p[k].size - a);
+      AdamUpdate(p[k].data + a, m[k].data + a, v[k].data + a, g[k].data + a, n, p[k].lr, bc1, bc2);
+    });
+  }
 }
 
 
 void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
   ++adam.step;
   const double bc1 = 1 - std::pow(kAdamBeta1, adam.step), bc2 = 1 - std::pow(kAdamBeta2, adam.step);
-  for (std::size_t i = 0; i < c.size(); ++i) {
+  // Each Gaussian's update is independent: in parallel, the same result.
+  tbb::parallel_for(std::size_t{0}, c.size(), [&](std::size_t i) {
     AdamUpdate<3>(c.means[i].data(), adam.m.means[i].data(), adam.v.means[i].data(), g.means[i].data(), lr_mean, bc1, bc2);
     AdamUpdate<3>(c.log_scales[i].data(), adam.m.log_scales[i].data(), adam.v.log_scales[i].data(),
                   g.log_scales[i].data(), o.lr_scale, bc1, bc2);
@@ -105,7 +117,7 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
       AdamUpdate<3>(&c.sh[i][ch * 4 + 1], &adam.m.sh[i][ch * 4 + 1], &adam.v.sh[i][ch * 4 + 1], &g.sh[i][ch * 4 + 1],
                     o.lr_sh_rest, bc1, bc2);
     }
-  }
+  });
 }
 
 Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
@@ -574,6 +586,33 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
   return c;
 }
 
+double StepProfile::StepMs() const {
+  double ms = 0;
+  for (int k = 0; k < kCount; ++k) ms += MeanMs(k);
+  return ms;
+}
+
+namespace {
+
+// Adds the time since the previous lap to one phase of a StepProfile.
+class PhaseClock {
+ public:
+  explicit PhaseClock(StepProfile* profile) : profile_(profile), last_(std::chrono::steady_clock::now()) {}
+  void Lap(int phase) {
+    const auto now = std::chrono::steady_clock::now();
+    profile_->seconds[phase] += std::chrono::duration<double>(now - last_).count();
+    last_ = now;
+  }
+
+ private:
+  StepProfile* profile_;
+  std::chrono::steady_clock::time_point last_;
+};
+
+enum Phase { kAppearance, kRasterFwd, kLoss, kRasterBwd, kRegularizerViews, kOptimizer, kDensify, kEvaluation, kBookkeeping };
+
+}  // namespace
+
 TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
                            const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior,
                            const SurfaceDepthPrior* surface) {
@@ -636,10 +675,11 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     start = ck.iteration;
     result.start_iteration = start;
     if (ck.appearance.enabled != o.appearance.enabled ||
-        (ck.appearance.enabled && ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views.size()))) {
+        (ck.appearance.enabled && (ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views.size()) ||
+                                   ck.appearance.model.kind() != o.appearance.model))) {
       throw Error("train", ck_path,
-                  "was written with different appearance-model settings (on/off or image count); delete it to start "
-                  "again");
+                  "was written with different appearance-model settings (on/off, model or image count); delete it to "
+                  "start again");
     }
     appearance = std::move(ck.appearance);
   }
@@ -652,11 +692,23 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     s.loss = std::numeric_limits<double>::quiet_NaN();
     result.series.push_back(s);
   }
-  // The surface's depth in each training view, computed when first needed.
+  // The surface's depth in each anchored training view, computed once
+  // before the steps (the views in parallel).
   const bool anchored = surface && (o.lambda_surface_depth > 0 || o.lambda_surface_alpha > 0);
   std::vector<DepthMap> surface_depth(views.size());
+  if (anchored) {
+    std::vector<int> anchored_ids = train_ids;
+    if (o.anchor_synthetic_views) anchored_ids.insert(anchored_ids.end(), synthetic_ids.begin(), synthetic_ids.end());
+    tbb::parallel_for(std::size_t{0}, anchored_ids.size(), [&](std::size_t k) {
+      const PinholeCamera& cam = views[anchored_ids[k]].camera;
+      surface_depth[anchored_ids[k]] = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
+    });
+  }
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
+  PhaseClock phase(&result.profile);
   for (int it = start + 1; it <= o.iterations; ++it) {
+    ++result.profile.steps;
+    phase.Lap(kBookkeeping);  // the end of the previous step
     const int view_id = PickView(train_ids, synthetic_ids, o.synthetic_fraction, rng);
     const TrainView& view = views[view_id];
     std::vector<ColourAffine<float>> affine;
@@ -666,8 +718,10 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       embedding = appearance.model.image_embeddings.col(view_id);
       affine = EvaluateAppearance(appearance.model, embedding, cloud, &activations);
     }
+    phase.Lap(kAppearance);
     const std::vector<ColourAffine<float>>* colour_affine = appearance.enabled ? &affine : nullptr;
     const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
+    phase.Lap(kRasterFwd);
     std::vector<float> d_rgb;
     double loss = ViewPhotometricLoss(r, view, photometric, &d_rgb);
     for (std::size_t p = 0; p < view.valid.size(); ++p) {
@@ -676,28 +730,30 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     std::vector<float> d_alpha, d_depth;
     if (!view.depth_target.empty() && o.lambda_view_depth > 0) loss += ViewDepthLoss(r, view, o.lambda_view_depth, &d_depth);
     if (anchored && (!view.synthetic || o.anchor_synthetic_views)) {
-      DepthMap& target = surface_depth[view_id];
-      if (target.depth.empty()) target = surface->DepthRelativeTo(view.camera, view.camera.cam_from_world_translation.z());
       std::vector<float> anchor_depth;
-      loss += SurfaceAnchorLoss(r, target, o, &d_alpha, &anchor_depth);
+      loss += SurfaceAnchorLoss(r, surface_depth[view_id], o, &d_alpha, &anchor_depth);
       if (d_depth.empty()) {
         d_depth = std::move(anchor_depth);
       } else {  // a view with a depth target too: both gradients count
         for (std::size_t p = 0; p < d_depth.size(); ++p) d_depth[p] += anchor_depth[p];
       }
     }
+    phase.Lap(kLoss);
     GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
+    phase.Lap(kRasterBwd);
     AppearanceModel appearance_grad;
     if (appearance.enabled) {
       appearance_grad = appearance.model.ZerosLike();
       appearance_grad.image_embeddings.col(view_id) = BackwardAppearance(
           appearance.model, embedding, cloud, g.d_colour_affine, &appearance_grad, &g.d.sh, &activations);
     }
+    phase.Lap(kAppearance);
     if (o.lambda_opacity > 0 && it >= o.opacity_reg_from) {
       std::vector<float> d_op;
       loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
       for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
     }
+    phase.Lap(kLoss);
     if (anchored && o.surface_nadir_interval > 0 && it % o.surface_nadir_interval == 0) {
       // A nadir patch around a look-at point drawn like the pseudo views'.
       std::mt19937_64 pick(0xA11C0000ull + static_cast<std::uint64_t>(it));
@@ -722,6 +778,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       for (float& v : d_depth) v *= static_cast<float>(o.lambda_depth);
       AddGeometryGradients(BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth), &g);
     }
+    phase.Lap(kRegularizerViews);
     loss_sum += loss;
     ++loss_count;
     for (std::size_t i = 0; i < cloud.size(); ++i) {
@@ -734,6 +791,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
     AdamStep(cloud, adam, g.d, o, lr_mean);
     if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
+    phase.Lap(kOptimizer);
 
     if (it >= o.densify_from && it % o.densify_interval == 0 && it <= o.densify_until + o.densify_interval) {
       std::vector<std::size_t> source;
@@ -743,6 +801,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       }
       stats.Reset(cloud.size());
     }
+    phase.Lap(kDensify);
     if (it % o.eval_interval == 0 || it == o.iterations) {
       TrainSample s;
       s.iteration = it;
@@ -754,6 +813,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       loss_sum = 0;
       loss_count = 0;
     }
+    phase.Lap(kEvaluation);
     if (!ck_path.empty() && (it % o.checkpoint_interval == 0 || it == o.iterations)) {
       std::ostringstream state;
       state << rng;
@@ -766,6 +826,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     CrashPoint("train", it);
     progress.Advance(static_cast<std::size_t>(it), "");
   }
+  phase.Lap(kBookkeeping);
   progress.End();
   const int export_view = ExportView(appearance, fused_view, train_ids);
   result.cloud = ExportCloud(cloud, appearance, export_view);

@@ -125,11 +125,31 @@ struct TrainSample {
   std::size_t gaussians = 0;
 };
 
+// Where the time of the training steps went, summed over the steps of this
+// run (a resumed run counts only its own steps). Phases: the appearance
+// model (forward and backward), the main view's rasterizer forward and
+// backward, its losses (photometric, depth, anchor, opacity), the extra
+// regularizer views (nadir anchor patches, pseudo views: their rendering
+// and backward), the optimizer (Adam and the densification statistics),
+// densification, held-out evaluation, and bookkeeping (checkpoints,
+// progress, freeing the step's buffers).
+struct StepProfile {
+  static constexpr const char* kPhases[] = {"appearance", "raster_fwd", "loss",     "raster_bwd", "regularizer_views",
+                                            "optimizer",  "densify",    "evaluation", "bookkeeping"};
+  static constexpr int kCount = 9;
+  double seconds[kCount] = {};
+  int steps = 0;
+  // Mean milliseconds per step of phase `k`, and of the whole step.
+  double MeanMs(int k) const { return steps ? 1e3 * seconds[k] / steps : 0.0; }
+  double StepMs() const;
+};
+
 struct TrainResult {
   GaussianCloud cloud;      // plain 3DGS; with appearance, fused for `appearance_image`
   std::string appearance_image;  // the view whose appearance was fused (empty without the model)
   std::vector<TrainSample> series;
   int start_iteration = 0;  // > 0 when resumed from a checkpoint
+  StepProfile profile;
   StageReport report;
 };
 

@@ -1,0 +1,30 @@
+// Runtime choice of the SIMD path. One binary carries kernels for the x86-64
+// baseline (SSE2), AVX2 + FMA and AVX-512 (F, VL, BW, DQ); at the first use
+// the best one the CPU supports is chosen. The environment variable
+// SKYFALL_SIMD (baseline, avx2 or avx512) asks for a lower one, e.g. to
+// compare paths; SetSimdPath does the same from code (tests).
+//
+// Kernels that have per-path versions: the rasterizer's forward and backward
+// passes (splat/rasterizer.cpp). Each path gives the baseline's results
+// within the tolerances their tests name.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace skyfall {
+
+enum class SimdPath { kBaseline = 0, kAvx2 = 1, kAvx512 = 2 };
+
+const char* SimdPathName(SimdPath path);
+// Parses "baseline", "avx2" or "avx512"; throws Error("simd", ...) otherwise.
+SimdPath ParseSimdPath(const std::string& name);
+// The paths this CPU can run, baseline first.
+std::vector<SimdPath> SupportedSimdPaths();
+// The path the kernels use now: the best supported one, or SKYFALL_SIMD's.
+SimdPath ActiveSimdPath();
+// Switches the kernels to `path`; throws Error("simd", ...) when the CPU
+// cannot run it.
+void SetSimdPath(SimdPath path);
+
+}  // namespace skyfall
