@@ -146,7 +146,7 @@ TEST(Appearance, FreshModelIsTheIdentityTransform) {
   EXPECT_EQ(m.image_embeddings.rows(), 32);
   EXPECT_EQ(m.gaussian_embeddings.rows(), 24);
   EXPECT_EQ(m.w1.cols(), 32 + 24 + 3);
-  EXPECT_EQ(m.w2.rows(), 128);
+  EXPECT_EQ(m.w2.rows(), 32);
   EXPECT_STREQ(m.kind(), "mlp");
   AppearanceOptions bilinear;
   bilinear.model = "bilinear";
@@ -154,6 +154,7 @@ TEST(Appearance, FreshModelIsTheIdentityTransform) {
   EXPECT_STREQ(b.kind(), "bilinear");
   EXPECT_EQ(b.w1.cols(), 32);
   EXPECT_EQ(b.w2.rows(), 6 * (24 + 4));
+  EXPECT_EQ(b.w2.cols(), 32);
   EXPECT_STREQ(b.ZerosLike().kind(), "bilinear");
   for (const AppearanceModel* model : {&m, &b}) {
     const auto affine = EvaluateAppearance(*model, Eigen::VectorXf(model->image_embeddings.col(2)), cloud);
