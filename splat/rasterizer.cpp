@@ -22,14 +22,16 @@
 // own namespace and compiled for its own target, so no code of one path can
 // end up in another. Headers are all included above, outside the target
 // regions: only the kernels themselves are compiled for the wider targets.
+// _Pragma takes one string literal, so the target is stringified into it.
+#define SKYFALL_STRINGIFY(x) #x
 #if defined(__clang__)
-#define SKYFALL_TARGET_BEGIN(t) _Pragma("clang attribute push(__attribute__((target(" #t "))), apply_to = function)")
+#define SKYFALL_TARGET_BEGIN(t) \
+  _Pragma(SKYFALL_STRINGIFY(clang attribute push(__attribute__((target(t))), apply_to = function)))
 #define SKYFALL_TARGET_END _Pragma("clang attribute pop")
 #else
 #define SKYFALL_TARGET_BEGIN(t) _Pragma("GCC push_options") _Pragma(SKYFALL_STRINGIFY(GCC target(t)))
 #define SKYFALL_TARGET_END _Pragma("GCC pop_options")
 #endif
-#define SKYFALL_STRINGIFY(x) #x
 
 namespace skyfall {
 
