@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <csignal>
+#include <functional>
 #include <iostream>
 
 #include "apps/commands.h"
@@ -38,7 +39,7 @@ int main(int argc, char** argv) {
       "skyfall " SKYFALL_VERSION
       ": batch tiler from multi-view satellite imagery (DFC2019 + RPC) to 3D Gaussian-splat "
       "city scenes with LOD and DSM exports"};
-  app.set_version_flag("--version", VersionText());
+  app.set_version_flag("--version", std::function<std::string()>(VersionText));  // evaluated only for --version
   app.require_subcommand(1);
   bool quiet = false, verbose = false;
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");

@@ -60,11 +60,16 @@ BlockActivations<T> ForwardBlock(const AppearanceModelT<T>& m, const Vec<T>& fir
 }
 
 template <typename T>
-Vec<T> ImageTerm(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
+void CheckEmbedding(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
   if (embedding.size() != m.image_dim()) {
     throw Error("appearance", "embedding", "has " + std::to_string(embedding.size()) + " values, the model takes " +
                                                std::to_string(m.image_dim()));
   }
+}
+
+template <typename T>
+Vec<T> ImageTerm(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
+  CheckEmbedding(m, embedding);
   return m.w1.leftCols(m.image_dim()) * embedding + m.b1;
 }
 
@@ -93,10 +98,7 @@ struct ImageMatrix {
 };
 template <typename T>
 ImageMatrix<T> BilinearImageMatrix(const AppearanceModelT<T>& m, const Vec<T>& embedding) {
-  if (embedding.size() != m.image_dim()) {
-    throw Error("appearance", "embedding", "has " + std::to_string(embedding.size()) + " values, the model takes " +
-                                               std::to_string(m.image_dim()));
-  }
+  CheckEmbedding(m, embedding);
   ImageMatrix<T> im;
   im.hidden = (m.w1 * embedding + m.b1).cwiseMax(T(0));
   const Vec<T> flat = m.w2 * im.hidden + m.b2;

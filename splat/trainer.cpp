@@ -609,7 +609,10 @@ class PhaseClock {
   std::chrono::steady_clock::time_point last_;
 };
 
-enum Phase { kAppearance, kRasterFwd, kLoss, kRasterBwd, kRegularizerViews, kOptimizer, kDensify, kEvaluation, kBookkeeping };
+// In the order of StepProfile::kPhases.
+enum Phase { kAppearance, kRasterFwd, kLoss, kRasterBwd, kRegularizerViews, kOptimizer, kDensify, kEvaluation, kBookkeeping,
+             kPhaseCount };
+static_assert(kPhaseCount == StepProfile::kCount, "StepProfile::kPhases and Phase list the same phases");
 
 }  // namespace
 
