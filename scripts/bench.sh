@@ -5,6 +5,8 @@
 #     `skyfall run`), with and without the appearance model;
 #   - the SIMD path the kernels run on;
 #   - rasterizer forward and forward+backward (Google Benchmark);
+#   - the dense sweep and one pair's descriptor matching per SIMD path
+#     (bench/sfm_bench.cpp), with OpenCV's brute-force matcher for comparison;
 #   - synthetic scene generation and ingestion;
 #   - JAX_068 end to end (`skyfall run` defaults) with its stage times, when
 #     ../shared/data/dfc2019 is there (about 10 minutes; --no-jax skips it).
@@ -47,6 +49,17 @@ PY
   --benchmark_format=json --benchmark_out="$tmp/raster.json" --benchmark_out_format=json >/dev/null 2>&1
 simd=$($B --version | sed -n 's/^SIMD path: //p')
 echo "SIMD path: $simd"
+
+# 2b. SfM's matching and the dense sweep, per SIMD path.
+./build/bin/sfm_bench --grid-m 192 --views 8 --descriptors 4000 --repeats 2 > "$tmp/sfm.json"
+python3 - "$tmp/sfm.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+print(f"dense sweep, {int(s['cells'])} cells x {int(s['heights'])} heights, {int(s['pairs'])} pairs: " +
+      ", ".join(f"{k} {v:.0f} ms" for k, v in s["dense_ms"].items()))
+print(f"matching one pair of {s['descriptors']} descriptors: " +
+      ", ".join(f"{k} {v:.0f} ms" for k, v in s["match_ms"].items()) + f"; OpenCV brute force {s['opencv_bf_ms']:.0f} ms")
+PY
 
 # 3. Synthetic scene and ingestion.
 start=$EPOCHREALTIME
@@ -91,6 +104,9 @@ doc = {
     "step_appearance_model": default_model,
     "steps_by_appearance_model": steps,
     "rasterizer_bench_median_ms": raster,
+    "sfm_kernels": json.load(open(f"{tmp}/sfm.json")),
+    "dense_ms": json.load(open(f"{tmp}/sfm.json"))["dense_ms"].get(simd.split()[0] if simd else "baseline"),
+    "match_ms": json.load(open(f"{tmp}/sfm.json"))["match_ms"].get(simd.split()[0] if simd else "baseline"),
     "synth_default_s": float(synth_s),
     "ingest_default_s": float(ingest_s),
 }

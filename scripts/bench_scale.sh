@@ -1,45 +1,89 @@
 #!/usr/bin/env bash
 # How the tiled pipeline scales with area: synthetic cities of 1, 2 and 4
-# tiles of 256 m (1x1, 2x1, 2x2 blocks) and the paper-style multi-block city
-# of 1 km x 512 m (two adjacent 512 m AOIs, 8 tiles). Prints time per tile,
-# merge time, peak memory and total time per city, from the run reports.
-# Usage: scripts/bench_scale.sh [OUT] ; SKYFALL_SCALE_ITERATIONS (default 300),
-# SKYFALL_SCALE_CASES (default "1 2 4 8").
+# AOIs of SIZE x SIZE m (1x1, 2x1, 2x2 blocks, one tile each) and 8 tiles
+# (two adjacent AOIs of 2 SIZE, the paper-style multi-block city). Prints
+# time per tile, merge time, peak memory and total time per city, from the
+# run reports, and the ratio of each city's time to the 1-tile city's
+# against its ratio of area (the target: 4x the area in at most 4.4x the
+# time, at equal cores). Writes OUT/bench_scale.json.
+#
+# Usage: scripts/bench_scale.sh [OUT]
+#   SKYFALL_SCALE_CASES       tiles per city, default "1 2 4 8"
+#   SKYFALL_SCALE_SIZE_M      AOI (and tile core) side [m], default 256
+#   SKYFALL_SCALE_ITERATIONS  training steps per tile, default 300
+#   SKYFALL_BIN, SKYFALL_RUN_ARGS as for the other benchmarks (bench_env.sh)
+# Reruns reuse finished cities (delete OUT/runN to measure again).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-[ -x build/bin/skyfall ] || bash scripts/build.sh
 OUT=${1:-out/bench_scale}
 ITER=${SKYFALL_SCALE_ITERATIONS:-300}
-B=./build/bin/skyfall
+SIZE=${SKYFALL_SCALE_SIZE_M:-256}
+source scripts/bench_env.sh
 mkdir -p "$OUT"
 for n in ${SKYFALL_SCALE_CASES:-1 2 4 8}; do
   case $n in
-    1) args="--size-m 256 --blocks-x 1 --blocks-y 1" ;;
-    2) args="--size-m 256 --blocks-x 2 --blocks-y 1" ;;
-    4) args="--size-m 256 --blocks-x 2 --blocks-y 2" ;;
-    8) args="--size-m 512 --blocks-x 2 --blocks-y 1" ;;
-    *) echo "bench_scale: unknown case $n" >&2; exit 1 ;;
+    1) args="--size-m $SIZE --blocks-x 1 --blocks-y 1" ;;
+    2) args="--size-m $SIZE --blocks-x 2 --blocks-y 1" ;;
+    4) args="--size-m $SIZE --blocks-x 2 --blocks-y 2" ;;
+    8) args="--size-m $((2 * SIZE)) --blocks-x 2 --blocks-y 1" ;;
+    *) echo "bench_scale: unknown case $n (1, 2, 4 or 8)" >&2; exit 1 ;;
   esac
   root="$OUT/city$n"
-  [ -f "$root/synth_report.json" ] || $B -q synth --out "$root" $args --aoi "SC${n}_001"
+  # shellcheck disable=SC2086
+  [ -f "$root/synth_report.json" ] || "$B" -q synth --out "$root" $args --aoi "SC${n}_001"
+  if [ -f "$OUT/run$n/run_summary.json" ] && [ -f "$OUT/run$n/wall_seconds" ]; then
+    echo "bench_scale: $n tiles: reusing the finished run" >&2
+    continue
+  fi
+  echo "bench_scale: $n tile(s) ..." >&2
   start=$(date +%s.%N)
-  $B -q run "$root" --out "$OUT/run$n" --tile-m 256 --overlap-m 32 --iterations "$ITER" --resolution 2
-  end=$(date +%s.%N)
-  python3 - "$OUT/run$n" "$n" "$start" "$end" <<'PY'
-import glob, json, sys
-out, n, start, end = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
-for path in glob.glob(out + "/*/run_report.json"):
-    r = json.load(open(path))
-    tiles = [t for t in r["tiles"] if t.get("status") == "ok"]
-    secs = [t["tile_seconds"] for t in tiles]
-    merge = next(s["seconds"] for s in r["stages"] if s["stage"] == "merge")
-    tiles_stage = next(s["seconds"] for s in r["stages"] if s["stage"] == "tiles")
-    mae = ", ".join(f'{d["aoi"]} {d["mae_m"]:.2f}' for d in r["dsm"])
-    print(f"tiles={n} ok={len(tiles)} parallel={r['options']['parallel_tiles']} "
-          f"tile_s mean={sum(secs)/max(len(secs),1):.1f} max={max(secs, default=0):.1f} "
-          f"tiles_stage_s={tiles_stage:.1f} merge_s={merge:.2f} peak_tile_rss_mb={r['peak_tile_rss_mb']:.0f} "
-          f"gaussians={int(r['merge']['gaussians'])} dup_removed={int(r['merge']['duplicates_removed'])} "
-          f"holes_filled={int(r['merge']['holes_filled'])} seam_ratio={r['seam']['ratio']} "
-          f"total_s={end-start:.1f} dsm_mae_m=[{mae}]")
-PY
+  "$B" -q run "$root" --out "$OUT/run$n" --tile-m "$SIZE" --overlap-m 32 --iterations "$ITER" --resolution 2 \
+    "${RUN_ARGS[@]}" 2> "$OUT/run$n.log"
+  awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' > "$OUT/run$n/wall_seconds"
 done
+
+python3 - "$OUT" "$SIZE" "$ITER" "${SKYFALL_SCALE_CASES:-1 2 4 8}" <<'PY'
+import glob, json, os, sys
+out, size_m, iters, cases = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
+rows = []
+for n in cases:
+    run = os.path.join(out, "run" + n)
+    if not os.path.exists(os.path.join(run, "wall_seconds")):
+        continue
+    reports = [json.load(open(p)) for p in sorted(glob.glob(run + "/*/run_report.json"))]
+    tiles = [t for r in reports for t in r["tiles"] if t.get("status") == "ok"]
+    secs = [t["tile_seconds"] for t in tiles]
+    def stage(r, name):
+        return next((s["seconds"] for s in r["stages"] if s["stage"] == name), 0.0)
+    rows.append({
+        "tiles": int(n),
+        "tiles_ok": len(tiles),
+        "area_km2": int(n) * size_m * size_m / 1e6,  # every case is n tiles of size_m^2
+        "total_s": float(open(os.path.join(run, "wall_seconds")).read()),
+        "tiles_stage_s": sum(stage(r, "tiles") for r in reports),
+        "merge_s": sum(stage(r, "merge") for r in reports),
+        "tile_s_mean": sum(secs) / max(len(secs), 1),
+        "tile_s_max": max(secs, default=0.0),
+        "peak_tile_rss_mb": max((r.get("peak_tile_rss_mb", 0) for r in reports), default=0),
+        "dsm_mae_m": {d["aoi"]: d["mae_m"] for r in reports for d in r["dsm"]},
+    })
+base = next((r for r in rows if r["tiles"] == 1), None)
+for r in rows:
+    if base:
+        r["area_ratio"] = r["area_km2"] / base["area_km2"]
+        r["time_ratio"] = r["total_s"] / base["total_s"]
+    print(f'tiles={r["tiles"]} ok={r["tiles_ok"]} area={r["area_km2"]:.3f} km2 total_s={r["total_s"]:.1f} '
+          f'tiles_stage_s={r["tiles_stage_s"]:.1f} merge_s={r["merge_s"]:.2f} tile_s mean={r["tile_s_mean"]:.1f} '
+          f'max={r["tile_s_max"]:.1f} peak_tile_rss_mb={r["peak_tile_rss_mb"]:.0f}'
+          + (f' area_ratio={r["area_ratio"]:.2f} time_ratio={r["time_ratio"]:.2f}' if base else ""))
+four = next((r for r in rows if r["tiles"] == 4), None)
+summary = {"size_m": size_m, "iterations": iters, "cores": os.cpu_count(), "cities": rows}
+if base and four:
+    summary["time_ratio_4x_area"] = four["time_ratio"]
+    summary["target_4x_area_max_ratio"] = 4.4
+    print(f'4x the area took {four["time_ratio"]:.2f}x the time (target <= 4.4x)')
+tmp = os.path.join(out, "bench_scale.json.tmp")
+json.dump(summary, open(tmp, "w"), indent=1)
+os.replace(tmp, os.path.join(out, "bench_scale.json"))
+print("bench_scale: wrote " + os.path.join(out, "bench_scale.json"))
+PY

@@ -1,17 +1,38 @@
 #include "sfm/dense.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <numeric>
 
 #include "core/error.h"
+#include "core/simd.h"
+#include "core/simd_target.h"
 #include "core/stats.h"
 
 namespace skyfall {
+
+// The sweep's inner loops once per SIMD path (core/simd_target.h).
+namespace dense_baseline {
+#include "sfm/dense_kernels.inc"
+}  // namespace dense_baseline
+#if defined(__x86_64__)
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
+namespace dense_avx2 {
+#include "sfm/dense_kernels.inc"
+}  // namespace dense_avx2
+SKYFALL_TARGET_END
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
+namespace dense_avx512 {
+#include "sfm/dense_kernels.inc"
+}  // namespace dense_avx512
+SKYFALL_TARGET_END
+#endif
 
 void DenseOptions::Check() const {
   auto positive = [](double v, const char* name) {
@@ -102,139 +123,64 @@ Projection ProjectionOf(const PinholeCamera& c) {
   return c.K() * rt;
 }
 
+// The kernels of the active SIMD path.
+struct DenseKernels {
+  decltype(&dense_baseline::WindowStatsKernel) window_stats;
+  decltype(&dense_baseline::PairCostRows<false>) pair_cost;
+  decltype(&dense_baseline::PairCostRows<true>) pair_cost_masked;
+  decltype(&dense_baseline::WarpRow) warp_row;
+  decltype(&dense_baseline::SgmStep) sgm_step;
+};
+#define SKYFALL_DENSE_KERNELS(ns)                                                                 \
+  DenseKernels {                                                                                  \
+    &ns::WindowStatsKernel, &ns::PairCostRows<false>, &ns::PairCostRows<true>, &ns::WarpRow, &ns::SgmStep \
+  }
+
+const DenseKernels& ActiveKernels() {
+  static const DenseKernels baseline = SKYFALL_DENSE_KERNELS(dense_baseline);
+#if defined(__x86_64__)
+  static const DenseKernels avx2 = SKYFALL_DENSE_KERNELS(dense_avx2);
+  static const DenseKernels avx512 = SKYFALL_DENSE_KERNELS(dense_avx512);
+  switch (ActiveSimdPath()) {
+    case SimdPath::kAvx512:
+      return avx512;
+    case SimdPath::kAvx2:
+      return avx2;
+    case SimdPath::kBaseline:
+      break;
+  }
+#endif
+  return baseline;
+}
+#undef SKYFALL_DENSE_KERNELS
+
 // The image sampled (bilinearly) at every grid cell lifted to height h;
 // NaN where the cell projects outside the image.
-void WarpToGrid(const GreyImage& image, const Projection& P, const HeightGrid& grid, double height_m, float* out) {
-  const double max_u = image.width - 1, max_v = image.height - 1;
+void WarpToGrid(const DenseKernels& kernels, const GreyImage& image, const Projection& P, const HeightGrid& grid,
+                double height_m, float* out) {
+  // The projection is linear in x along a row: start and step.
+  const Eigen::Vector3d step = P.col(0) * grid.cell_m;
+  std::vector<float> scratch(3 * static_cast<std::size_t>(grid.nx));
   for (int j = 0; j < grid.ny; ++j) {
-    const double y = grid.y0_m + j * grid.cell_m;
-    // The projection is linear in x along a row: start and step.
-    const Eigen::Vector3d row0 = P * Eigen::Vector4d(grid.x0_m, y, height_m, 1.0);
-    const Eigen::Vector3d step = P.col(0) * grid.cell_m;
-    float* dst = out + static_cast<std::size_t>(j) * grid.nx;
-    for (int i = 0; i < grid.nx; ++i) {
-      const Eigen::Vector3d h = row0 + step * i;
-      const double u = h.x() / h.z(), v = h.y() / h.z();
-      if (!(u >= 0 && v >= 0 && u <= max_u && v <= max_v)) {
-        dst[i] = kNan;
-        continue;
-      }
-      const int u0 = std::min(static_cast<int>(u), image.width - 2), v0 = std::min(static_cast<int>(v), image.height - 2);
-      const float fu = static_cast<float>(u - u0), fv = static_cast<float>(v - v0);
-      const float* p = image.values.data() + static_cast<std::size_t>(v0) * image.width + u0;
-      const float top = p[0] + fu * (p[1] - p[0]);
-      const float bottom = p[image.width] + fu * (p[image.width + 1] - p[image.width]);
-      dst[i] = top + fv * (bottom - top);
-    }
+    const Eigen::Vector3d start = P * Eigen::Vector4d(grid.x0_m, grid.y0_m + j * grid.cell_m, height_m, 1.0);
+    kernels.warp_row(image.values.data(), image.width, image.height, start.data(), step.data(), grid.nx,
+                     out + static_cast<std::size_t>(j) * grid.nx, scratch.data());
   }
 }
 
-// Sum over a (2r+1)^2 window, zero outside the grid; two separable passes of
-// direct sums (no running sums, whose float error would drift along a row).
-void BoxSum(const std::vector<float>& in, int nx, int ny, int r, std::vector<float>& tmp, std::vector<float>& out) {
-  for (int j = 0; j < ny; ++j) {
-    const float* src = in.data() + static_cast<std::size_t>(j) * nx;
-    float* dst = tmp.data() + static_cast<std::size_t>(j) * nx;
-    for (int i = 0; i < nx; ++i) {
-      float s = 0;
-      for (int k = std::max(0, i - r); k <= std::min(nx - 1, i + r); ++k) s += src[k];
-      dst[i] = s;
-    }
-  }
-  for (int j = 0; j < ny; ++j) {
-    float* dst = out.data() + static_cast<std::size_t>(j) * nx;
-    std::fill(dst, dst + nx, 0.0f);
-    for (int k = std::max(0, j - r); k <= std::min(ny - 1, j + r); ++k) {
-      const float* src = tmp.data() + static_cast<std::size_t>(k) * nx;
-      for (int i = 0; i < nx; ++i) dst[i] += src[i];
-    }
-  }
-}
-
-// Window statistics of one warped image: mean and variance over the
-// (2r+1)^2 window, or NaN mean where the window leaves the image. Computed
-// once per image and height and shared by every pair the image is in.
+// Window statistics of one warped image at one height, computed once and
+// shared by every pair the image is in (WindowStatsKernel).
 struct WindowStats {
-  std::vector<float> values;  // the warped image, 0 outside
-  std::vector<float> mean, var;
-};
-
-class WindowFilter {
- public:
-  explicit WindowFilter(std::size_t cells) : a_(cells), b_(cells), tmp_(cells), sum_(cells) {}
-
-  void Stats(const std::vector<float>& warped, int nx, int ny, int r, WindowStats& out) {
-    const std::size_t n = warped.size();
-    out.values.resize(n);
-    out.mean.resize(n);
-    out.var.resize(n);
-    for (std::size_t k = 0; k < n; ++k) {
-      const bool valid = std::isfinite(warped[k]);
-      out.values[k] = valid ? warped[k] : 0.0f;
-      a_[k] = out.values[k] * out.values[k];
-      b_[k] = valid ? 1.0f : 0.0f;
-    }
-    BoxSum(out.values, nx, ny, r, tmp_, out.mean);
-    BoxSum(a_, nx, ny, r, tmp_, out.var);
-    BoxSum(b_, nx, ny, r, tmp_, sum_);
-    const float count = static_cast<float>((2 * r + 1) * (2 * r + 1));
-    for (std::size_t k = 0; k < n; ++k) {
-      const float m = out.mean[k] / count;
-      out.var[k] = out.var[k] / count - m * m;
-      out.mean[k] = sum_[k] >= count - 0.5f ? m : kNan;
-    }
-  }
-
-  // Adds min(1 - NCC, truncation) of two images to `cost_sum` per cell; a
-  // window not wholly inside both images, or flat in either, adds the
-  // truncation (it says nothing about the height). With visibility masks,
-  // only cells both views see take part, and `count` counts them.
-  void AddPairCost(const WindowStats& a, const WindowStats& b, int nx, int ny, const DenseOptions& o,
-                   std::vector<float>& cost_sum, const std::uint8_t* visible_a = nullptr,
-                   const std::uint8_t* visible_b = nullptr, std::vector<float>* count = nullptr) {
-    const std::size_t n = a.values.size();
-    for (std::size_t k = 0; k < n; ++k) a_[k] = a.values[k] * b.values[k];
-    const int r = o.window_cells / 2;
-    BoxSum(a_, nx, ny, r, tmp_, sum_);
-    const float inv_count = 1.0f / static_cast<float>(o.window_cells * o.window_cells);
-    const float min_var = static_cast<float>(o.min_std * o.min_std);
-    const float trunc = static_cast<float>(o.cost_truncation);
-    for (std::size_t k = 0; k < n; ++k) {
-      if (visible_a) {
-        if (!visible_a[k] || !visible_b[k]) continue;  // a hidden point: no NCC to compute
-        (*count)[k] += 1.0f;
-      }
-      float c = trunc;
-      if (std::isfinite(a.mean[k]) && std::isfinite(b.mean[k]) && a.var[k] > min_var && b.var[k] > min_var) {
-        const float ncc = (sum_[k] * inv_count - a.mean[k] * b.mean[k]) / std::sqrt(a.var[k] * b.var[k]);
-        c = std::min(1.0f - ncc, trunc);
-      }
-      cost_sum[k] += c;
-    }
-  }
-
- private:
-  std::vector<float> a_, b_, tmp_, sum_;
+  std::vector<float> values, mean, inv_std;
 };
 
 // One SGM direction (dx, dy) added into `total`. Cells along a row are
 // independent when dy != 0 (their predecessors are in the previous row), and
 // rows are independent when dy == 0, so both parallelize without changing
 // the result.
-void AddSgmDirection(const std::vector<float>& cost, int nx, int ny, int nh, float p1, float p2, int dx, int dy,
-                     std::vector<float>& total) {
+void AddSgmDirection(const DenseKernels& kernels, const std::vector<float>& cost, int nx, int ny, int nh, float p1,
+                     float p2, int dx, int dy, std::vector<float>& total) {
   const std::size_t row_len = static_cast<std::size_t>(nx) * nh;
-  auto update = [&](const float* prev, const float* c, float* out) {
-    float prev_min = prev[0];
-    for (int d = 1; d < nh; ++d) prev_min = std::min(prev_min, prev[d]);
-    const float jump = prev_min + p2;
-    for (int d = 0; d < nh; ++d) {
-      float best = std::min(prev[d], jump);
-      if (d > 0) best = std::min(best, prev[d - 1] + p1);
-      if (d + 1 < nh) best = std::min(best, prev[d + 1] + p1);
-      out[d] = c[d] + best - prev_min;
-    }
-  };
   if (dy == 0) {
     tbb::parallel_for(0, ny, [&](int j) {
       std::vector<float> a(nh), b(nh);
@@ -244,7 +190,7 @@ void AddSgmDirection(const std::vector<float>& cost, int nx, int ny, int nh, flo
         const std::size_t cell = static_cast<std::size_t>(j) * nx + i;
         const float* c = cost.data() + cell * nh;
         if (s == 0) std::copy(c, c + nh, b.data());
-        else update(a.data(), c, b.data());
+        else kernels.sgm_step(a.data(), c, b.data(), nh, p1, p2);
         float* t = total.data() + cell * nh;
         for (int d = 0; d < nh; ++d) t[d] += b[d];
         std::swap(a, b);
@@ -262,7 +208,7 @@ void AddSgmDirection(const std::vector<float>& cost, int nx, int ny, int nh, flo
       float* out = cur.data() + static_cast<std::size_t>(i) * nh;
       const int pi = i - dx;
       if (s == 0 || pi < 0 || pi >= nx) std::copy(c, c + nh, out);
-      else update(prev.data() + static_cast<std::size_t>(pi) * nh, c, out);
+      else kernels.sgm_step(prev.data() + static_cast<std::size_t>(pi) * nh, c, out, nh, p1, p2);
       float* t = total.data() + cell * nh;
       for (int d = 0; d < nh; ++d) t[d] += out[d];
     });
@@ -297,50 +243,98 @@ struct Sweep {
   double Height(int d) const { return z_lo + d * o.height_step_m; }
 };
 
+// What one thread of the sweep reuses from height to height.
+struct SweepScratch {
+  std::vector<float> warped, scratch, ring, sum, count, block;
+  std::vector<WindowStats> stats;
+  std::vector<std::vector<float>> visible;
+  void Resize(std::size_t cells, std::size_t views, int nx, int r, int heights_per_block, bool masked) {
+    if (warped.size() == cells) return;
+    warped.resize(cells);
+    scratch.resize(dense_baseline::WindowStatsScratch(nx, r));
+    ring.resize(static_cast<std::size_t>(2 * r + 3) * nx);
+    sum.resize(cells);
+    block.resize(cells * heights_per_block);
+    stats.resize(views);
+    for (WindowStats& w : stats) {
+      w.values.resize(cells);
+      w.mean.resize(cells);
+      w.inv_std.resize(cells);
+    }
+    if (masked) {
+      count.resize(cells);
+      visible.assign(views, std::vector<float>(cells));
+    }
+  }
+};
+
 // The cost volume, cell-major so SGM reads each cell's heights
 // contiguously: per cell and height, the mean truncated pair cost. With
 // `seen_above` (per view slot and cell, the height above which the view
 // sees the cell), a pair counts only where both its views see the point,
-// and a point no pair sees costs the truncation.
+// and a point no pair sees costs the truncation. Heights are swept in
+// blocks, each written to the volume as a run of heights per cell.
 std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
                               const std::string& label, Progress& progress) {
   const HeightGrid& g = s.grid;
+  const DenseKernels& kernels = ActiveKernels();
   const std::size_t cells = s.Cells();
+  const std::size_t views = s.grey.size();
   const int nh = s.nh;
+  const int r = s.o.window_cells / 2;
+  const int block_heights = std::clamp(nh / 16, 1, 8);
+  const int blocks = (nh + block_heights - 1) / block_heights;
   std::vector<float> cost(cells * nh);
   progress.Begin(label, nh);
   std::atomic<int> done{0};
   const float trunc = static_cast<float>(s.o.cost_truncation);
-  tbb::parallel_for(0, nh, [&](int d) {
-    const double height = s.Height(d);
-    WindowFilter filter(cells);
-    std::vector<float> warped(cells);
-    std::vector<WindowStats> stats(s.grey.size());
-    for (std::size_t k = 0; k < s.grey.size(); ++k) {
-      WarpToGrid(s.grey[k], s.projection[k], g, height, warped.data());
-      filter.Stats(warped, g.nx, g.ny, s.o.window_cells / 2, stats[k]);
-    }
-    std::vector<float> sum(cells, 0.0f);
-    if (!seen_above) {
-      for (const DensePair& p : s.pairs) filter.AddPairCost(stats[s.slot[p.a]], stats[s.slot[p.b]], g.nx, g.ny, s.o, sum);
-      const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
-      for (std::size_t k = 0; k < cells; ++k) cost[k * nh + d] = sum[k] * inv_pairs;
-    } else {
-      std::vector<std::vector<std::uint8_t>> visible(s.grey.size(), std::vector<std::uint8_t>(cells));
-      for (std::size_t v = 0; v < s.grey.size(); ++v)
-        for (std::size_t k = 0; k < cells; ++k) visible[v][k] = height >= (*seen_above)[v][k] ? 1 : 0;
-      std::vector<float> count(cells, 0.0f);
-      for (const DensePair& p : s.pairs) {
-        const int a = s.slot[p.a], b = s.slot[p.b];
-        filter.AddPairCost(stats[a], stats[b], g.nx, g.ny, s.o, sum, visible[a].data(), visible[b].data(), &count);
+  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  const float prior = static_cast<float>(s.o.visibility_prior_pairs);
+  tbb::enumerable_thread_specific<SweepScratch> scratch;
+  tbb::parallel_for(0, blocks, [&](int block) {
+    SweepScratch& t = scratch.local();
+    t.Resize(cells, views, g.nx, r, block_heights, seen_above != nullptr);
+    const int d0 = block * block_heights, d1 = std::min(nh, d0 + block_heights);
+    for (int d = d0; d < d1; ++d) {
+      const double height = s.Height(d);
+      for (std::size_t v = 0; v < views; ++v) {
+        WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, t.warped.data());
+        kernels.window_stats(t.warped.data(), g.nx, g.ny, r, min_var, t.stats[v].values.data(), t.stats[v].mean.data(),
+                             t.stats[v].inv_std.data(), t.scratch.data());
       }
-      const float prior = static_cast<float>(s.o.visibility_prior_pairs);
-      for (std::size_t k = 0; k < cells; ++k) {
-        const float n = count[k] + prior;
-        cost[k * nh + d] = n > 0 ? (sum[k] + prior * trunc) / n : trunc;
+      std::fill(t.sum.begin(), t.sum.end(), 0.0f);
+      float* out = t.block.data() + static_cast<std::size_t>(d - d0) * cells;
+      if (!seen_above) {
+        for (const DensePair& p : s.pairs) {
+          const WindowStats& a = t.stats[s.slot[p.a]];
+          const WindowStats& b = t.stats[s.slot[p.b]];
+          kernels.pair_cost(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                            b.inv_std.data(), nullptr, nullptr, g.nx, g.ny, r, trunc, t.sum.data(), nullptr,
+                            t.ring.data());
+        }
+        const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
+        for (std::size_t k = 0; k < cells; ++k) out[k] = t.sum[k] * inv_pairs;
+      } else {
+        for (std::size_t v = 0; v < views; ++v)
+          for (std::size_t k = 0; k < cells; ++k) t.visible[v][k] = height >= (*seen_above)[v][k] ? 1.0f : 0.0f;
+        std::fill(t.count.begin(), t.count.end(), 0.0f);
+        for (const DensePair& p : s.pairs) {
+          const int ia = s.slot[p.a], ib = s.slot[p.b];
+          const WindowStats& a = t.stats[ia];
+          const WindowStats& b = t.stats[ib];
+          kernels.pair_cost_masked(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                                   b.inv_std.data(), t.visible[ia].data(), t.visible[ib].data(), g.nx, g.ny, r, trunc,
+                                   t.sum.data(), t.count.data(), t.ring.data());
+        }
+        for (std::size_t k = 0; k < cells; ++k) {
+          const float n = t.count[k] + prior;
+          out[k] = n > 0 ? (t.sum[k] + prior * trunc) / n : trunc;
+        }
       }
+      progress.Advance(++done, "");
     }
-    progress.Advance(++done, "");
+    for (std::size_t k = 0; k < cells; ++k)
+      for (int d = d0; d < d1; ++d) cost[k * nh + d] = t.block[static_cast<std::size_t>(d - d0) * cells + k];
   });
   progress.End();
   return cost;
@@ -473,7 +467,8 @@ std::vector<float> AggregateSgm(const std::vector<float>& cost, int nx, int ny, 
     throw Error("dense", "cost", "volume size " + std::to_string(cost.size()) + " is not nx*ny*heights");
   std::vector<float> total(cost.size(), 0.0f);
   static constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}};
-  for (const auto& d : kDirections) AddSgmDirection(cost, nx, ny, heights, p1, p2, d[0], d[1], total);
+  const DenseKernels& kernels = ActiveKernels();
+  for (const auto& d : kDirections) AddSgmDirection(kernels, cost, nx, ny, heights, p1, p2, d[0], d[1], total);
   return total;
 }
 

@@ -7,9 +7,14 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/simd.h"
+#include "sfm/dense_test_scene.h"
 
 namespace skyfall {
 namespace {
+
+using testing::LookingDown;
+using testing::TexturedView;
 
 int ArgMin(const std::vector<float>& volume, std::size_t cell, int heights) {
   const float* s = volume.data() + cell * heights;
@@ -170,26 +175,6 @@ TEST(Dense, OptionsNameTheBadField) {
   EXPECT_THROW(o.Check(), Error);
 }
 
-// A camera 600 km from the origin looking at it, at `zenith_deg` from the
-// vertical towards azimuth `azimuth_deg` (a satellite-like pinhole).
-PinholeCamera LookingDown(double zenith_deg, double azimuth_deg) {
-  const double z = zenith_deg * M_PI / 180, a = azimuth_deg * M_PI / 180;
-  const Eigen::Vector3d centre = 6e5 * Eigen::Vector3d(std::sin(z) * std::sin(a), std::sin(z) * std::cos(a), std::cos(z));
-  const Eigen::Vector3d forward = -centre.normalized();
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized().eval();
-  const Eigen::Vector3d right_or_east = right.norm() > 0.5 ? right : Eigen::Vector3d::UnitX();
-  const Eigen::Vector3d down = forward.cross(right_or_east);
-  PinholeCamera c;
-  c.cam_from_world_rotation.row(0) = right_or_east;
-  c.cam_from_world_rotation.row(1) = down;
-  c.cam_from_world_rotation.row(2) = forward;
-  c.cam_from_world_translation = -c.cam_from_world_rotation * centre;
-  c.fx = c.fy = 6e5 / 0.5;  // 0.5 m per pixel at the ground
-  c.cx = c.cy = 63.5;
-  c.width_px = c.height_px = 128;
-  return c;
-}
-
 DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
   DenseView v;
   v.name = name;
@@ -295,6 +280,58 @@ TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {
   const DenseResult tiny = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress, extent);
   EXPECT_EQ(tiny.report.status, StageStatus::kDegenerate);
   EXPECT_NE(tiny.report.message.find("inside the tile extent"), std::string::npos) << tiny.report.message;
+}
+
+TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
+  // The sweep's kernels run the same float operations per cell at every
+  // width and reorder no sum (window sums run in the same order; the only
+  // reduction across heights is a minimum), but the wider paths may fuse
+  // multiply-adds (GCC contracts them in C++ by default), which rounds once
+  // instead of twice. Costs are means of 1 - NCC over 25-cell window sums of
+  // values near 1, so a few roundings of 6e-8 each: within 1e-5 (AVX2
+  // measured 7.5e-6). Heights: the parabola through three aggregated costs
+  // moves with them; within 1e-3 m, 1/250 of the sweep step (AVX2 measured
+  // 6.6e-5 m), and the same cells must have a height.
+  constexpr double kCostTol = 1e-5, kHeightTolM = 1e-3;
+  NullProgress progress;
+  const std::vector<DenseView> views = {TexturedView("v0", LookingDown(0, 0), 6.0, 8.0), TexturedView("v1", LookingDown(15, 90), 6.0, 8.0),
+                                        TexturedView("v2", LookingDown(20, 200), 6.0, 8.0),
+                                        TexturedView("v3", LookingDown(25, 320), 6.0, 8.0)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {0, 3, 100}, {1, 2, 100}, {2, 3, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-20, -20, 0}, {20, -20, 0}, {-20, 20, 0}, {20, 20, 6}, {0, 0, 6}};
+  const SimdPath active = ActiveSimdPath();
+  SetSimdPath(SimdPath::kBaseline);
+  const DenseResult base = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  ASSERT_EQ(base.report.status, StageStatus::kOk) << base.report.message;
+  // The scene itself is recovered (so the comparison is of a working sweep):
+  // the plateau's inner cells at 6 m, the ground's at 0 m, within a sweep step.
+  const HeightGrid& g = base.grid;
+  auto height_at = [&](double x, double y) {
+    return g.height_m[g.Index(static_cast<int>(std::lround((x - g.x0_m) / g.cell_m)),
+                              static_cast<int>(std::lround((y - g.y0_m) / g.cell_m)))];
+  };
+  const float step = static_cast<float>(DenseOptions{}.height_step_m);
+  EXPECT_NEAR(height_at(0, 0), 6.0f, step);
+  EXPECT_NEAR(height_at(-3, 4), 6.0f, step);
+  EXPECT_NEAR(height_at(14, -12), 0.0f, step);
+  EXPECT_NEAR(height_at(-13, 15), 0.0f, step);
+  for (SimdPath path : SupportedSimdPaths()) {
+    SetSimdPath(path);
+    const DenseResult r = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+    ASSERT_EQ(r.grid.height_m.size(), g.height_m.size());
+    std::size_t differ = 0;
+    double max_cost_diff = 0, max_height_diff_m = 0;
+    for (std::size_t k = 0; k < g.height_m.size(); ++k) {
+      const float a = g.height_m[k], b = r.grid.height_m[k];
+      if (std::isnan(a) != std::isnan(b)) ++differ;
+      if (!std::isnan(a) && !std::isnan(b)) max_height_diff_m = std::max(max_height_diff_m, std::abs(double{a} - b));
+      max_cost_diff = std::max(max_cost_diff, std::abs(double{g.cost[k]} - r.grid.cost[k]));
+    }
+    EXPECT_EQ(differ, 0u) << SimdPathName(path) << ": cells with a height on one path only";
+    EXPECT_LE(max_cost_diff, kCostTol) << SimdPathName(path);
+    EXPECT_LE(max_height_diff_m, kHeightTolM) << SimdPathName(path);
+  }
+  SetSimdPath(active);
 }
 
 }  // namespace

@@ -2,14 +2,36 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
 #include "core/format.h"
+#include "core/simd.h"
+#include "core/simd_target.h"
 
 namespace skyfall {
+
+// Matching's inner loops once per SIMD path (core/simd_target.h).
+namespace match_baseline {
+#include "sfm/match_kernels.inc"
+}  // namespace match_baseline
+#if defined(__x86_64__)
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
+namespace match_avx2 {
+#include "sfm/match_kernels.inc"
+}  // namespace match_avx2
+SKYFALL_TARGET_END
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
+namespace match_avx512 {
+#include "sfm/match_kernels.inc"
+}  // namespace match_avx512
+SKYFALL_TARGET_END
+#endif
+
 namespace {
 
 // Grey image stretched between two percentiles to 8 bits, then CLAHE, so that
@@ -39,25 +61,102 @@ cv::Mat NormalizedGrey(const std::vector<float>& pixels, int width, int height, 
   return out;
 }
 
-cv::Mat DescriptorMat(const ImageFeatures& f) {
-  return cv::Mat(static_cast<int>(f.keypoints.size()), 128, CV_32F,
-                 const_cast<float*>(f.descriptors.data()));
+struct MatchKernels {
+  decltype(&match_baseline::BlockDistances) block_distances;
+  decltype(&match_baseline::RowTop2) row_top2;
+  decltype(&match_baseline::ColumnTop2) column_top2;
+};
+
+const MatchKernels& ActiveMatchKernels() {
+  static const MatchKernels baseline{&match_baseline::BlockDistances, &match_baseline::RowTop2,
+                                     &match_baseline::ColumnTop2};
+#if defined(__x86_64__)
+  static const MatchKernels avx2{&match_avx2::BlockDistances, &match_avx2::RowTop2, &match_avx2::ColumnTop2};
+  static const MatchKernels avx512{&match_avx512::BlockDistances, &match_avx512::RowTop2, &match_avx512::ColumnTop2};
+  switch (ActiveSimdPath()) {
+    case SimdPath::kAvx512:
+      return avx512;
+    case SimdPath::kAvx2:
+      return avx2;
+    case SimdPath::kBaseline:
+      break;
+  }
+#endif
+  return baseline;
 }
 
-// For each query descriptor, the train index that passes the ratio test, or -1.
-std::vector<int> RatioMatches(const cv::Mat& query, const cv::Mat& train, double ratio) {
-  std::vector<int> out(query.rows, -1);
-  if (query.rows == 0 || train.rows < 2) return out;
-  // Brute force rather than FLANN: FLANN's randomized trees draw from the
-  // global rand(), so parallel matching would not be reproducible. Brute
-  // force costs ~1.4x more on 4000 x 4000 SIFT descriptors.
-  cv::BFMatcher matcher(cv::NORM_L2);
-  std::vector<std::vector<cv::DMatch>> knn;
-  matcher.knnMatch(query, train, knn, 2);
-  for (const auto& m : knn) {
-    if (m.size() == 2 && m[0].distance < ratio * m[1].distance) out[m[0].queryIdx] = m[0].trainIdx;
+float SquaredNorm(const float* v) {
+  float s = 0;
+  for (int d = 0; d < match_baseline::kMatchDims; ++d) s += v[d] * v[d];
+  return s;
+}
+
+// Descriptors in blocks of kMatchColumns, dimension-major within a block
+// (BlockDistances' layout); padding columns are zero with an infinite norm,
+// so no query is ever nearest to one.
+struct PackedDescriptors {
+  int count = 0, blocks = 0;
+  std::vector<float> values, norm2;
+};
+
+PackedDescriptors Pack(const ImageFeatures& f) {
+  using namespace match_baseline;
+  PackedDescriptors p;
+  p.count = static_cast<int>(f.keypoints.size());
+  p.blocks = (p.count + kMatchColumns - 1) / kMatchColumns;
+  const std::size_t columns = static_cast<std::size_t>(p.blocks) * kMatchColumns;
+  p.values.assign(columns * kMatchDims, 0.0f);
+  p.norm2.assign(columns, std::numeric_limits<float>::infinity());
+  for (int c = 0; c < p.count; ++c) {
+    const float* v = f.descriptors.data() + static_cast<std::size_t>(c) * kMatchDims;
+    float* block = p.values.data() + static_cast<std::size_t>(c / kMatchColumns) * kMatchDims * kMatchColumns;
+    for (int d = 0; d < kMatchDims; ++d) block[d * kMatchColumns + c % kMatchColumns] = v[d];
+    p.norm2[c] = SquaredNorm(v);
   }
-  return out;
+  return p;
+}
+
+// Nearest and second nearest (squared L2) in both directions from one pass
+// over the distance matrix.
+struct Nearest {
+  std::vector<float> best, second;
+  std::vector<int> index;
+  explicit Nearest(std::size_t n)
+      : best(n, std::numeric_limits<float>::infinity()), second(n, std::numeric_limits<float>::infinity()), index(n, -1) {}
+  // The nearest index where it passes Lowe's ratio test (on distances, so
+  // on squared distances with the squared ratio), else -1.
+  std::vector<int> RatioPassed(int n, double ratio) const {
+    std::vector<int> out(n, -1);
+    const float ratio2 = static_cast<float>(ratio * ratio);
+    for (int k = 0; k < n; ++k)
+      if (index[k] >= 0 && best[k] < ratio2 * second[k]) out[k] = index[k];
+    return out;
+  }
+};
+
+void NearestBothWays(const ImageFeatures& a, const ImageFeatures& b, Nearest& a_to_b, Nearest& b_to_a) {
+  using namespace match_baseline;
+  const MatchKernels& kernels = ActiveMatchKernels();
+  const PackedDescriptors train = Pack(b);
+  const int na = static_cast<int>(a.keypoints.size());
+  const int stride = train.blocks * kMatchColumns;
+  std::vector<float> dist(static_cast<std::size_t>(kMatchRows) * stride);
+  float query[kMatchRows * kMatchDims];
+  float query_norm2[kMatchRows];
+  for (int q0 = 0; q0 < na; q0 += kMatchRows) {
+    for (int r = 0; r < kMatchRows; ++r) {
+      const bool real = q0 + r < na;
+      const float* v = real ? a.descriptors.data() + static_cast<std::size_t>(q0 + r) * kMatchDims : nullptr;
+      for (int d = 0; d < kMatchDims; ++d) query[r * kMatchDims + d] = real ? v[d] : 0.0f;
+      query_norm2[r] = real ? SquaredNorm(v) : std::numeric_limits<float>::infinity();
+    }
+    kernels.block_distances(query, query_norm2, train.values.data(), train.norm2.data(), train.blocks, dist.data());
+    for (int r = 0; r < kMatchRows && q0 + r < na; ++r) {
+      const float* row = dist.data() + static_cast<std::size_t>(r) * stride;
+      kernels.row_top2(row, train.count, a_to_b.best[q0 + r], a_to_b.second[q0 + r], a_to_b.index[q0 + r]);
+      kernels.column_top2(row, stride, q0 + r, b_to_a.best.data(), b_to_a.second.data(), b_to_a.index.data());
+    }
+  }
 }
 
 }  // namespace
@@ -109,11 +208,23 @@ ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width, int he
 }
 
 std::vector<std::pair<int, int>> MatchFeatures(const ImageFeatures& a, const ImageFeatures& b, double ratio) {
-  const cv::Mat da = DescriptorMat(a), db = DescriptorMat(b);
-  const std::vector<int> ab = RatioMatches(da, db, ratio);
-  const std::vector<int> ba = RatioMatches(db, da, ratio);
+  const int na = static_cast<int>(a.keypoints.size()), nb = static_cast<int>(b.keypoints.size());
+  for (const ImageFeatures* f : {&a, &b})
+    if (f->descriptors.size() != f->keypoints.size() * match_baseline::kMatchDims)
+      throw Error("features", "descriptors", std::to_string(f->descriptors.size()) + " values for " +
+                                                 std::to_string(f->keypoints.size()) + " keypoints (128 each)");
   std::vector<std::pair<int, int>> out;
-  for (int i = 0; i < static_cast<int>(ab.size()); ++i) {
+  if (na < 2 || nb < 2) return out;  // no second nearest: no ratio test either way
+  // Brute force (exact, and reproducible: FLANN's randomized trees draw
+  // from the global rand()), as one pass over the distance matrix that
+  // serves both directions.
+  Nearest a_to_b(na), b_to_a(static_cast<std::size_t>((nb + match_baseline::kMatchColumns - 1) /
+                                                      match_baseline::kMatchColumns) *
+                                  match_baseline::kMatchColumns);
+  NearestBothWays(a, b, a_to_b, b_to_a);
+  const std::vector<int> ab = a_to_b.RatioPassed(na, ratio);
+  const std::vector<int> ba = b_to_a.RatioPassed(nb, ratio);
+  for (int i = 0; i < na; ++i) {
     if (ab[i] >= 0 && ba[ab[i]] == i) out.emplace_back(i, ab[i]);
   }
   return out;

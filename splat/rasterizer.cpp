@@ -16,22 +16,10 @@
 #include "core/error.h"
 #include "core/format.h"
 #include "core/simd.h"
+#include "core/simd_target.h"
 
-// The kernels, once per SIMD path (core/simd.h): the same source at 4 lanes
-// for the x86-64 baseline, 8 for AVX2 + FMA and 16 for AVX-512, each in its
-// own namespace and compiled for its own target, so no code of one path can
-// end up in another. Headers are all included above, outside the target
-// regions: only the kernels themselves are compiled for the wider targets.
-// _Pragma takes one string literal, so the target is stringified into it.
-#define SKYFALL_STRINGIFY(x) #x
-#if defined(__clang__)
-#define SKYFALL_TARGET_BEGIN(t) \
-  _Pragma(SKYFALL_STRINGIFY(clang attribute push(__attribute__((target(t))), apply_to = function)))
-#define SKYFALL_TARGET_END _Pragma("clang attribute pop")
-#else
-#define SKYFALL_TARGET_BEGIN(t) _Pragma("GCC push_options") _Pragma(SKYFALL_STRINGIFY(GCC target(t)))
-#define SKYFALL_TARGET_END _Pragma("GCC pop_options")
-#endif
+// The kernels, once per SIMD path (core/simd_target.h): the same source at 4
+// lanes for the x86-64 baseline, 8 for AVX2 + FMA and 16 for AVX-512.
 
 namespace skyfall {
 
@@ -42,7 +30,7 @@ namespace raster_baseline {
 }  // namespace raster_baseline
 
 #if defined(__x86_64__)
-SKYFALL_TARGET_BEGIN("avx2,fma")
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
 namespace raster_avx2 {
 #define SKYFALL_RASTER_LANES 8
 #include "splat/rasterizer_kernels.inc"
@@ -50,7 +38,7 @@ namespace raster_avx2 {
 }  // namespace raster_avx2
 SKYFALL_TARGET_END
 
-SKYFALL_TARGET_BEGIN("avx512f,avx512vl,avx512bw,avx512dq,avx2,fma")
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
 namespace raster_avx512 {
 #define SKYFALL_RASTER_LANES 16
 #include "splat/rasterizer_kernels.inc"
