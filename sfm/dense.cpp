@@ -154,17 +154,18 @@ const DenseKernels& ActiveKernels() {
 }
 #undef SKYFALL_DENSE_KERNELS
 
-// The image sampled (bilinearly) at every grid cell lifted to height h;
-// NaN where the cell projects outside the image.
+// The image sampled (bilinearly) at the grid cells of rows [row_begin,
+// row_end) lifted to height h, into `out` (those rows only); NaN where a
+// cell projects outside the image. `scratch` is resized as needed.
 void WarpToGrid(const DenseKernels& kernels, const GreyImage& image, const Projection& P, const HeightGrid& grid,
-                double height_m, float* out) {
+                double height_m, int row_begin, int row_end, float* out, std::vector<float>& scratch) {
   // The projection is linear in x along a row: start and step.
   const Eigen::Vector3d step = P.col(0) * grid.cell_m;
-  std::vector<float> scratch(3 * static_cast<std::size_t>(grid.nx));
-  for (int j = 0; j < grid.ny; ++j) {
+  scratch.resize(3 * static_cast<std::size_t>(grid.nx));
+  for (int j = row_begin; j < row_end; ++j) {
     const Eigen::Vector3d start = P * Eigen::Vector4d(grid.x0_m, grid.y0_m + j * grid.cell_m, height_m, 1.0);
     kernels.warp_row(image.values.data(), image.width, image.height, start.data(), step.data(), grid.nx,
-                     out + static_cast<std::size_t>(j) * grid.nx, scratch.data());
+                     out + static_cast<std::size_t>(j - row_begin) * grid.nx, scratch.data());
   }
 }
 
@@ -243,27 +244,34 @@ struct Sweep {
   double Height(int d) const { return z_lo + d * o.height_step_m; }
 };
 
-// What one thread of the sweep reuses from height to height.
+// Rows of the grid swept together: every view's warp and window statistics
+// and every pair's cost for a strip of this many rows (plus the window's
+// halo) stay in the cache, where a whole grid of 19 views would not.
+constexpr int kStripRows = 16;
+
+// What one thread of the sweep reuses from height to height, sized for one
+// strip of rows with its halo.
 struct SweepScratch {
-  std::vector<float> warped, scratch, ring, sum, count, block;
+  std::vector<float> warped, warp_scratch, scratch, ring, sum, count, block;
   std::vector<WindowStats> stats;
   std::vector<std::vector<float>> visible;
-  void Resize(std::size_t cells, std::size_t views, int nx, int r, int heights_per_block, bool masked) {
-    if (warped.size() == cells) return;
-    warped.resize(cells);
+  void Resize(std::size_t strip_cells, std::size_t cells, std::size_t views, int nx, int r, int heights_per_block,
+              bool masked) {
+    if (!warped.empty()) return;
+    warped.resize(strip_cells);
     scratch.resize(dense_baseline::WindowStatsScratch(nx, r));
     ring.resize(static_cast<std::size_t>(2 * r + 3) * nx);
-    sum.resize(cells);
+    sum.resize(strip_cells);
     block.resize(cells * heights_per_block);
     stats.resize(views);
     for (WindowStats& w : stats) {
-      w.values.resize(cells);
-      w.mean.resize(cells);
-      w.inv_std.resize(cells);
+      w.values.resize(strip_cells);
+      w.mean.resize(strip_cells);
+      w.inv_std.resize(strip_cells);
     }
     if (masked) {
-      count.resize(cells);
-      visible.assign(views, std::vector<float>(cells));
+      count.resize(strip_cells);
+      visible.assign(views, std::vector<float>(strip_cells));
     }
   }
 };
@@ -273,7 +281,8 @@ struct SweepScratch {
 // `seen_above` (per view slot and cell, the height above which the view
 // sees the cell), a pair counts only where both its views see the point,
 // and a point no pair sees costs the truncation. Heights are swept in
-// blocks, each written to the volume as a run of heights per cell.
+// blocks, each written to the volume as a run of heights per cell; each
+// height in strips of rows (kStripRows).
 std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
                               const std::string& label, Progress& progress) {
   const HeightGrid& g = s.grid;
@@ -284,51 +293,68 @@ std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<floa
   const int r = s.o.window_cells / 2;
   const int block_heights = std::clamp(nh / 16, 1, 8);
   const int blocks = (nh + block_heights - 1) / block_heights;
+  const std::size_t strip_cells = static_cast<std::size_t>(kStripRows + 2 * r) * g.nx;
   std::vector<float> cost(cells * nh);
   progress.Begin(label, nh);
   std::atomic<int> done{0};
   const float trunc = static_cast<float>(s.o.cost_truncation);
   const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
   const float prior = static_cast<float>(s.o.visibility_prior_pairs);
+  const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
   tbb::enumerable_thread_specific<SweepScratch> scratch;
   tbb::parallel_for(0, blocks, [&](int block) {
     SweepScratch& t = scratch.local();
-    t.Resize(cells, views, g.nx, r, block_heights, seen_above != nullptr);
+    t.Resize(strip_cells, cells, views, g.nx, r, block_heights, seen_above != nullptr);
     const int d0 = block * block_heights, d1 = std::min(nh, d0 + block_heights);
     for (int d = d0; d < d1; ++d) {
       const double height = s.Height(d);
-      for (std::size_t v = 0; v < views; ++v) {
-        WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, t.warped.data());
-        kernels.window_stats(t.warped.data(), g.nx, g.ny, r, min_var, t.stats[v].values.data(), t.stats[v].mean.data(),
-                             t.stats[v].inv_std.data(), t.scratch.data());
-      }
-      std::fill(t.sum.begin(), t.sum.end(), 0.0f);
       float* out = t.block.data() + static_cast<std::size_t>(d - d0) * cells;
-      if (!seen_above) {
-        for (const DensePair& p : s.pairs) {
-          const WindowStats& a = t.stats[s.slot[p.a]];
-          const WindowStats& b = t.stats[s.slot[p.b]];
-          kernels.pair_cost(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
-                            b.inv_std.data(), nullptr, nullptr, g.nx, g.ny, r, trunc, t.sum.data(), nullptr,
-                            t.ring.data());
+      for (int j0 = 0; j0 < g.ny; j0 += kStripRows) {
+        // The strip's rows [j0, j1) and the rows their windows reach,
+        // [s0, s1), swept as a grid of their own: its first and last r rows
+        // are border there, but those are the neighbouring strips' rows
+        // (or the grid's own border), and only [j0, j1) is kept.
+        const int j1 = std::min(g.ny, j0 + kStripRows);
+        const int s0 = std::max(0, j0 - r), s1 = std::min(g.ny, j1 + r);
+        const int rows = s1 - s0;
+        const std::size_t first = static_cast<std::size_t>(s0) * g.nx;
+        const std::size_t n = static_cast<std::size_t>(rows) * g.nx;
+        for (std::size_t v = 0; v < views; ++v) {
+          WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, s0, s1, t.warped.data(), t.warp_scratch);
+          kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, t.stats[v].values.data(),
+                               t.stats[v].mean.data(), t.stats[v].inv_std.data(), t.scratch.data());
         }
-        const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
-        for (std::size_t k = 0; k < cells; ++k) out[k] = t.sum[k] * inv_pairs;
-      } else {
-        for (std::size_t v = 0; v < views; ++v)
-          for (std::size_t k = 0; k < cells; ++k) t.visible[v][k] = height >= (*seen_above)[v][k] ? 1.0f : 0.0f;
-        std::fill(t.count.begin(), t.count.end(), 0.0f);
+        std::fill(t.sum.begin(), t.sum.begin() + n, 0.0f);
+        if (seen_above) {
+          for (std::size_t v = 0; v < views; ++v) {
+            const float* seen = (*seen_above)[v].data() + first;
+            for (std::size_t k = 0; k < n; ++k) t.visible[v][k] = height >= seen[k] ? 1.0f : 0.0f;
+          }
+          std::fill(t.count.begin(), t.count.begin() + n, 0.0f);
+        }
         for (const DensePair& p : s.pairs) {
           const int ia = s.slot[p.a], ib = s.slot[p.b];
           const WindowStats& a = t.stats[ia];
           const WindowStats& b = t.stats[ib];
-          kernels.pair_cost_masked(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
-                                   b.inv_std.data(), t.visible[ia].data(), t.visible[ib].data(), g.nx, g.ny, r, trunc,
-                                   t.sum.data(), t.count.data(), t.ring.data());
+          if (seen_above)
+            kernels.pair_cost_masked(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                                     b.inv_std.data(), t.visible[ia].data(), t.visible[ib].data(), g.nx, rows, r,
+                                     trunc, t.sum.data(), t.count.data(), t.ring.data());
+          else
+            kernels.pair_cost(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                              b.inv_std.data(), nullptr, nullptr, g.nx, rows, r, trunc, t.sum.data(), nullptr,
+                              t.ring.data());
         }
-        for (std::size_t k = 0; k < cells; ++k) {
-          const float n = t.count[k] + prior;
-          out[k] = n > 0 ? (t.sum[k] + prior * trunc) / n : trunc;
+        const std::size_t keep = static_cast<std::size_t>(j0 - s0) * g.nx;
+        const std::size_t keep_n = static_cast<std::size_t>(j1 - j0) * g.nx;
+        float* dst = out + static_cast<std::size_t>(j0) * g.nx;
+        for (std::size_t k = 0; k < keep_n; ++k) {
+          if (!seen_above) {
+            dst[k] = t.sum[keep + k] * inv_pairs;
+          } else {
+            const float m = t.count[keep + k] + prior;
+            dst[k] = m > 0 ? (t.sum[keep + k] + prior * trunc) / m : trunc;
+          }
         }
       }
       progress.Advance(++done, "");
