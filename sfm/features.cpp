@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
@@ -17,17 +18,23 @@ namespace skyfall {
 
 // Matching's inner loops once per SIMD path (core/simd_target.h).
 namespace match_baseline {
+#define SKYFALL_MATCH_LANES 4
 #include "sfm/match_kernels.inc"
+#undef SKYFALL_MATCH_LANES
 }  // namespace match_baseline
 #if defined(__x86_64__)
 SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
 namespace match_avx2 {
+#define SKYFALL_MATCH_LANES 8
 #include "sfm/match_kernels.inc"
+#undef SKYFALL_MATCH_LANES
 }  // namespace match_avx2
 SKYFALL_TARGET_END
 SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
 namespace match_avx512 {
+#define SKYFALL_MATCH_LANES 16
 #include "sfm/match_kernels.inc"
+#undef SKYFALL_MATCH_LANES
 }  // namespace match_avx512
 SKYFALL_TARGET_END
 #endif
