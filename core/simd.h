@@ -29,4 +29,19 @@ SimdPath ActiveSimdPath();
 // cannot run it.
 void SetSimdPath(SimdPath path);
 
+// Of three per-path values (a file's table of kernels for each path), the
+// one for the active path.
+template <typename T>
+const T& ForActivePath(const T& baseline, const T& avx2, const T& avx512) {
+  switch (ActiveSimdPath()) {
+    case SimdPath::kAvx512:
+      return avx512;
+    case SimdPath::kAvx2:
+      return avx2;
+    case SimdPath::kBaseline:
+      break;
+  }
+  return baseline;
+}
+
 }  // namespace skyfall

@@ -141,16 +141,10 @@ const DenseKernels& ActiveKernels() {
 #if defined(__x86_64__)
   static const DenseKernels avx2 = SKYFALL_DENSE_KERNELS(dense_avx2);
   static const DenseKernels avx512 = SKYFALL_DENSE_KERNELS(dense_avx512);
-  switch (ActiveSimdPath()) {
-    case SimdPath::kAvx512:
-      return avx512;
-    case SimdPath::kAvx2:
-      return avx2;
-    case SimdPath::kBaseline:
-      break;
-  }
-#endif
+  return ForActivePath(baseline, avx2, avx512);
+#else
   return baseline;
+#endif
 }
 #undef SKYFALL_DENSE_KERNELS
 

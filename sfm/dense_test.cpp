@@ -176,14 +176,7 @@ TEST(Dense, OptionsNameTheBadField) {
 }
 
 DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
-  DenseView v;
-  v.name = name;
-  v.camera = camera;
-  v.width_px = camera.width_px;
-  v.height_px = camera.height_px;
-  v.bands = 1;
-  v.pixels.assign(static_cast<std::size_t>(v.width_px) * v.height_px, 100.0f);
-  return v;
+  return testing::UniformView(name, camera, 100.0f);  // no texture: no height can be told from another
 }
 
 TEST(Dense, PairsAreChosenByAngleAndTiePoints) {

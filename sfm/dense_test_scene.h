@@ -52,18 +52,24 @@ inline float GroundTexture(double x_m, double y_m) {
   return 50.0f + 150.0f * (top + v * (bottom - top));
 }
 
-// A one-band view of textured ground at 0 m with a square plateau of
-// half-side `plateau_half_m` at `plateau_m` (its walls are not drawn: what
-// matters is texture at two heights).
-inline DenseView TexturedView(const std::string& name, const PinholeCamera& camera, double plateau_m,
-                              double plateau_half_m) {
+// A one-band view of the camera's size, every pixel `grey`.
+inline DenseView UniformView(const std::string& name, const PinholeCamera& camera, float grey) {
   DenseView v;
   v.name = name;
   v.camera = camera;
   v.width_px = camera.width_px;
   v.height_px = camera.height_px;
   v.bands = 1;
-  v.pixels.resize(static_cast<std::size_t>(v.width_px) * v.height_px);
+  v.pixels.assign(static_cast<std::size_t>(v.width_px) * v.height_px, grey);
+  return v;
+}
+
+// A one-band view of textured ground at 0 m with a square plateau of
+// half-side `plateau_half_m` at `plateau_m` (its walls are not drawn: what
+// matters is texture at two heights).
+inline DenseView TexturedView(const std::string& name, const PinholeCamera& camera, double plateau_m,
+                              double plateau_half_m) {
+  DenseView v = UniformView(name, camera, 0.0f);
   const Eigen::Vector3d centre = camera.Centre();
   const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
   for (int row = 0; row < v.height_px; ++row)

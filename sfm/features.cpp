@@ -80,16 +80,10 @@ const MatchKernels& ActiveMatchKernels() {
 #if defined(__x86_64__)
   static const MatchKernels avx2{&match_avx2::BlockDistances, &match_avx2::RowTop2, &match_avx2::ColumnTop2};
   static const MatchKernels avx512{&match_avx512::BlockDistances, &match_avx512::RowTop2, &match_avx512::ColumnTop2};
-  switch (ActiveSimdPath()) {
-    case SimdPath::kAvx512:
-      return avx512;
-    case SimdPath::kAvx2:
-      return avx2;
-    case SimdPath::kBaseline:
-      break;
-  }
-#endif
+  return ForActivePath(baseline, avx2, avx512);
+#else
   return baseline;
+#endif
 }
 
 float SquaredNorm(const float* v) {
