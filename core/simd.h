@@ -5,11 +5,10 @@
 // compare paths; SetSimdPath does the same from code (tests).
 //
 // Kernels that have per-path versions: the rasterizer's forward and backward
-// passes (splat/rasterizer.cpp), the D-SSIM loss's blur and per-pixel terms
-// (splat/losses.cpp), descriptor matching (sfm/features.cpp) and the dense
-// sweep's warp, window statistics, pair cost and SGM step (sfm/dense.cpp).
-// Each path gives the baseline's results within the tolerances their tests
-// name. How a kernel source is compiled once per path: core/simd_target.h.
+// passes (splat/rasterizer.cpp) and the dense sweep's warp, window
+// statistics, pair cost and SGM step (sfm/dense.cpp). Each path gives the
+// baseline's results within the tolerances their tests name. How a kernel
+// source is compiled once per path: core/simd_target.h.
 #pragma once
 
 #include <string>

@@ -3,15 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstddef>
-#include <type_traits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
-#include "core/simd.h"
-#include "core/simd_target.h"
 
 namespace skyfall {
 namespace {
@@ -32,65 +28,48 @@ std::array<double, kWindow> GaussianWindow() {
   return w;
 }
 
-// D-SSIM's inner loops once per SIMD path (core/simd_target.h).
-namespace ssim_baseline {
-#include "splat/ssim_kernels.inc"
-}  // namespace ssim_baseline
-#if defined(__x86_64__)
-SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
-namespace ssim_avx2 {
-#include "splat/ssim_kernels.inc"
-}  // namespace ssim_avx2
-SKYFALL_TARGET_END
-SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
-namespace ssim_avx512 {
-#include "splat/ssim_kernels.inc"
-}  // namespace ssim_avx512
-SKYFALL_TARGET_END
-#endif
-
-template <typename T>
-struct SsimKernels {
-  decltype(&ssim_baseline::BlurRows<T>) blur_rows;
-  decltype(&ssim_baseline::BlurColumns<T>) blur_columns;
-  decltype(&ssim_baseline::SsimPixels<T>) pixels;
-};
-#define SKYFALL_SSIM_KERNELS(ns, T) \
-  SsimKernels<T> { &ns::BlurRows<T>, &ns::BlurColumns<T>, &ns::SsimPixels<T> }
-
-// Float (training) runs on the active path; double (the finite-difference
-// tests) on the baseline.
-template <typename T>
-const SsimKernels<T>& ActiveSsimKernels() {
-  static const SsimKernels<T> baseline = SKYFALL_SSIM_KERNELS(ssim_baseline, T);
-#if defined(__x86_64__)
-  if constexpr (std::is_same_v<T, float>) {
-    static const SsimKernels<T> avx2 = SKYFALL_SSIM_KERNELS(ssim_avx2, T);
-    static const SsimKernels<T> avx512 = SKYFALL_SSIM_KERNELS(ssim_avx512, T);
-    return ForActivePath(baseline, avx2, avx512);
-  }
-#endif
-  return baseline;
-}
-#undef SKYFALL_SSIM_KERNELS
-
 // Separable 'same' convolution with the (symmetric) window, zero padding.
 // Symmetric and zero-padded, so it is its own adjoint. Rows run in
-// parallel. In T: float for training (as 3DGS does; the SSIM constants C1,
-// C2 keep the variances' rounding harmless), double for the
-// finite-difference tests.
+// parallel; the inner loops have no bounds tests (edges are done apart), so
+// the compiler vectorizes them. In T: float for training (as 3DGS does; the
+// SSIM constants C1, C2 keep the variances' rounding harmless), double for
+// the finite-difference tests.
 template <typename T>
 std::vector<T> Blur(const std::vector<T>& in, int w, int h) {
   static const auto win64 = GaussianWindow();
   std::array<T, kWindow> win;
   for (int k = 0; k < kWindow; ++k) win[k] = T(win64[k]);
-  const SsimKernels<T>& kernels = ActiveSsimKernels<T>();
-  std::vector<T> tmp(in.size()), out(in.size());
+  constexpr int r = kWindow / 2;
+  std::vector<T> tmp(in.size()), out(in.size(), T(0));
   tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
-    kernels.blur_rows(in.data(), w, rows.begin(), rows.end(), win.data(), tmp.data());
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      const T* src = in.data() + static_cast<std::size_t>(y) * w;
+      T* dst = tmp.data() + static_cast<std::size_t>(y) * w;
+      auto edge = [&](int x) {
+        T acc = 0;
+        for (int k = -r; k <= r; ++k)
+          if (x + k >= 0 && x + k < w) acc += win[k + r] * src[x + k];
+        dst[x] = acc;
+      };
+      for (int x = 0; x < std::min(r, w); ++x) edge(x);
+      for (int x = r; x < w - r; ++x) {
+        T acc = 0;
+        for (int k = 0; k < kWindow; ++k) acc += win[k] * src[x - r + k];
+        dst[x] = acc;
+      }
+      for (int x = std::max(r, w - r); x < w; ++x) edge(x);
+    }
   });
   tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
-    kernels.blur_columns(tmp.data(), w, h, rows.begin(), rows.end(), win.data(), out.data());
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      T* dst = out.data() + static_cast<std::size_t>(y) * w;
+      for (int k = -r; k <= r; ++k) {
+        if (y + k < 0 || y + k >= h) continue;
+        const T* src = tmp.data() + static_cast<std::size_t>(y + k) * w;
+        const T wk = win[k + r];
+        for (int x = 0; x < w; ++x) dst[x] += wk * src[x];
+      }
+    }
   });
   return out;
 }
@@ -139,11 +118,22 @@ double Ssim(const std::vector<T>& x, const std::vector<T>& target, int w, int h,
     }
     const auto mu_a = Blur(a, w, h), mu_b = Blur(b, w, h);
     const auto e_aa = Blur(aa, w, h), e_bb = Blur(bb, w, h), e_ab = Blur(ab, w, h);
-    std::vector<T> s(n), g_mu(n), dvar(n), dcov(n);
-    ActiveSsimKernels<T>().pixels(mu_a.data(), mu_b.data(), e_aa.data(), e_bb.data(), e_ab.data(), n, c1, c2, inv,
-                                  s.data(), g_mu.data(), dvar.data(), dcov.data());
-    double channel_total = 0;  // summed in double, in pixel order: deterministic on every path
-    for (size_t p = 0; p < n; ++p) channel_total += s[p];
+    std::vector<T> g_mu(n), dvar(n), dcov(n);
+    double channel_total = 0;  // summed in double, in pixel order: deterministic
+    for (size_t p = 0; p < n; ++p) {
+      const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
+      const T cov = e_ab[p] - mu_a[p] * mu_b[p];
+      const T l_num = 2 * mu_a[p] * mu_b[p] + c1, l_den = mu_a[p] * mu_a[p] + mu_b[p] * mu_b[p] + c1;
+      const T c_num = 2 * cov + c2, c_den = va + vb + c2;
+      const T s = (l_num * c_num) / (l_den * c_den);
+      channel_total += s;
+      // dS/dmu_a, dS/dvar_a, dS/dcov (var and cov as independent statistics),
+      // then var_a = E[a^2] - mu_a^2, cov = E[ab] - mu_a mu_b chained to mu_a.
+      const T dmu = inv * s * (2 * mu_b[p] / l_num - 2 * mu_a[p] / l_den);
+      dvar[p] = inv * (-s / c_den);
+      dcov[p] = inv * (2 * s / c_num);
+      g_mu[p] = dmu - 2 * mu_a[p] * dvar[p] - mu_b[p] * dcov[p];
+    }
     total += channel_total;
     if (!grad) continue;
     // Through the (self-adjoint) blur.
