@@ -159,9 +159,15 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
     entry["dsm"] = (aoi_dir / "dsm.tif").string();
     entry["report"] = (aoi_dir / "dsm_compare/report.json").string();
     if (dense.size() > 0) {
-      DsmGrid unused;
+      // The dense heights' own DSM and error map sit beside the trained
+      // scene's, so an analyst sees where training changed the surface.
+      DsmGrid dense_pred, unused;
       const DsmComparison d = CompareSceneWithTruth(dense, merged.enu_origin, *a.truth, truth, options.dsm.compare,
-                                                    &unused, options.dsm.export_options);
+                                                    &dense_pred, options.dsm.export_options);
+      WriteDsm((aoi_dir / "dense_dsm.tif").string(), dense_pred);
+      WriteDsmComparison(d, truth.dsm, options.dsm.compare,
+                         {(aoi_dir / "dense_dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
+                         (aoi_dir / "dense_dsm_compare").string());
       const DsmComparison m = CompareSceneWithTruth(measured, merged.enu_origin, *a.truth, truth,
                                                     options.dsm.compare, &unused, options.dsm.export_options);
       entry["dense"] = ComparisonJson(d);

@@ -105,6 +105,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_radius_m", o.fill_radius_m);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);
+  io("fill_ground_tolerance_m", o.fill_ground_tolerance_m);
   io("visibility_pass", o.visibility_pass);
   io("visibility_tolerance_m", o.visibility_tolerance_m);
   io("visibility_prior_pairs", o.visibility_prior_pairs);

@@ -12,7 +12,7 @@
 # Reruns resume: finished runs are reused, so adding a scene costs one run.
 # SKYFALL_BIN: the skyfall binary to measure (default build/bin/skyfall; copy
 # it elsewhere to keep building while the benchmark runs). SKYFALL_RUN_ARGS:
-# extra `skyfall run` arguments, e.g. "--set dense.fill_ground_radius_m=0".
+# extra `skyfall run` arguments, e.g. "--set dense.fill_radius_m=10".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

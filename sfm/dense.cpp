@@ -14,6 +14,7 @@
 #include "core/simd.h"
 #include "core/simd_target.h"
 #include "core/stats.h"
+#include "sfm/hole_fill.h"
 
 namespace skyfall {
 
@@ -44,9 +45,10 @@ void DenseOptions::Check() const {
   positive(min_std, "min_std");
   positive(max_cost, "max_cost");
   positive(max_median_deviation_m, "max_median_deviation_m");
-  if (!(fill_radius_m > 0)) throw Error("dense", "fill_radius_m", "must be > 0");
+  positive(fill_radius_m, "fill_radius_m");
   if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
-  if (!(fill_ground_radius_m >= 0)) throw Error("dense", "fill_ground_radius_m", "must be >= 0 (0 = flat ground)");
+  positive(fill_ground_radius_m, "fill_ground_radius_m");
+  if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
@@ -62,29 +64,6 @@ void DenseOptions::Check() const {
 namespace {
 
 constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
-
-// Minimum over the (2r+1)^2 square around each cell, ignoring NaN (NaN
-// where the square holds no finite value); separable, rows then columns.
-std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r) {
-  const float inf = std::numeric_limits<float>::infinity();
-  std::vector<float> rows(h.size()), out(h.size());
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      float m = inf;
-      for (int a = std::max(0, i - r); a <= std::min(nx - 1, i + r); ++a) {
-        const float x = h[static_cast<std::size_t>(j) * nx + a];
-        if (x < m) m = x;  // false for NaN
-      }
-      rows[static_cast<std::size_t>(j) * nx + i] = m;
-    }
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      float m = inf;
-      for (int b = std::max(0, j - r); b <= std::min(ny - 1, j + r); ++b) m = std::min(m, rows[static_cast<std::size_t>(b) * nx + i]);
-      out[static_cast<std::size_t>(j) * nx + i] = std::isfinite(m) ? m : kNan;
-    }
-  return out;
-}
 
 // Grey level of a view scaled so that its 99th percentile is 1: NCC ignores
 // the scale, but min_std is then the same threshold for every sensor range.
@@ -441,45 +420,23 @@ std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& s
   return out;
 }
 
-std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells) {
-  if (h.size() != static_cast<std::size_t>(nx) * ny)
-    throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
-  if (radius_cells < 1) throw Error("dense", "ground radius", std::to_string(radius_cells) + " cells must be >= 1");
-  std::vector<float> eroded = MinFilter(h, nx, ny, radius_cells);
-  for (float& x : eroded) x = -x;  // the maximum filter as a minimum of negatives
-  std::vector<float> opened = MinFilter(eroded, nx, ny, radius_cells);
-  for (float& x : opened) x = -x;
-  return opened;
-}
-
-std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& h, int nx, int ny, int radius_cells,
-                                             int max_radius_cells, int ground_radius_cells) {
-  if (h.size() != static_cast<std::size_t>(nx) * ny)
-    throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
-  if (radius_cells < 1) throw Error("dense", "fill radius", std::to_string(radius_cells) + " cells must be >= 1");
-  std::vector<std::uint8_t> filled(h.size(), 0);
-  // Heights above the ground (or above 0: flat ground), and the ground itself.
-  std::vector<float> ground(h.size(), 0.0f);
-  if (ground_radius_cells > 0) ground = GroundSurface(h, nx, ny, ground_radius_cells);
-  std::vector<float> measured(h.size());
-  for (std::size_t k = 0; k < h.size(); ++k) measured[k] = h[k] - ground[k];
-  // Each pass fills what a square of this radius reaches; the radius
-  // doubles up to the largest reach.
-  for (int r = std::min(radius_cells, max_radius_cells);; r = std::min(2 * r, max_radius_cells)) {
-    const std::vector<float> low = MinFilter(measured, nx, ny, r);
-    bool open = false;
-    for (std::size_t k = 0; k < h.size(); ++k) {
-      if (std::isfinite(h[k])) continue;
-      if (std::isfinite(low[k]) && std::isfinite(ground[k])) {
-        h[k] = ground[k] + low[k];
-        filled[k] = 1;
-      } else {
-        open = true;
-      }
-    }
-    if (!open || r >= max_radius_cells || r > nx + ny) break;
+std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& g, const std::vector<float>& surface_m,
+                                           const std::vector<float>& terrain_m,
+                                           const std::vector<Eigen::Vector3d>& to_cameras, double tolerance_m,
+                                           double floor_m) {
+  const std::size_t cells = static_cast<std::size_t>(g.nx) * g.ny;
+  if (surface_m.size() != cells || terrain_m.size() != cells)
+    throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
+  std::vector<std::uint8_t> seen_by(cells, 0);
+  for (const Eigen::Vector3d& to_camera : to_cameras) {
+    const std::vector<float> seen_above = VisibleAbove(g, surface_m, to_camera, floor_m);
+    for (std::size_t k = 0; k < cells; ++k)
+      if (terrain_m[k] + tolerance_m >= seen_above[k] && seen_by[k] < 2) ++seen_by[k];
   }
-  return filled;
+  std::vector<std::uint8_t> occluded(cells, 0);
+  for (std::size_t k = 0; k < cells; ++k)
+    occluded[k] = !std::isfinite(surface_m[k]) && std::isfinite(terrain_m[k]) && seen_by[k] < 2 ? 1 : 0;
+  return occluded;
 }
 
 std::vector<float> AggregateSgm(const std::vector<float>& cost, int nx, int ny, int heights, float p1, float p2) {
@@ -585,7 +542,21 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   }
 
   auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
-  const int ground_cells = o.fill_ground_radius_m > 0 ? cells_of(o.fill_ground_radius_m) : 0;
+  HoleFillOptions fill;
+  fill.radius_cells = cells_of(o.fill_radius_m);
+  fill.max_reach_cells = cells_of(o.max_fill_reach_m);
+  fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
+  fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
+  std::vector<Eigen::Vector3d> to_cameras;
+  for (int v : used_views) to_cameras.push_back(views[v].camera.Centre() - centre);
+  std::size_t occluded_cells = 0;
+  auto fill_holes = [&](std::vector<float>& heights) {
+    const GroundModel model = GroundModelOf(heights, g.nx, g.ny, fill);
+    const std::vector<std::uint8_t> occluded =
+        OccludedAtGround(g, heights, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
+    occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
+    return FillHoles(heights, g.nx, g.ny, fill, model, &occluded);
+  };
   const Sweep sweep{o, g, z_lo, nh, result.pairs_used, slot, grey, projection};
   std::vector<float> cost = CostVolume(sweep, nullptr, "dense: sweeping heights", progress);
   CellHeights first = PickHeights(sweep, cost, progress);
@@ -595,7 +566,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     // point is hidden from; the second sweep scores each height only with
     // the pairs that see it there.
     std::vector<float> surface = first.height_m;
-    FillHolesFromBelow(surface, g.nx, g.ny, cells_of(o.fill_radius_m), cells_of(o.max_fill_reach_m), ground_cells);
+    fill_holes(surface);
     std::vector<std::vector<float>> seen_above(grey.size());
     tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int k) {
       const Eigen::Vector3d to_camera = views[used_views[k]].camera.Centre() - centre;
@@ -615,9 +586,8 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   const std::size_t low_cost = first.low_cost, speckles = first.speckles;
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
-  g.filled = o.fill_holes ? FillHolesFromBelow(g.height_m, g.nx, g.ny, cells_of(o.fill_radius_m),
-                                                cells_of(o.max_fill_reach_m), ground_cells)
-                          : std::vector<std::uint8_t>(cells, 0);
+  occluded_cells = 0;
+  g.filled = o.fill_holes ? fill_holes(g.height_m) : std::vector<std::uint8_t>(cells, 0);
 
   // Colour from the most nadir view that sees the cell.
   std::vector<int> by_elevation(views.size());
@@ -656,6 +626,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["filled_fraction"] = static_cast<double>(valid - measured) / static_cast<double>(cells);
   r.metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(low_cost) / static_cast<double>(cells);
   r.metrics["rejected_speckle_fraction"] = static_cast<double>(speckles) / static_cast<double>(cells);
+  r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.seconds = clock.Seconds();
   return result;

@@ -19,6 +19,7 @@
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "core/tile.h"
+#include "sfm/hole_fill.h"
 
 namespace skyfall {
 
@@ -39,21 +40,23 @@ struct DenseOptions {
   double sgm_p2 = 2.0;              // SGM penalty for a larger change (walls)
   double max_cost = 0.55;           // cells whose matching cost at the chosen height exceeds this get no height
   double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
-  // A cell without a height takes the lowest measured height within
-  // fill_radius_m (a square; doubled until something is in reach): most
-  // holes are ground that walls hide from most views, bordered by roof on
-  // one side and ground on the other, and filling them from the roof would
-  // put roofs in courtyards. Filled cells are flagged.
+  // Holes (cells without a height) are filled (FillHoles): ground no pair
+  // can see (OccludedAtGround) takes the terrain; any other hole the
+  // terrain plus the lowest height above it within fill_radius_m (doubled
+  // until something is in reach). Filled cells are flagged.
   bool fill_holes = true;
   double fill_radius_m = 5.0;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.
   double max_fill_reach_m = 20.0;
-  // [m] "Lowest" above is measured above a ground surface estimated by an
-  // opening of this radius (larger than half the widest building), so that
-  // holes on slopes take their own ground level (0 = flat ground).
+  // [m] The ground surface is a morphological opening of this radius
+  // (larger than half the widest building): it keeps planes and smooth
+  // terrain and removes buildings and trees.
   double fill_ground_radius_m = 30.0;
+  // [m] A measured cell at most this far above the ground surface is ground
+  // (it shapes the terrain model).
+  double fill_ground_tolerance_m = 1.0;
   // A second sweep that scores each height of a cell only with the pairs
   // whose two views see that point, judged against the first sweep's
   // surface (holes filled): beside a wall half the views see the ground and
@@ -115,24 +118,6 @@ DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<Dense
 std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::vector<DenseView>& views,
                                         const std::vector<DensePair>& pairs, const Eigen::Vector3d& scene_centre_enu_m);
 
-// Fills NaN cells of `height_m` (nx x ny) with the lowest finite height
-// within `radius_cells` (Chebyshev), doubling the radius for cells still out
-// of reach while it stays within `max_radius_cells`; returns a per-cell flag
-// of what was filled. Cells out of every reach (all-NaN input) stay NaN.
-// With `ground_radius_cells` > 0, "lowest" is measured above a ground
-// surface (GroundSurface with that radius) and the hole takes the ground's
-// height at the hole plus that lowest height above ground, so that on a
-// slope a hole is filled at its own ground level, not at the downhill one.
-std::vector<std::uint8_t> FillHolesFromBelow(std::vector<float>& height_m, int nx, int ny, int radius_cells,
-                                             int max_radius_cells, int ground_radius_cells = 0);
-
-// The ground under `height_m` (nx x ny, NaN = unknown): a morphological
-// opening with a flat square of radius `radius_cells` (the highest of the
-// square minima), which keeps planes and any terrain smoother than the square
-// exactly and removes what is narrower than it (buildings, trees). NaN where
-// no measured cell is within reach.
-std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int ny, int radius_cells);
-
 // Per cell of `grid`, the height above which a point on the cell's vertical
 // is seen from a camera in direction `to_camera` (ENU, from the scene; an
 // orthographic approximation, fine for satellites): the highest point of
@@ -141,6 +126,15 @@ std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int
 // once the ray is below `floor_m` (heights below it are never asked).
 std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>& surface_m,
                                 const Eigen::Vector3d& to_camera, double floor_m);
+
+// Cells of `surface_m` (nx x ny, NaN = hole) whose ground point (the
+// terrain's height plus `tolerance_m`) fewer than two of the views (ENU
+// directions toward them) see past the measured surface: holes that no
+// image pair can measure, whatever the texture. 0 for measured cells.
+std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& grid, const std::vector<float>& surface_m,
+                                           const std::vector<float>& terrain_m,
+                                           const std::vector<Eigen::Vector3d>& to_cameras, double tolerance_m,
+                                           double floor_m);
 
 // Semi-global matching over a cost volume laid out cell-major
 // (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over

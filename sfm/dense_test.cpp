@@ -72,92 +72,6 @@ TEST(Dense, SgmRejectsAVolumeOfTheWrongSize) {
   EXPECT_THROW(AggregateSgm(std::vector<float>(10), 2, 2, 3, 0.1f, 0.2f), Error);
 }
 
-TEST(Dense, HolesTakeTheLowestHeightWithinReach) {
-  // A roof (10 m) west of a ground strip (0 m) with a 3-cell-wide hole
-  // between them: the hole is ground hidden by the wall. Within 3 cells
-  // every hole cell reaches the ground, so all of it must take 0 m, and
-  // nothing measured may change. A one-cell hole inside the roof, whose
-  // reach holds only roof, takes the roof's height.
-  const int nx = 9, ny = 4;
-  const float nan = std::nanf("");
-  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) h[j * nx + i] = i < 3 ? 10.0f : i < 6 ? nan : 0.0f;
-  h[1 * nx + 0] = nan;
-  const std::vector<float> before = h;
-  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, nx, ny, 3, 100);
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
-      const bool roof_hole = i == 0 && j == 1;
-      EXPECT_EQ(filled[k], (i >= 3 && i < 6) || roof_hole ? 1 : 0) << i << "," << j;
-      if (i >= 3 && i < 6) EXPECT_EQ(h[k], 0.0f) << i << "," << j;
-      else if (roof_hole) EXPECT_EQ(h[k], 10.0f);
-      else EXPECT_EQ(h[k], before[k]);
-    }
-}
-
-TEST(Dense, HolesOnASlopeTakeTheirOwnGroundLevel) {
-  // A 30% slope rising east (0.5 m cells: 0.15 m per cell), a 12 m tall
-  // building 16 cells wide, and the ground east of it hidden for 8 cells (the
-  // wall's shadow in oblique views). The lowest height within reach is
-  // downhill ground, 10 cells (1.5 m) lower; above the ground surface it is 0.
-  const int nx = 120, ny = 40;
-  const float nan = std::nanf("");
-  auto plane = [](int i) { return 0.15f * i; };
-  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      const bool building = i >= 50 && i < 66 && j >= 10 && j < 30;
-      const bool hidden = i >= 66 && i < 74 && j >= 10 && j < 30;
-      h[static_cast<std::size_t>(j) * nx + i] = hidden ? nan : plane(i) + (building ? 12.0f : 0.0f);
-    }
-  const std::vector<float> measured = h;
-  std::vector<float> flat = h;
-  FillHolesFromBelow(h, nx, ny, 10, 40, 30);
-  FillHolesFromBelow(flat, nx, ny, 10, 40);
-  // Tolerance: exact for a plane but for float rounding of ~10 m heights.
-  constexpr float kTol = 1e-4f;
-  double flat_error = 0;
-  for (int j = 10; j < 30; ++j)
-    for (int i = 66; i < 74; ++i) {
-      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
-      EXPECT_NEAR(h[k], plane(i), kTol) << i << "," << j;
-      flat_error = std::max<double>(flat_error, std::abs(flat[k] - plane(i)));
-    }
-  EXPECT_GT(flat_error, 1.0);  // what the flat-ground fill gets wrong here
-  // The ground surface keeps the plane under the building and removes it.
-  const std::vector<float> ground = GroundSurface(measured, nx, ny, 30);
-  EXPECT_NEAR(ground[20 * nx + 58], plane(58), kTol);
-  EXPECT_THROW(GroundSurface(measured, nx, ny, 0), Error);
-}
-
-TEST(Dense, HolesOutOfReachAreFilledAsTheReachGrows) {
-  // One row: 5 m at the west end, 1 m at the east end, 7 cells between.
-  // With a reach of 1 cell, the cell next to each end takes that end; the
-  // middle needs the doubled reach, which sees both ends and takes 1 m.
-  const float nan = std::nanf("");
-  std::vector<float> h = {5, nan, nan, nan, nan, nan, nan, nan, 1};
-  std::vector<float> capped = h;
-  const std::vector<std::uint8_t> filled = FillHolesFromBelow(h, 9, 1, 1, 100);
-  EXPECT_EQ(h[1], 5.0f);
-  EXPECT_EQ(h[7], 1.0f);
-  EXPECT_EQ(h[4], 1.0f);
-  for (int i = 1; i < 8; ++i) EXPECT_EQ(filled[i], 1) << i;
-  // With the reach capped at 2 cells, the cells 3 and more away stay empty.
-  const std::vector<std::uint8_t> near = FillHolesFromBelow(capped, 9, 1, 1, 2);
-  for (int i = 1; i < 8; ++i) {
-    const bool reachable = i <= 2 || i >= 6;
-    EXPECT_EQ(near[i], reachable ? 1 : 0) << i;
-    EXPECT_EQ(std::isfinite(capped[i]), reachable) << i;
-  }
-  std::vector<float> empty(6, nan);
-  FillHolesFromBelow(empty, 3, 2, 1, 100);
-  for (float x : empty) EXPECT_TRUE(std::isnan(x));
-  EXPECT_THROW(FillHolesFromBelow(empty, 4, 2, 1, 100), Error);
-  EXPECT_THROW(FillHolesFromBelow(empty, 3, 2, 0, 100), Error);
-}
-
 TEST(Dense, OptionsNameTheBadField) {
   DenseOptions o;
   o.window_cells = 4;
@@ -244,6 +158,47 @@ TEST(Dense, ABuildingHidesTheGroundBehindItFromObliqueViewsOnly) {
   for (int i = 20; i < 25; ++i) unknown[g.Index(i, j)] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_LE(VisibleAbove(g, unknown, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], -1.0f);
   EXPECT_THROW(VisibleAbove(g, std::vector<float>(7), Eigen::Vector3d(1, 0, 1), 0.0), Error);
+}
+
+TEST(Dense, GroundNoPairSeesIsOccludedAndOpenHolesAreNot) {
+  // 60 x 40 cells of 0.5 m, flat ground at 0 m; a 20 m block over columns
+  // 20-39, rows 20-29; an empty strip south of it (rows 12-19) and an empty
+  // patch in the open (columns 5-8, rows 5-8).
+  HeightGrid g;
+  g.cell_m = 0.5;
+  g.nx = 60;
+  g.ny = 40;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> surface(static_cast<std::size_t>(g.nx) * g.ny, 0.0f);
+  for (int j = 20; j < 30; ++j)
+    for (int i = 20; i < 40; ++i) surface[g.Index(i, j)] = 20.0f;
+  for (int j = 12; j < 20; ++j)
+    for (int i = 20; i < 40; ++i) surface[g.Index(i, j)] = nan;
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) surface[g.Index(i, j)] = nan;
+  const std::vector<float> terrain(surface.size(), 0.0f);
+  // Views from the north at about 63 deg elevation: the block hides 10 m of
+  // ground south of it, the whole strip.
+  std::vector<Eigen::Vector3d> views = {{0, 1, 2}, {0.3, 1, 2}, {0, -1, 2}};
+  constexpr double kTolM = 1.0;
+  auto occluded = [&](int i, int j, const std::vector<std::uint8_t>& o) { return o[g.Index(i, j)] == 1; };
+  // Two northern views and one southern: the strip is seen by one view only
+  // (but at its east end, where the north-north-eastern view looks past the
+  // block's corner).
+  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, kTolM, -5.0);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, three)) << i << "," << j;
+  EXPECT_FALSE(occluded(38, 12, three));
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) EXPECT_FALSE(occluded(i, j, three)) << i << "," << j;
+  for (std::size_t k = 0; k < surface.size(); ++k)
+    if (std::isfinite(surface[k])) EXPECT_EQ(three[k], 0);
+  // A second southern view makes a pair that sees the strip.
+  views.emplace_back(0.3, -1, 2);
+  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, kTolM, -5.0);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 39; ++i) EXPECT_FALSE(occluded(i, j, four)) << i << "," << j;
+  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, kTolM, -5.0), Error);
 }
 
 TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {

@@ -1,0 +1,303 @@
+#include "sfm/hole_fill.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include "core/error.h"
+#include "core/stats.h"
+
+namespace skyfall {
+namespace {
+
+constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+
+// How a window meets the grid's edge: cut to the cells inside, or moved
+// inside whole (as a structuring element must lie within the grid, so that
+// a building in a corner is not mistaken for ground).
+enum class Edge { kClip, kShift };
+
+// Sliding minimum of width 2r+1 over `n` values at stride `stride` from
+// `in` into `out` (van Herk / Gil-Werman: three comparisons per value,
+// whatever r). NaN and the outside count as +infinity.
+void SlidingMin1d(const float* in, float* out, int n, std::size_t stride, int r, Edge edge, std::vector<float>& prefix,
+                  std::vector<float>& suffix) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const int w = 2 * r + 1;
+  const int padded = ((n + 2 * r + w - 1) / w) * w;  // r of +inf on the left, the rest on the right
+  prefix.resize(padded);
+  suffix.resize(padded);
+  auto value = [&](int p) {
+    const int x = p - r;
+    if (x < 0 || x >= n) return inf;
+    const float v = in[static_cast<std::size_t>(x) * stride];
+    return v == v ? v : inf;
+  };
+  for (int start = 0; start < padded; start += w) {
+    prefix[start] = value(start);
+    for (int p = start + 1; p < start + w; ++p) prefix[p] = std::min(prefix[p - 1], value(p));
+    suffix[start + w - 1] = value(start + w - 1);
+    for (int p = start + w - 2; p >= start; --p) suffix[p] = std::min(suffix[p + 1], value(p));
+  }
+  // Window of output x: padded positions [x, x + 2r].
+  for (int x = 0; x < n; ++x) out[static_cast<std::size_t>(x) * stride] = std::min(suffix[x], prefix[x + 2 * r]);
+  if (edge == Edge::kShift) {
+    // Windows moved inside: near an edge, the window flush with it; the
+    // whole line when it is shorter than a window.
+    auto at = [&](int x) -> float& { return out[static_cast<std::size_t>(x) * stride]; };
+    if (n >= w) {
+      for (int x = 0; x < r; ++x) at(x) = at(r);
+      for (int x = n - r; x < n; ++x) at(x) = at(n - 1 - r);
+    } else {
+      float m = inf;
+      for (int p = r; p < r + n; ++p) m = std::min(m, value(p));
+      for (int x = 0; x < n; ++x) at(x) = m;
+    }
+  }
+}
+
+// Minimum over the (2r+1)^2 square around each cell, ignoring NaN (NaN
+// where the square holds no finite value); separable, rows then columns.
+std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r, Edge edge) {
+  std::vector<float> rows(h.size()), out(h.size()), prefix, suffix;
+  for (int j = 0; j < ny; ++j) {
+    const std::size_t row = static_cast<std::size_t>(j) * nx;
+    SlidingMin1d(h.data() + row, rows.data() + row, nx, 1, r, edge, prefix, suffix);
+  }
+  for (int i = 0; i < nx; ++i) SlidingMin1d(rows.data() + i, out.data() + i, ny, nx, r, edge, prefix, suffix);
+  for (float& x : out)
+    if (!std::isfinite(x)) x = kNan;
+  return out;
+}
+
+// Morphological opening with a flat (2r+1)^2 square lying within the grid:
+// the highest of the square minima (NaN cells ignored).
+std::vector<float> Opening(const std::vector<float>& h, int nx, int ny, int r) {
+  std::vector<float> eroded = MinFilter(h, nx, ny, r, Edge::kShift);
+  for (float& x : eroded) x = -x;  // the maximum filter as a minimum of negatives
+  std::vector<float> opened = MinFilter(eroded, nx, ny, r, Edge::kShift);
+  for (float& x : opened) x = -x;
+  return opened;
+}
+
+void CheckGrid(const std::vector<float>& h, int nx, int ny) {
+  if (nx < 1 || ny < 1 || h.size() != static_cast<std::size_t>(nx) * ny)
+    throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
+}
+
+// A plane z = c0 + c1 * (i - ci) + c2 * (j - cj) in cell coordinates,
+// centred on the cells it was fitted to (so the normal equations stay well
+// conditioned far from the grid's origin).
+struct CellPlane {
+  double ci = 0, cj = 0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double At(double i, double j) const { return c[0] + c[1] * (i - ci) + c[2] * (j - cj); }
+};
+
+// Least-squares plane through the cells `used` of `h`; nullopt when they do
+// not span a plane (fewer than 3, or all on one line).
+std::optional<CellPlane> FitPlane(const std::vector<float>& h, int nx, const std::vector<std::size_t>& used) {
+  if (used.size() < 3) return std::nullopt;
+  CellPlane plane;
+  for (std::size_t k : used) {
+    plane.ci += static_cast<double>(k % nx);
+    plane.cj += static_cast<double>(k / nx);
+  }
+  plane.ci /= static_cast<double>(used.size());
+  plane.cj /= static_cast<double>(used.size());
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (std::size_t k : used) {
+    const Eigen::Vector3d x(1.0, static_cast<double>(k % nx) - plane.ci, static_cast<double>(k / nx) - plane.cj);
+    normal += x * x.transpose();
+    rhs += x * static_cast<double>(h[k]);
+  }
+  // The spread of the cells around their centre: a line (or a point) leaves
+  // the tilt across it free.
+  const Eigen::Matrix2d spread = normal.bottomRightCorner<2, 2>();
+  if (!(spread.determinant() > 1e-6 * spread.trace() * spread.trace())) return std::nullopt;
+  plane.c = normal.ldlt().solve(rhs);
+  return plane;
+}
+
+// Harmonic interpolation on a small grid: cells with `known` keep their
+// value, the others converge to the mean of their 4 neighbours
+// (successive over-relaxation).
+void HarmonicFill(std::vector<double>& v, const std::vector<std::uint8_t>& known, int nx, int ny) {
+  constexpr double kOmega = 1.8;           // over-relaxation: a few hundred sweeps for a 100-block grid
+  constexpr double kConvergedM = 1e-5;     // largest change of a sweep [m]
+  constexpr int kMaxSweeps = 20000;
+  double mean = 0;
+  int count = 0;
+  for (std::size_t k = 0; k < v.size(); ++k)
+    if (known[k]) {
+      mean += v[k];
+      ++count;
+    }
+  if (count == 0 || count == static_cast<int>(v.size())) return;
+  mean /= count;
+  for (std::size_t k = 0; k < v.size(); ++k)
+    if (!known[k]) v[k] = mean;
+  for (int sweep = 0; sweep < kMaxSweeps; ++sweep) {
+    double largest = 0;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+        if (known[k]) continue;
+        double sum = 0;
+        int n = 0;
+        if (i > 0) sum += v[k - 1], ++n;
+        if (i + 1 < nx) sum += v[k + 1], ++n;
+        if (j > 0) sum += v[k - nx], ++n;
+        if (j + 1 < ny) sum += v[k + nx], ++n;
+        if (n == 0) continue;
+        const double change = kOmega * (sum / n - v[k]);
+        v[k] += change;
+        largest = std::max(largest, std::abs(change));
+      }
+    if (largest < kConvergedM) break;
+  }
+}
+
+// Linear interpolation weights between block centres b and b+1 for cell
+// coordinate x, extended linearly beyond the first and last centre.
+struct Lerp {
+  int b = 0;
+  double t = 0;
+};
+Lerp BlockLerp(double x, int block, int blocks) {
+  if (blocks == 1) return {0, 0.0};
+  const double u = (x - 0.5 * (block - 1)) / block;  // in block-centre units
+  const int b = std::clamp(static_cast<int>(std::floor(u)), 0, blocks - 2);
+  return {b, u - b};
+}
+
+}  // namespace
+
+std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells) {
+  CheckGrid(h, nx, ny);
+  if (radius_cells < 1) throw Error("dense", "ground radius", std::to_string(radius_cells) + " cells must be >= 1");
+  // A flat square opening that must lie within the grid keeps a plane only
+  // where the squares fit: near an uphill edge it drops to the plane's
+  // height 2r downhill. Opening the heights less their trend plane leaves
+  // little slope to lose. The trend is the plane under the surface: fitted
+  // to all measured cells, then again and again to the cells at or below
+  // the last fit (buildings and trees fall out within a few rounds).
+  constexpr int kTrendRounds = 6;
+  std::vector<std::size_t> below;
+  for (std::size_t k = 0; k < h.size(); ++k)
+    if (std::isfinite(h[k])) below.push_back(k);
+  std::optional<CellPlane> trend;
+  for (int round = 0; round < kTrendRounds; ++round) {
+    const std::optional<CellPlane> fit = FitPlane(h, nx, below);
+    if (!fit) break;
+    trend = fit;
+    std::vector<std::size_t> next;
+    for (std::size_t k : below)
+      if (h[k] <= trend->At(static_cast<double>(k % nx), static_cast<double>(k / nx))) next.push_back(k);
+    below.swap(next);
+  }
+  std::vector<float> trend_m(h.size(), 0.0f), detrended(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    if (trend) trend_m[k] = static_cast<float>(trend->At(static_cast<double>(k % nx), static_cast<double>(k / nx)));
+    detrended[k] = h[k] - trend_m[k];
+  }
+  std::vector<float> opened = Opening(detrended, nx, ny, radius_cells);
+  for (std::size_t k = 0; k < h.size(); ++k) opened[k] += trend_m[k];
+  return opened;
+}
+
+std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<float>& ground, int nx, int ny,
+                                const HoleFillOptions& o) {
+  CheckGrid(h, nx, ny);
+  if (ground.size() != h.size()) throw Error("dense", "ground surface", "size differs from the height grid's");
+  const int block = o.terrain_block_cells;
+  if (block < 2) throw Error("dense", "terrain block", std::to_string(block) + " cells must be >= 2");
+  const int bx = (nx + block - 1) / block, by = (ny + block - 1) / block;
+  std::vector<std::vector<std::size_t>> members(static_cast<std::size_t>(bx) * by);
+  for (std::size_t k = 0; k < h.size(); ++k)
+    if (std::isfinite(h[k]) && std::isfinite(ground[k]) && h[k] - ground[k] <= o.ground_tolerance_m)
+      members[(k / nx / block) * bx + (k % nx) / block].push_back(k);
+  std::vector<double> centre(members.size(), 0.0);
+  std::vector<std::uint8_t> known(members.size(), 0);
+  for (int b = 0; b < by; ++b)
+    for (int a = 0; a < bx; ++a) {
+      const std::size_t m = static_cast<std::size_t>(b) * bx + a;
+      if (members[m].empty()) continue;
+      // The nominal centre, also for a partial block at the grid's edge.
+      const double ci = a * block + 0.5 * (block - 1), cj = b * block + 0.5 * (block - 1);
+      // A plane needs cells spread over the block: a few noisy cells in a
+      // corner would tilt it, and the centre can be half a block away.
+      constexpr std::size_t kMinPlaneCells = 8;
+      const std::optional<CellPlane> plane =
+          members[m].size() >= kMinPlaneCells ? FitPlane(h, nx, members[m]) : std::nullopt;
+      if (plane) {
+        centre[m] = plane->At(ci, cj);
+      } else {
+        std::vector<double> z;
+        for (std::size_t k : members[m]) z.push_back(h[k]);
+        centre[m] = Quantile(z, 0.5);
+      }
+      known[m] = 1;
+    }
+  if (std::find(known.begin(), known.end(), 1) == known.end()) return std::vector<float>(h.size(), kNan);
+  HarmonicFill(centre, known, bx, by);
+  std::vector<float> terrain(h.size());
+  for (int j = 0; j < ny; ++j) {
+    const Lerp v = BlockLerp(j, block, by);
+    for (int i = 0; i < nx; ++i) {
+      const Lerp u = BlockLerp(i, block, bx);
+      auto at = [&](int a, int b) { return centre[static_cast<std::size_t>(std::min(b, by - 1)) * bx + std::min(a, bx - 1)]; };
+      const double low = (1 - u.t) * at(u.b, v.b) + u.t * at(u.b + 1, v.b);
+      const double high = (1 - u.t) * at(u.b, v.b + 1) + u.t * at(u.b + 1, v.b + 1);
+      terrain[static_cast<std::size_t>(j) * nx + i] = static_cast<float>((1 - v.t) * low + v.t * high);
+    }
+  }
+  return terrain;
+}
+
+GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const HoleFillOptions& o) {
+  GroundModel model;
+  model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells);
+  model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
+  return model;
+}
+
+std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
+                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded) {
+  CheckGrid(h, nx, ny);
+  if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
+  if (o.max_reach_cells < o.radius_cells)
+    throw Error("dense", "fill reach", std::to_string(o.max_reach_cells) + " cells must be >= the fill radius");
+  if (model.terrain_m.size() != h.size()) throw Error("dense", "terrain", "size differs from the height grid's");
+  if (occluded && occluded->size() != h.size()) throw Error("dense", "occluded", "size differs from the height grid's");
+  std::vector<std::uint8_t> filled(h.size(), 0);
+  // Heights above the terrain of the measured cells.
+  std::vector<float> above(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) above[k] = h[k] - model.terrain_m[k];
+  const std::vector<float> measured = h;
+  // Each pass fills what a square of this radius reaches; the radius
+  // doubles up to the largest reach.
+  for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
+    const std::vector<float> low = MinFilter(above, nx, ny, r, Edge::kClip);
+    bool open = false;
+    for (std::size_t k = 0; k < h.size(); ++k) {
+      if (std::isfinite(measured[k]) || filled[k]) continue;
+      if (!std::isfinite(low[k]) || !std::isfinite(model.terrain_m[k])) {
+        open = true;
+        continue;
+      }
+      const bool ground = occluded && (*occluded)[k];
+      h[k] = model.terrain_m[k] + (ground ? 0.0f : low[k]);
+      filled[k] = 1;
+    }
+    if (!open || r >= o.max_reach_cells) break;
+  }
+  return filled;
+}
+
+}  // namespace skyfall

@@ -1,0 +1,63 @@
+// Filling the holes of a dense height grid (cells no image pair measured)
+// from what surrounds them, and the ground surface and terrain model that
+// tells ground from raised surfaces. Grids are nx x ny, row-major, NaN where
+// there is no height.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace skyfall {
+
+struct HoleFillOptions {
+  int radius_cells = 10;            // first reach of a hole cell, doubled while nothing is in it
+  int max_reach_cells = 40;         // cells further than this from every measured cell stay NaN
+  int ground_radius_cells = 60;     // radius of the ground surface's opening (GroundSurface)
+  float ground_tolerance_m = 1.0f;  // measured cells this close above the ground surface are ground
+  int terrain_block_cells = 8;      // block side of the terrain model (TerrainModel)
+};
+
+// The ground under a height grid: its opening (GroundSurface), which tells
+// ground cells from raised ones, and the terrain model through the ground
+// cells (TerrainModel), which also spans the holes.
+struct GroundModel {
+  std::vector<float> ground_m, terrain_m;
+};
+GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options);
+
+// Fills the NaN cells of `height_m` (nx x ny) within reach of a measured
+// cell; returns a per-cell flag of what was filled. A cell that `occluded`
+// marks (ground no image pair can see, hidden by the measured surface: the
+// foot of a wall facing away from the views, a street between tall
+// buildings) is ground: it takes the terrain. Any other hole (a surface
+// seen but not matched: a plain roof, a shadow, a tree) takes the terrain
+// plus the lowest height above the terrain within radius_cells (doubled up
+// to max_reach_cells while nothing is in reach): most such holes border the
+// ground, and filling them from a roof would put roofs in courtyards; a
+// hole with only roof in reach (inside a roof) takes the roof. Heights are
+// measured above the terrain, so on a slope a hole is filled at its own
+// ground level, not at the downhill one.
+std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options,
+                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded = nullptr);
+
+// The ground under `height_m` (nx x ny, NaN = unknown): a morphological
+// opening with a flat square of radius `radius_cells` (the highest of the
+// square minima) of the heights less their trend plane, plus that plane. It
+// keeps planes exactly (up to the grid's edges) and smooth terrain, and
+// removes what is narrower than the square (buildings, trees). NaN where no
+// measured cell is within reach.
+std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int ny, int radius_cells);
+
+
+// A terrain model under the whole grid, holes included: the ground cells
+// (measured, within `ground_tolerance_m` of `ground_surface`) are grouped in
+// blocks of terrain_block_cells; each block's plane (least squares, or the
+// median of fewer than 3 cells) gives its value at the block's centre,
+// blocks without ground take the harmonic interpolation of the others, and
+// cells interpolate the block centres bilinearly (linearly extended over the
+// outer half blocks). Exact on planes; NaN everywhere when no cell is ground.
+// Unlike the opening, it does not flatten across a wide hole.
+std::vector<float> TerrainModel(const std::vector<float>& height_m, const std::vector<float>& ground_surface, int nx,
+                                int ny, const HoleFillOptions& options);
+
+}  // namespace skyfall

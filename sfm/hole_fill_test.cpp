@@ -1,0 +1,160 @@
+#include "sfm/hole_fill.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "core/error.h"
+
+namespace skyfall {
+namespace {
+
+// Options for grids of 0.5 m cells: 5 m first reach, 20 m largest, 30 m
+// ground radius.
+HoleFillOptions FillOptions() {
+  HoleFillOptions o;
+  o.radius_cells = 10;
+  o.max_reach_cells = 40;
+  o.ground_radius_cells = 60;
+  return o;
+}
+
+std::vector<std::uint8_t> Fill(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
+                               const std::vector<std::uint8_t>* occluded = nullptr) {
+  return FillHoles(h, nx, ny, o, GroundModelOf(h, nx, ny, o), occluded);
+}
+
+TEST(HoleFill, HolesBesideAWallAreGroundAndHolesInARoofTakeTheRoof) {
+  // Flat ground (0 m) with a 10 m roof in the west; a 3-cell hole between
+  // them (ground hidden by the wall: roof on one side, ground on the other)
+  // must take the ground, and a one-cell hole inside the roof, whose reach
+  // holds only roof, the roof. Nothing measured may change.
+  const int nx = 60, ny = 8;
+  const float nan = std::nanf("");
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) h[j * nx + i] = i < 10 ? 10.0f : i < 13 ? nan : 0.0f;
+  h[3 * nx + 4] = nan;
+  const std::vector<float> before = h;
+  HoleFillOptions o = FillOptions();
+  o.radius_cells = 3;
+  const std::vector<std::uint8_t> filled = Fill(h, nx, ny, o);
+  // Tolerance: float rounding of the terrain's plane fits over ~10 m.
+  constexpr float kTol = 1e-4f;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      const bool wall_hole = i >= 10 && i < 13, roof_hole = i == 4 && j == 3;
+      EXPECT_EQ(filled[k], wall_hole || roof_hole ? 1 : 0) << i << "," << j;
+      if (wall_hole) EXPECT_NEAR(h[k], 0.0f, kTol) << i << "," << j;
+      else if (roof_hole) EXPECT_NEAR(h[k], 10.0f, kTol);
+      else EXPECT_EQ(h[k], before[k]);
+    }
+}
+
+TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
+  // A 30% slope rising east (0.5 m cells: 0.15 m per cell) and a 40 m tall
+  // building whose south wall hides a 20-cell strip of ground that runs to
+  // the grid's south edge: within reach of most of the strip there is only
+  // roof. Marked occluded (no pair sees it) it is ground and follows the
+  // slope; left to the reach rule it would take the roof.
+  const int nx = 160, ny = 60;
+  const float nan = std::nanf("");
+  auto plane = [](int i) { return 0.15f * i; };
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  std::vector<std::uint8_t> occluded(h.size(), 0);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      const bool building = i >= 40 && i < 120 && j >= 20 && j < 50;
+      const bool hidden = i >= 40 && i < 120 && j < 20;
+      h[k] = hidden ? nan : plane(i) + (building ? 40.0f : 0.0f);
+      occluded[k] = hidden ? 1 : 0;
+    }
+  const std::vector<float> measured = h;
+  std::vector<float> unmarked = h;
+  const std::vector<std::uint8_t> filled = Fill(h, nx, ny, FillOptions(), &occluded);
+  Fill(unmarked, nx, ny, FillOptions());
+  // Tolerance: exact for a plane but for float rounding of ~40 m heights.
+  constexpr float kTol = 1e-4f;
+  int roof_without_mark = 0;
+  for (int j = 0; j < 20; ++j)
+    for (int i = 40; i < 120; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      EXPECT_EQ(filled[k], 1);
+      EXPECT_NEAR(h[k], plane(i), kTol) << i << "," << j;
+      roof_without_mark += unmarked[k] > plane(i) + 20.0f ? 1 : 0;
+    }
+  EXPECT_GT(roof_without_mark, 20 * 40);  // what visibility buys: most of the strip
+  // The ground surface keeps the plane under the building and removes it,
+  // also within its radius of the uphill edge.
+  const std::vector<float> ground = GroundSurface(measured, nx, ny, 60);
+  EXPECT_NEAR(ground[35 * nx + 80], plane(80), kTol);
+  EXPECT_NEAR(ground[10 * nx + 150], plane(150), kTol);
+  EXPECT_THROW(GroundSurface(measured, nx, ny, 0), Error);
+}
+
+TEST(HoleFill, TheTerrainModelSpansWideHolesOnAPlane) {
+  // A tilted plane (0.1 m and -0.05 m per cell) with a 40 x 30 cell hole and
+  // a 12 m block: the terrain model is the plane everywhere, the hole and
+  // the block included, where an opening would flatten across the hole.
+  const int nx = 120, ny = 90;
+  const float nan = std::nanf("");
+  auto plane = [](int i, int j) { return 3.0f + 0.1f * i - 0.05f * j; };
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool hole = i >= 30 && i < 70 && j >= 20 && j < 50;
+      const bool block = i >= 80 && i < 100 && j >= 60 && j < 80;
+      h[static_cast<std::size_t>(j) * nx + i] = hole ? nan : plane(i, j) + (block ? 12.0f : 0.0f);
+    }
+  const GroundModel model = GroundModelOf(h, nx, ny, FillOptions());
+  // Tolerance: float rounding of block plane fits and the harmonic fill's
+  // convergence threshold.
+  constexpr float kTol = 1e-3f;
+  for (int j = 0; j < ny; j += 3)
+    for (int i = 0; i < nx; i += 3)
+      EXPECT_NEAR(model.terrain_m[static_cast<std::size_t>(j) * nx + i], plane(i, j), kTol) << i << "," << j;
+  std::vector<float> no_ground(h.size(), nan);
+  const GroundModel empty = GroundModelOf(no_ground, nx, ny, FillOptions());
+  for (float t : empty.terrain_m) EXPECT_TRUE(std::isnan(t));
+}
+
+TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
+  // One row of 0.5 m cells: ground at both ends, 30 empty cells between.
+  // With a reach of 10 cells the cells within 10 of an end are filled (as
+  // ground), the middle stays empty; an all-empty grid stays empty.
+  const float nan = std::nanf("");
+  const int nx = 34;
+  std::vector<float> h(nx, nan);
+  h[0] = h[1] = 2.0f;
+  h[nx - 2] = h[nx - 1] = 2.0f;
+  HoleFillOptions options = FillOptions();
+  options.radius_cells = 5;
+  options.max_reach_cells = 10;
+  const std::vector<std::uint8_t> filled = Fill(h, nx, 1, options);
+  for (int i = 2; i < nx - 2; ++i) {
+    const bool reachable = i <= 11 || i >= nx - 12;
+    EXPECT_EQ(filled[i], reachable ? 1 : 0) << i;
+    if (reachable) EXPECT_NEAR(h[i], 2.0f, 1e-5f) << i;
+    else EXPECT_TRUE(std::isnan(h[i])) << i;
+  }
+  std::vector<float> empty(6, nan);
+  Fill(empty, 3, 2, FillOptions());
+  for (float x : empty) EXPECT_TRUE(std::isnan(x));
+  EXPECT_THROW(Fill(empty, 4, 2, FillOptions()), Error);
+  options = FillOptions();
+  options.ground_radius_cells = 0;
+  EXPECT_THROW(Fill(empty, 3, 2, options), Error);
+  options = FillOptions();
+  options.max_reach_cells = 5;  // below the first reach
+  EXPECT_THROW(Fill(empty, 3, 2, options), Error);
+  const std::vector<std::uint8_t> wrong_mask(5, 0);
+  std::vector<float> grid(6, 1.0f);
+  EXPECT_THROW(FillHoles(grid, 3, 2, FillOptions(), GroundModelOf(grid, 3, 2, FillOptions()), &wrong_mask), Error);
+}
+
+}  // namespace
+}  // namespace skyfall
