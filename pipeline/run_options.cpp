@@ -152,6 +152,7 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("init_pieces", o.init_pieces);
   io("init_points", o.init_points);
   io("init_spacing_m", o.init_spacing_m);
+  io("init_facade_step_m", o.init_facade_step_m);
   io("densify", o.densify);
   io("seed", t.seed);
   io("lambda_dssim", t.lambda_dssim);
@@ -450,6 +451,8 @@ void TrainStageOptions::Check() const {
   if (!(init_max_scale_m >= 0)) throw Error("train", "init_max_scale_m", "must be >= 0 (0 = no cap), got " + FormatDouble(init_max_scale_m));
   if (init_pieces < 1) throw Error("train", "init_pieces", "must be >= 1, got " + std::to_string(init_pieces));
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
+  if (!(init_facade_step_m >= 0))
+    throw Error("train", "init_facade_step_m", "must be >= 0, got " + FormatDouble(init_facade_step_m));
 }
 
 void IduStageOptions::Check() const {

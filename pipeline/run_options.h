@@ -43,6 +43,9 @@ struct TrainStageOptions {
   // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
   std::string init_points = "auto";
   double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
+  // [m] With a dense start, Gaussians also on the walls of the dense heights
+  // where neighbouring cells differ by this much (FacadePoints); 0 = none.
+  double init_facade_step_m = 0.0;
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).

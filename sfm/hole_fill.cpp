@@ -150,10 +150,14 @@ void HarmonicFill(std::vector<double>& v, const std::vector<std::uint8_t>& known
         if (known[k]) continue;
         double sum = 0;
         int n = 0;
-        if (i > 0) sum += v[k - 1], ++n;
-        if (i + 1 < nx) sum += v[k + 1], ++n;
-        if (j > 0) sum += v[k - nx], ++n;
-        if (j + 1 < ny) sum += v[k + nx], ++n;
+        auto add = [&](std::size_t neighbour) {
+          sum += v[neighbour];
+          ++n;
+        };
+        if (i > 0) add(k - 1);
+        if (i + 1 < nx) add(k + 1);
+        if (j > 0) add(k - nx);
+        if (j + 1 < ny) add(k + nx);
         if (n == 0) continue;
         const double change = kOmega * (sum / n - v[k]);
         v[k] += change;
@@ -264,6 +268,11 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
+  // The plain opening, squares cut at the grid's edges.
+  std::vector<float> eroded = MinFilter(h, nx, ny, o.ground_radius_cells, Edge::kClip);
+  for (float& x : eroded) x = -x;
+  model.seen_hole_base_m = MinFilter(eroded, nx, ny, o.ground_radius_cells, Edge::kClip);
+  for (float& x : model.seen_hole_base_m) x = -x;
   return model;
 }
 
@@ -273,12 +282,14 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
   if (o.max_reach_cells < o.radius_cells)
     throw Error("dense", "fill reach", std::to_string(o.max_reach_cells) + " cells must be >= the fill radius");
-  if (model.terrain_m.size() != h.size()) throw Error("dense", "terrain", "size differs from the height grid's");
+  if (model.terrain_m.size() != h.size() || model.seen_hole_base_m.size() != h.size())
+    throw Error("dense", "ground model", "size differs from the height grid's");
   if (occluded && occluded->size() != h.size()) throw Error("dense", "occluded", "size differs from the height grid's");
   std::vector<std::uint8_t> filled(h.size(), 0);
-  // Heights above the terrain of the measured cells.
+  // Heights of the measured cells above the base of seen holes.
+  const std::vector<float>& base = model.seen_hole_base_m;
   std::vector<float> above(h.size());
-  for (std::size_t k = 0; k < h.size(); ++k) above[k] = h[k] - model.terrain_m[k];
+  for (std::size_t k = 0; k < h.size(); ++k) above[k] = h[k] - base[k];
   const std::vector<float> measured = h;
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
@@ -287,12 +298,12 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(measured[k]) || filled[k]) continue;
-      if (!std::isfinite(low[k]) || !std::isfinite(model.terrain_m[k])) {
+      const bool ground = occluded && (*occluded)[k];
+      if (ground ? !std::isfinite(model.terrain_m[k]) : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
         open = true;
         continue;
       }
-      const bool ground = occluded && (*occluded)[k];
-      h[k] = model.terrain_m[k] + (ground ? 0.0f : low[k]);
+      h[k] = ground ? model.terrain_m[k] : base[k] + low[k];
       filled[k] = 1;
     }
     if (!open || r >= o.max_reach_cells) break;

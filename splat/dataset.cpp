@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -75,6 +76,49 @@ void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
   for (std::size_t k = 0; k < extra.size(); ++k) add_if_free(extra[k], extra_colours[k]);
   *points = std::move(out_points);
   *colours = std::move(out_colours);
+}
+
+void FacadePoints(const std::vector<Eigen::Vector3f>& grid_points, const std::vector<Eigen::Vector3f>& colours,
+                  double cell_m, double spacing_m, double min_step_m, std::vector<Eigen::Vector3f>* points,
+                  std::vector<Eigen::Vector3f>* out_colours, std::vector<int>* normal_axis) {
+  if (!(cell_m > 0) || !(spacing_m > 0) || !(min_step_m > 0))
+    throw Error("splat", "facade points", "cell, spacing and step must be > 0");
+  if (grid_points.size() != colours.size()) throw Error("splat", "facade points", "points and colours differ in number");
+  points->clear();
+  out_colours->clear();
+  normal_axis->clear();
+  if (grid_points.empty()) return;
+  // The cells by grid index.
+  using Key = std::pair<std::int64_t, std::int64_t>;
+  Eigen::Vector2f origin = grid_points[0].head<2>();
+  for (const Eigen::Vector3f& p : grid_points) origin = origin.cwiseMin(p.head<2>());
+  auto key_of = [&](const Eigen::Vector3f& p) {
+    return Key(std::llround((p.x() - origin.x()) / cell_m), std::llround((p.y() - origin.y()) / cell_m));
+  };
+  std::map<Key, std::size_t> cell;
+  for (std::size_t k = 0; k < grid_points.size(); ++k) cell.emplace(key_of(grid_points[k]), k);
+  // Along a wall, one column every spacing_m: every n-th cell edge.
+  const std::int64_t every = std::max<std::int64_t>(1, std::llround(spacing_m / cell_m));
+  for (const auto& [key, k] : cell) {
+    static constexpr int kSides[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    for (const auto& side : kSides) {
+      const auto found = cell.find(Key(key.first + side[0], key.second + side[1]));
+      if (found == cell.end()) continue;
+      const Eigen::Vector3f& high = grid_points[k];
+      const Eigen::Vector3f& low = grid_points[found->second];
+      if (high.z() - low.z() < min_step_m) continue;
+      const std::int64_t along = side[0] != 0 ? key.second : key.first;  // position along the wall
+      if (along % every != 0) continue;
+      const Eigen::Vector2f edge = 0.5f * (high.head<2>() + low.head<2>());
+      const int rows = std::max(1, static_cast<int>(std::floor((high.z() - low.z()) / spacing_m)));
+      for (int r = 0; r < rows; ++r) {
+        const float z = low.z() + (r + 0.5f) * (high.z() - low.z()) / rows;
+        points->emplace_back(edge.x(), edge.y(), z);
+        out_colours->push_back(colours[found->second]);
+        normal_axis->push_back(side[0] != 0 ? 0 : 1);
+      }
+    }
+  }
 }
 
 std::vector<CameraEntry> ReadCameraEntries(const std::string& path) {

@@ -28,6 +28,19 @@ void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
                 const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
                 std::vector<Eigen::Vector3f>* colours);
 
+// Points on the walls of a height grid (`grid_points`, one per cell of
+// `cell_m`, ENU): where a cell stands at least `min_step_m` above a
+// neighbour, a column of points on their shared edge from the lower height
+// to the upper one, every `spacing_m` up and along the wall, coloured like
+// the lower cell. The Gaussians of a height grid hold roofs and ground but
+// no walls; started without them, training pulls the roofs' edge Gaussians
+// down to paint the walls that oblique views show.
+// `normal_axis` gets, per point, the ENU axis its wall faces (0: east-west,
+// 1: north-south).
+void FacadePoints(const std::vector<Eigen::Vector3f>& grid_points, const std::vector<Eigen::Vector3f>& colours_01,
+                  double cell_m, double spacing_m, double min_step_m, std::vector<Eigen::Vector3f>* points,
+                  std::vector<Eigen::Vector3f>* colours, std::vector<int>* normal_axis);
+
 // One used image of cameras.json.
 struct CameraEntry {
   std::string name;

@@ -271,6 +271,42 @@ TEST(Trainer, DenseInitKeepsOnePointPerCellAndTiePointsInItsHoles) {
   EXPECT_THROW(ThinToGrid(0.0, dense, dense_rgb, ties, ties_rgb, &points, &colours), Error);
 }
 
+TEST(Trainer, FacadePointsStandOnTheWallsOfTheDenseHeights) {
+  // 0.5 m cells over 8 x 8 m at 1 m, with a 4 x 4 cell block 7 m tall (cells
+  // 6-9 each way, 6 m above the ground) and a 1 m kerb step that is below the
+  // 2 m threshold.
+  std::vector<Eigen::Vector3f> grid, rgb;
+  for (int j = 0; j < 16; ++j)
+    for (int i = 0; i < 16; ++i) {
+      const bool block = i >= 6 && i < 10 && j >= 6 && j < 10;
+      const bool kerb = i >= 13;
+      grid.emplace_back(0.5f * i, 0.5f * j, block ? 7.0f : kerb ? 2.0f : 1.0f);
+      rgb.emplace_back(block ? 0.9f : 0.1f, 0.5f, 0.5f);
+    }
+  std::vector<Eigen::Vector3f> points, colours;
+  std::vector<int> normals;
+  FacadePoints(grid, rgb, 0.5, 1.0, 2.0, &points, &colours, &normals);
+  ASSERT_EQ(normals.size(), points.size());
+  // 4 walls of 4 cell edges, a column every second edge: 8 columns of
+  // floor(6 m / 1 m) = 6 points, at 1.5, 2.5, ..., 6.5 m.
+  ASSERT_EQ(points.size(), 8u * 6u);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3f& p = points[k];
+    const bool on_x_wall = std::abs(p.x() - 2.75f) < 1e-5f || std::abs(p.x() - 4.75f) < 1e-5f;
+    const bool on_y_wall = std::abs(p.y() - 2.75f) < 1e-5f || std::abs(p.y() - 4.75f) < 1e-5f;
+    EXPECT_TRUE(on_x_wall || on_y_wall) << p.transpose();
+    EXPECT_EQ(normals[k], on_x_wall ? 0 : 1) << p.transpose();
+    EXPECT_GT(p.z(), 1.0f);
+    EXPECT_LT(p.z(), 7.0f);
+    EXPECT_NEAR(std::fmod(p.z() - 1.5f, 1.0f), 0.0f, 1e-5f) << p.z();
+    EXPECT_EQ(colours[k], rgb[0]) << "coloured like the lower cell";
+  }
+  FacadePoints({}, {}, 0.5, 1.0, 2.0, &points, &colours, &normals);
+  EXPECT_TRUE(points.empty());
+  EXPECT_THROW(FacadePoints(grid, rgb, 0.5, 1.0, 0.0, &points, &colours, &normals), Error);
+  EXPECT_THROW(FacadePoints(grid, {}, 0.5, 1.0, 2.0, &points, &colours, &normals), Error);
+}
+
 TEST(Trainer, RefusesViewsThatDoNotMatchTheirCameras) {
   Fixture f;
   TrainView v;
