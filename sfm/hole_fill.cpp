@@ -74,12 +74,12 @@ std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r,
   return out;
 }
 
-// Morphological opening with a flat (2r+1)^2 square lying within the grid:
-// the highest of the square minima (NaN cells ignored).
-std::vector<float> Opening(const std::vector<float>& h, int nx, int ny, int r) {
-  std::vector<float> eroded = MinFilter(h, nx, ny, r, Edge::kShift);
+// Morphological opening with a flat (2r+1)^2 square, moved inside or cut
+// at the grid's edges: the highest of the square minima (NaN cells ignored).
+std::vector<float> Opening(const std::vector<float>& h, int nx, int ny, int r, Edge edge) {
+  std::vector<float> eroded = MinFilter(h, nx, ny, r, edge);
   for (float& x : eroded) x = -x;  // the maximum filter as a minimum of negatives
-  std::vector<float> opened = MinFilter(eroded, nx, ny, r, Edge::kShift);
+  std::vector<float> opened = MinFilter(eroded, nx, ny, r, edge);
   for (float& x : opened) x = -x;
   return opened;
 }
@@ -210,7 +210,7 @@ std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, in
     if (trend) trend_m[k] = static_cast<float>(trend->At(static_cast<double>(k % nx), static_cast<double>(k / nx)));
     detrended[k] = h[k] - trend_m[k];
   }
-  std::vector<float> opened = Opening(detrended, nx, ny, radius_cells);
+  std::vector<float> opened = Opening(detrended, nx, ny, radius_cells, Edge::kShift);
   for (std::size_t k = 0; k < h.size(); ++k) opened[k] += trend_m[k];
   return opened;
 }
@@ -268,11 +268,7 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
-  // The plain opening, squares cut at the grid's edges.
-  std::vector<float> eroded = MinFilter(h, nx, ny, o.ground_radius_cells, Edge::kClip);
-  for (float& x : eroded) x = -x;
-  model.seen_hole_base_m = MinFilter(eroded, nx, ny, o.ground_radius_cells, Edge::kClip);
-  for (float& x : model.seen_hole_base_m) x = -x;
+  model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, Edge::kClip);
   return model;
 }
 
@@ -290,14 +286,13 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   const std::vector<float>& base = model.seen_hole_base_m;
   std::vector<float> above(h.size());
   for (std::size_t k = 0; k < h.size(); ++k) above[k] = h[k] - base[k];
-  const std::vector<float> measured = h;
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
     const std::vector<float> low = MinFilter(above, nx, ny, r, Edge::kClip);
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
-      if (std::isfinite(measured[k]) || filled[k]) continue;
+      if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
       const bool ground = occluded && (*occluded)[k];
       if (ground ? !std::isfinite(model.terrain_m[k]) : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
         open = true;
