@@ -153,6 +153,7 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("init_points", o.init_points);
   io("init_spacing_m", o.init_spacing_m);
   io("init_facade_step_m", o.init_facade_step_m);
+  io("surface_filled_weight", o.surface_filled_weight);
   io("densify", o.densify);
   io("seed", t.seed);
   io("lambda_dssim", t.lambda_dssim);
@@ -453,6 +454,8 @@ void TrainStageOptions::Check() const {
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
   if (!(init_facade_step_m >= 0))
     throw Error("train", "init_facade_step_m", "must be >= 0, got " + FormatDouble(init_facade_step_m));
+  if (!(surface_filled_weight >= 0 && surface_filled_weight <= 1))
+    throw Error("train", "surface_filled_weight", "must be in [0, 1], got " + FormatDouble(surface_filled_weight));
 }
 
 void IduStageOptions::Check() const {

@@ -46,6 +46,9 @@ struct TrainStageOptions {
   // [m] With a dense start, Gaussians also on the walls of the dense heights
   // where neighbouring cells differ by this much (FacadePoints); 0 = none.
   double init_facade_step_m = 0.0;
+  // Confidence of the filled dense cells (FillHoles: no pair matched them)
+  // in the surface anchor's depth term, against 1 for matched cells.
+  double surface_filled_weight = 1.0;
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).

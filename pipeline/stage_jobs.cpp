@@ -120,6 +120,14 @@ std::string DensePly(const HeightGrid& g) {
 
 }  // namespace
 
+std::vector<float> FilledCellWeights(const DenseCells& cells, double filled_weight) {
+  if (filled_weight >= 1.0) return {};  // all alike: no weights
+  std::vector<float> w(cells.points.size(), 1.0f);
+  for (std::size_t k = 0; k < w.size(); ++k)
+    if (cells.filled[k]) w[k] = static_cast<float>(filled_weight);
+  return w;
+}
+
 DenseCells ReadDenseCells(const std::string& path) {
   std::istringstream in(ReadTextFile(path));
   DenseCells cells;
@@ -245,7 +253,8 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   if (decided.dense_start) {
     const DenseCells dense = ReadDenseCells(dense_path.string());
     if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
-      surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m);
+      surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
+                                                    FilledCellWeights(dense, stage.surface_filled_weight));
     ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
     if (stage.init_facade_step_m > 0)
       FacadePoints(dense.points, dense.colours, dense.cell_m, stage.init_spacing_m, stage.init_facade_step_m, &facades,
@@ -331,7 +340,9 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
   for (const TrainView& v : views)
     if (!v.held_out) satellite_train.push_back(v);
   std::unique_ptr<SurfaceDepthPrior> surface;
-  if (!dense.points.empty()) surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m);
+  if (!dense.points.empty())
+    surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
+                                                  FilledCellWeights(dense, train.surface_filled_weight));
   auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
   const std::unique_ptr<Refiner> refiner =
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),

@@ -286,6 +286,12 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   const std::vector<float>& base = model.seen_hole_base_m;
   std::vector<float> above(h.size());
   for (std::size_t k = 0; k < h.size(); ++k) above[k] = h[k] - base[k];
+  // Occluded ground takes the terrain only within the largest reach of a
+  // measured cell, like every other hole: the terrain model spans the whole
+  // grid, but beyond the reach nothing was measured to fill from.
+  std::vector<float> measured(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
+  const std::vector<float> in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
@@ -294,7 +300,8 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
       const bool ground = occluded && (*occluded)[k];
-      if (ground ? !std::isfinite(model.terrain_m[k]) : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
+      if (ground ? !std::isfinite(model.terrain_m[k]) || !std::isfinite(in_reach[k])
+                 : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
         open = true;
         continue;
       }

@@ -141,6 +141,17 @@ TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
     if (reachable) EXPECT_NEAR(h[i], 2.0f, 1e-5f) << i;
     else EXPECT_TRUE(std::isnan(h[i])) << i;
   }
+  // Occluded ground obeys the same reach, although the terrain spans the grid.
+  std::vector<float> g(nx, nan);
+  g[0] = g[1] = 2.0f;
+  g[nx - 2] = g[nx - 1] = 2.0f;
+  const std::vector<std::uint8_t> all_occluded(nx, 1);
+  const std::vector<std::uint8_t> filled_ground = Fill(g, nx, 1, options, &all_occluded);
+  for (int i = 2; i < nx - 2; ++i) {
+    const bool reachable = i <= 11 || i >= nx - 12;
+    EXPECT_EQ(filled_ground[i], reachable ? 1 : 0) << i;
+    EXPECT_EQ(std::isnan(g[i]), !reachable) << i;
+  }
   std::vector<float> empty(6, nan);
   Fill(empty, 3, 2, FillOptions());
   for (float x : empty) EXPECT_TRUE(std::isnan(x));

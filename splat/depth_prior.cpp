@@ -16,22 +16,40 @@
 
 namespace skyfall {
 
-SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m) : cell_(cell_m) {
+SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m,
+                                     const std::vector<float>& point_weights)
+    : cell_(cell_m) {
   if (points.empty()) throw Error("depth_prior", "points", "no SfM points to fit a surface to");
   if (!(cell_m > 0)) throw Error("depth_prior", "cell_m", "must be > 0");
+  if (!point_weights.empty() && point_weights.size() != points.size())
+    throw Error("depth_prior", "point_weights", std::to_string(point_weights.size()) + " weights for " +
+                                                    std::to_string(points.size()) + " points");
   Eigen::Vector3f lo = points[0], hi = points[0];
   for (const auto& p : points) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  x0_ = lo.x();
-  y0_ = lo.y();
-  nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell_m)) + 1);
-  ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell_m)) + 1);
+  // The cells are centred on the points' lattice: points on a grid of this
+  // spacing (the dense heights, one per cell centre) fall mid-cell, so their
+  // float rounding cannot move one into a neighbour's cell, and HeightAt at a
+  // point's position returns that point's height.
+  x0_ = lo.x() - 0.5 * cell_m;
+  y0_ = lo.y() - 0.5 * cell_m;
+  nx_ = std::max(1, static_cast<int>(std::floor((hi.x() - x0_) / cell_m)) + 1);
+  ny_ = std::max(1, static_cast<int>(std::floor((hi.y() - y0_) / cell_m)) + 1);
   std::vector<std::vector<float>> cells(static_cast<size_t>(nx_) * ny_);
-  for (const auto& p : points) {
-    const int i = static_cast<int>((p.x() - x0_) / cell_), j = static_cast<int>((p.y() - y0_) / cell_);
-    cells[static_cast<size_t>(j) * nx_ + i].push_back(p.z());
+  if (!point_weights.empty()) weight_.assign(cells.size(), 0.0f);
+  std::vector<std::uint8_t> seen(point_weights.empty() ? 0 : cells.size(), 0);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3f& p = points[k];
+    const int i = static_cast<int>(std::floor((p.x() - x0_) / cell_)),
+              j = static_cast<int>(std::floor((p.y() - y0_) / cell_));
+    const std::size_t cell = static_cast<size_t>(j) * nx_ + i;
+    cells[cell].push_back(p.z());
+    if (point_weights.empty()) continue;
+    const float w = std::clamp(point_weights[k], 0.0f, 1.0f);
+    weight_[cell] = seen[cell] ? std::min(weight_[cell], w) : w;
+    seen[cell] = 1;
   }
   const float nan = std::numeric_limits<float>::quiet_NaN();
   height_.assign(cells.size(), nan);
@@ -70,6 +88,12 @@ SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points,
   max_z_ = *std::max_element(height_.begin(), height_.end());
 }
 
+float SurfaceDepthPrior::WeightAt(double x, double y) const {
+  const int i = static_cast<int>(std::floor((x - x0_) / cell_)), j = static_cast<int>(std::floor((y - y0_) / cell_));
+  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return 0.0f;
+  return weight_.empty() ? 1.0f : weight_[static_cast<size_t>(j) * nx_ + i];
+}
+
 double SurfaceDepthPrior::HeightAt(double x, double y) const {
   const int i = static_cast<int>(std::floor((x - x0_) / cell_)), j = static_cast<int>(std::floor((y - y0_) / cell_));
   if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return std::numeric_limits<double>::quiet_NaN();
@@ -84,13 +108,15 @@ namespace {
 
 // Casts every pixel's ray (camera centre c, direction d with unit camera z,
 // so the ray parameter is the camera depth) and stores `hit(c, d)` (a depth,
-// or NaN for no surface) less the reference depth.
+// or NaN for no surface) less the reference depth; with `weights`, also the
+// confidence of each hit (DepthMap::weight).
 template <class Hit>
-DepthMap CastRays(const PinholeCamera& cam, double reference_depth_m, Hit hit) {
+DepthMap CastRays(const PinholeCamera& cam, double reference_depth_m, Hit hit, const SurfaceDepthPrior* weights) {
   const int W = cam.width_px, H = cam.height_px;
   DepthMap out;
   out.depth.assign(static_cast<size_t>(W) * H, 0.0f);
   out.valid.assign(out.depth.size(), 0);
+  if (weights) out.weight.assign(out.depth.size(), 0.0f);
   const Eigen::Vector3d c = cam.Centre();
   const Eigen::Matrix3d Rt = cam.cam_from_world_rotation.transpose();
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
@@ -102,6 +128,10 @@ DepthMap CastRays(const PinholeCamera& cam, double reference_depth_m, Hit hit) {
         if (!std::isfinite(t)) continue;
         out.depth[static_cast<size_t>(r) * W + col] = static_cast<float>(t - reference_depth_m);
         out.valid[static_cast<size_t>(r) * W + col] = 1;
+        if (weights) {
+          const Eigen::Vector3d at = c + t * d;
+          out.weight[static_cast<size_t>(r) * W + col] = weights->WeightAt(at.x(), at.y());
+        }
       }
   });
   return out;
@@ -125,7 +155,7 @@ DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, doubl
       t = (c.z() - h) / -d.z();
     }
     return t;
-  });
+  }, weight_.empty() ? nullptr : this);
 }
 
 DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
@@ -150,7 +180,7 @@ DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double ref
       return b;
     }
     return kNoHit;
-  });
+  }, weight_.empty() ? nullptr : this);
 }
 
 CommandDepthPrior::CommandDepthPrior(std::string command, std::string work_dir)

@@ -16,6 +16,9 @@ namespace skyfall {
 struct DepthMap {
   std::vector<float> depth;           // per pixel, any affine scale
   std::vector<unsigned char> valid;   // 0 where the prior has no answer
+  // Per pixel confidence of the depth in [0, 1] (SurfaceDepthPrior with
+  // point weights); empty: full confidence wherever valid.
+  std::vector<float> weight;
 };
 
 class DepthPrior {
@@ -30,7 +33,11 @@ class DepthPrior {
 // ray-cast from the pseudo camera. It knows the coarse surface, not detail.
 class SurfaceDepthPrior final : public DepthPrior {
  public:
-  SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m);
+  // `point_weights` (optional, one per point in [0, 1]): the confidence of
+  // each point's height; a cell takes the lowest of its points', a cell no
+  // point falls in 0. Ray casts then return each pixel's weight.
+  SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points, double cell_m,
+                    const std::vector<float>& point_weights = {});
   DepthMap Estimate(const PinholeCamera& camera, const std::vector<float>& rgb) override;
   // The same depth less `reference_depth_m`, subtracted in double: satellite
   // depths (~6e5 m) keep only ~6 cm in float, their differences keep all.
@@ -41,11 +48,14 @@ class SurfaceDepthPrior final : public DepthPrior {
   DepthMap NadirDepthRelativeTo(const PinholeCamera& camera, double reference_depth_m) const;
   // Height of the fitted surface [m in the points' frame]; NaN outside.
   double HeightAt(double x_m, double y_m) const;
+  // Confidence of that height (1 without point weights; 0 outside).
+  float WeightAt(double x_m, double y_m) const;
 
  private:
   double x0_ = 0, y0_ = 0, cell_ = 1;
   int nx_ = 0, ny_ = 0;
   std::vector<float> height_;
+  std::vector<float> weight_;  // per cell; empty without point weights
   float min_z_ = 0, max_z_ = 0;
 };
 

@@ -72,6 +72,55 @@ TEST(DepthPrior, NadirViewsOfAStepSeeBothLevelsAtTheirDepths) {
   }
 }
 
+TEST(DepthPrior, DenseCellCentresKeepTheirOwnCellsAndTheEdgeOfARoof) {
+  // The dense heights' layout: one point per 0.5 m cell centre, written with
+  // three decimals and read back as float, whose rounding puts some points a
+  // hair short of their lattice position. A 20 m roof covers x >= 3 m.
+  const double cell_m = 0.5, first_m = -64.418;
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 200; ++i)
+    for (int j = 0; j < 40; ++j) {
+      const double x = std::round((first_m + i * cell_m) * 1e3) / 1e3, y = std::round((5.291 + j * cell_m) * 1e3) / 1e3;
+      pts.emplace_back(static_cast<float>(x), static_cast<float>(y), x >= 3.0 ? 20.0f : 0.0f);
+    }
+  const SurfaceDepthPrior prior(pts, cell_m);
+  // Anywhere within a point's cell (0.24 m either way) the height is its own.
+  for (const Eigen::Vector3f& p : pts)
+    for (double dx : {-0.24, 0.0, 0.24})
+      for (double dy : {-0.24, 0.0, 0.24})
+        ASSERT_EQ(prior.HeightAt(p.x() + dx, p.y() + dy), p.z()) << p.x() << "+" << dx << "," << p.y() << "+" << dy;
+  // The cell boundary between the last ground point (x = 2.582) and the
+  // first roof point (3.082) is halfway, at 2.832 m.
+  EXPECT_EQ(prior.HeightAt(2.82, 6.0), 0.0);
+  EXPECT_EQ(prior.HeightAt(2.84, 6.0), 20.0);
+  EXPECT_TRUE(prior.DepthRelativeTo(NadirCamera(Eigen::Vector3d(0, 12, 0), 0.5, 16, 1e5), 0.0).weight.empty());
+
+  // Point weights (filled roof cells at 0.25): a nadir view returns the
+  // weight of the cell each ray meets, the depth as without weights.
+  std::vector<float> weights(pts.size());
+  for (std::size_t k = 0; k < pts.size(); ++k) weights[k] = pts[k].z() > 10 ? 0.25f : 1.0f;
+  EXPECT_THROW(SurfaceDepthPrior(pts, cell_m, std::vector<float>(3, 1.0f)), Error);
+  const SurfaceDepthPrior weighted(pts, cell_m, weights);
+  EXPECT_EQ(weighted.WeightAt(2.82, 6.0), 1.0f);
+  EXPECT_EQ(weighted.WeightAt(2.84, 6.0), 0.25f);
+  EXPECT_EQ(weighted.WeightAt(500.0, 6.0), 0.0f);  // outside
+  const PinholeCamera cam = NadirCamera(Eigen::Vector3d(2.832, 12.0, 0), 0.5, 16, 1e5);
+  const double reference = cam.cam_from_world_translation.z();
+  const DepthMap plain = prior.NadirDepthRelativeTo(cam, reference);
+  const DepthMap nadir = weighted.NadirDepthRelativeTo(cam, reference);
+  ASSERT_EQ(nadir.weight.size(), nadir.depth.size());
+  int roof = 0, ground = 0;
+  for (std::size_t p = 0; p < nadir.depth.size(); ++p) {
+    ASSERT_TRUE(nadir.valid[p]);
+    EXPECT_EQ(nadir.depth[p], plain.depth[p]);
+    const bool on_roof = nadir.depth[p] < -10;
+    EXPECT_EQ(nadir.weight[p], on_roof ? 0.25f : 1.0f) << p;
+    (on_roof ? roof : ground) += 1;
+  }
+  EXPECT_GT(roof, 0);
+  EXPECT_GT(ground, 0);
+}
+
 TEST(DepthPrior, PseudoCamerasLookDownAtTheSceneFromTheRequestedRange) {
   const PseudoCameraOptions o;
   for (std::uint64_t s = 0; s < 20; ++s) {

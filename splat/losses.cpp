@@ -227,10 +227,11 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
 template <typename T>
 double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alpha, const std::vector<T>& target,
                          const std::vector<unsigned char>& valid, const SurfaceAnchorOptions& o,
-                         std::vector<T>* d_depth, std::vector<T>* d_alpha) {
+                         std::vector<T>* d_depth, std::vector<T>* d_alpha, const std::vector<float>* depth_weight) {
   RequireSameSize(depth.size(), alpha.size(), "surface anchor (depth, alpha)");
   RequireSameSize(target.size(), alpha.size(), "surface anchor (target, alpha)");
   RequireSameSize(valid.size(), alpha.size(), "surface anchor (valid, alpha)");
+  if (depth_weight) RequireSameSize(depth_weight->size(), alpha.size(), "surface anchor (depth weight, alpha)");
   d_depth->assign(alpha.size(), T(0));
   d_alpha->assign(alpha.size(), T(0));
   std::size_t n = 0;
@@ -245,8 +246,9 @@ double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alph
     if (alpha[p] < o.min_alpha) continue;
     const double e = static_cast<double>(depth[p]) - target[p];
     const double a = std::abs(e);
-    loss += o.lambda_depth * (a <= delta ? 0.5 * e * e : delta * (a - 0.5 * delta)) * inv_n;
-    (*d_depth)[p] = static_cast<T>(o.lambda_depth * (a <= delta ? e : delta * (e > 0 ? 1.0 : -1.0)) * inv_n);
+    const double w = o.lambda_depth * (depth_weight ? (*depth_weight)[p] : 1.0f) * inv_n;
+    loss += w * (a <= delta ? 0.5 * e * e : delta * (a - 0.5 * delta));
+    (*d_depth)[p] = static_cast<T>(w * (a <= delta ? e : delta * (e > 0 ? 1.0 : -1.0)));
   }
   return loss;
 }
@@ -262,7 +264,7 @@ double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alph
   template double Psnr(const std::vector<T>&, const std::vector<T>&);                                       \
   template double SurfaceAnchorLoss(const std::vector<T>&, const std::vector<T>&, const std::vector<T>&,      \
                                     const std::vector<unsigned char>&, const SurfaceAnchorOptions&,         \
-                                    std::vector<T>*, std::vector<T>*);
+                                    std::vector<T>*, std::vector<T>*, const std::vector<float>*);
 SKYFALL_INSTANTIATE_LOSSES(float)
 SKYFALL_INSTANTIATE_LOSSES(double)
 

@@ -45,7 +45,9 @@ double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior
 // with bounded force) + lambda_alpha * (1 - alpha). The depth term counts only
 // where alpha >= min_alpha (below it the expected depth is undefined); the
 // opacity term everywhere the surface is seen. `depth` and `target` share one
-// reference. `d_depth` and `d_alpha` receive the gradients (sized like alpha).
+// reference. `depth_weight` (optional, per pixel in [0, 1]) scales the depth
+// term by the target's confidence. `d_depth` and `d_alpha` receive the
+// gradients (sized like alpha).
 struct SurfaceAnchorOptions {
   double lambda_depth = 0.0;
   double lambda_alpha = 0.0;
@@ -55,7 +57,8 @@ struct SurfaceAnchorOptions {
 template <typename T>
 double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alpha, const std::vector<T>& target,
                          const std::vector<unsigned char>& valid, const SurfaceAnchorOptions& options,
-                         std::vector<T>* d_depth, std::vector<T>* d_alpha);
+                         std::vector<T>* d_depth, std::vector<T>* d_alpha,
+                         const std::vector<float>* depth_weight = nullptr);
 
 // Peak signal-to-noise ratio of images in [0, 1] [dB].
 template <typename T>

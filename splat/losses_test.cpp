@@ -7,6 +7,8 @@
 #include <limits>
 #include <random>
 
+#include "core/error.h"
+
 namespace skyfall {
 namespace {
 
@@ -148,6 +150,29 @@ TEST(Losses, SurfaceAnchorGradientsMatchFiniteDifferences) {
   // Nothing sees the surface: no loss, no pull.
   EXPECT_EQ(SurfaceAnchorLoss(depth, alpha, target, std::vector<unsigned char>(6, 0), o, &d_depth, &d_alpha), 0.0);
   for (double g : d_alpha) EXPECT_EQ(g, 0.0);
+}
+
+TEST(Losses, SurfaceAnchorDepthWeightsScaleOnlyTheDepthTerm) {
+  const std::vector<double> target = {10.0, 10.0, -3.0, 7.5};
+  const std::vector<double> depth = {10.4, 12.5, -7.0, 0.0};
+  const std::vector<double> alpha = {0.9, 0.6, 0.7, 0.3};
+  const std::vector<unsigned char> valid(4, 1);
+  const std::vector<float> weight = {1.0f, 0.5f, 0.0f, 0.25f};
+  const SurfaceAnchorOptions o{0.2, 0.3, 1.0, 0.1};
+  std::vector<double> d_depth, d_alpha, unused_a, unused_b;
+  const double l = SurfaceAnchorLoss(depth, alpha, target, valid, o, &d_depth, &d_alpha, &weight);
+  // Huber 0.08, 2.0, 3.5, 7.0 weighted 1, 0.5, 0, 0.25; opacity unweighted.
+  EXPECT_NEAR(l, (0.2 * (0.08 + 1.0 + 0.0 + 1.75) + 0.3 * (0.1 + 0.4 + 0.3 + 0.7)) / 4, 1e-12);
+  EXPECT_EQ(d_depth[2], 0.0);  // no confidence: no pull on the depth
+  EXPECT_NE(d_alpha[2], 0.0);  // but the surface is still there to cover
+  CheckGradient(depth, [&](const std::vector<double>& v) {
+    return SurfaceAnchorLoss(v, alpha, target, valid, o, &unused_a, &unused_b, &weight);
+  }, d_depth, 1e-7, 1e-6);
+  CheckGradient(alpha, [&](const std::vector<double>& v) {
+    return SurfaceAnchorLoss(depth, v, target, valid, o, &unused_a, &unused_b, &weight);
+  }, d_alpha, 1e-7, 1e-6);
+  const std::vector<float> short_weight(3, 1.0f);
+  EXPECT_THROW(SurfaceAnchorLoss(depth, alpha, target, valid, o, &d_depth, &d_alpha, &short_weight), Error);
 }
 
 TEST(Losses, PsnrOfKnownError) {

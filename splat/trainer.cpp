@@ -365,7 +365,8 @@ void AddGeometryGradients(const GaussianGradients<float>& extra, GaussianGradien
 double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, const TrainOptions& o,
                          std::vector<float>* d_alpha, std::vector<float>* d_depth) {
   const SurfaceAnchorOptions anchor{o.lambda_surface_depth, o.lambda_surface_alpha, o.surface_huber_m};
-  return SurfaceAnchorLoss(r.depth, r.alpha, surface.depth, surface.valid, anchor, d_depth, d_alpha);
+  return SurfaceAnchorLoss(r.depth, r.alpha, surface.depth, surface.valid, anchor, d_depth, d_alpha,
+                           surface.weight.empty() ? nullptr : &surface.weight);
 }
 
 // A training view: a satellite view, or with probability `synthetic_fraction`
