@@ -18,8 +18,40 @@ struct Hit {
   Eigen::Vector3d point;
   int i = 0, j = 0;
   Face face = Face::kTop;
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls and terrain; other tops: SurfaceNormal
+  bool terrain = false;  // on the smooth terrain (normal set)
 };
+
+// Bare ground (grass, streets): its columns sample the smooth terrain, and
+// rays and shadows meet the terrain itself. Drawn as flat-topped columns, a
+// hill's cells would be stairs (7.5 cm per 0.25 m cell on a 30% slope)
+// whose risers and their shadows striped the slopes, differently in every
+// view and at every sun position: a texture no real hill has.
+bool OnTerrain(const City& city, std::size_t k) {
+  return city.material[k] == Material::kGrass || city.material[k] == Material::kRoad;
+}
+
+// Upper bound of the terrain's departure within a cell from the height of
+// its column (the terrain at the cell's centre): the steepest slope (the
+// hills' relief * pi / 1000 plus 0.1 for the gentle terrain) times half the
+// cell's diagonal, with margin. Rays and shadows further above a terrain
+// cell's column than this cannot meet the terrain there, so the terrain is
+// evaluated only close to it.
+double TerrainBandM(const City& city) {
+  const double steepest = 0.1 + city.options.relief_m * M_PI / 1000.0;
+  return 0.05 + 0.75 * city.options.cell_m * steepest;
+}
+
+// Unit normal of the terrain at (x, y), from central differences.
+Eigen::Vector3d TerrainNormal(const City& city, double x, double y) {
+  constexpr double h = 0.05;
+  const double dx = (city.TerrainAt(x + h, y) - city.TerrainAt(x - h, y)) / (2 * h);
+  const double dy = (city.TerrainAt(x, y + h) - city.TerrainAt(x, y - h)) / (2 * h);
+  return Eigen::Vector3d(-dx, -dy, 1.0).normalized();
+}
+
+// Height of a point above the terrain.
+double AboveTerrain(const City& city, const Eigen::Vector3d& p) { return p.z() - city.TerrainAt(p.x(), p.y()); }
 
 // Grid traversal state for a ray in the xy plane (Amanatides & Woo).
 struct Traversal {
@@ -60,35 +92,55 @@ struct Traversal {
   double NextBoundary() const { return std::min(t_max_x, t_max_y); }
 };
 
+// Where a descending ray meets the terrain within [t0, t1] (it is above
+// the terrain at t0 and not above at t1): bisection, to well under a mm.
+double TerrainCrossing(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t0, double t1) {
+  for (int it = 0; it < 40; ++it) {
+    const double m = 0.5 * (t0 + t1);
+    (AboveTerrain(city, o + m * d) <= 0 ? t1 : t0) = m;
+  }
+  return t1;
+}
+
 // First surface hit by a descending ray starting above every column.
 Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   Hit hit;
   Traversal tr(city, o, d);
   double t_enter = 0.0;
-  bool crossed_x = false;
+  bool crossed_x = false, came_from_terrain = false;
+  const double band = TerrainBandM(city);
+  auto found = [&](const Eigen::Vector3d& point, Face face) {
+    hit.found = true;
+    hit.point = point;
+    hit.face = face;
+    hit.i = tr.i;
+    hit.j = tr.j;
+    return hit;
+  };
   for (int guard = 0; guard < 4 * (city.nx + city.ny); ++guard) {
     if (!city.Inside(tr.i, tr.j)) return hit;
-    const double h = city.height_m[city.Index(tr.i, tr.j)];
+    const std::size_t k = city.Index(tr.i, tr.j);
+    const double h = city.height_m[k];
     const double z_enter = o.z() + t_enter * d.z();
-    if (z_enter <= h && t_enter > 0) {  // the ray meets this column's wall
-      hit.found = true;
-      hit.point = o + t_enter * d;
-      hit.face = Face::kWall;
-      hit.normal = crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0);
-      hit.i = tr.i;
-      hit.j = tr.j;
-      return hit;
-    }
     const double t_exit = tr.NextBoundary();
-    if (o.z() + t_exit * d.z() <= h) {  // the ray comes down on the top
-      hit.found = true;
-      hit.point = o + ((h - o.z()) / d.z()) * d;
-      hit.face = Face::kTop;
-      hit.i = tr.i;
-      hit.j = tr.j;
-      return hit;
+    const double z_exit = o.z() + t_exit * d.z();
+    const bool terrain = OnTerrain(city, k);
+    const bool enters_below_top = z_enter <= h && t_enter > 0;
+    if (enters_below_top && !(terrain && came_from_terrain)) {
+      // The ray meets this column's wall (between terrain cells there is none).
+      hit.normal = crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0);
+      return found(o + t_enter * d, Face::kWall);
     }
-    if (o.z() + t_exit * d.z() < city.min_height_m - 1.0) return hit;
+    if (terrain && z_exit <= h + band && AboveTerrain(city, o + t_exit * d) <= 0) {
+      const double t = AboveTerrain(city, o + t_enter * d) <= 0 ? t_enter : TerrainCrossing(city, o, d, t_enter, t_exit);
+      const Eigen::Vector3d p = o + t * d;
+      hit.terrain = true;
+      hit.normal = TerrainNormal(city, p.x(), p.y());
+      return found(p, Face::kTop);
+    }
+    if (!terrain && z_exit <= h) return found(o + ((h - o.z()) / d.z()) * d, Face::kTop);  // down on the top
+    if (z_exit < city.min_height_m - 1.0) return hit;
+    came_from_terrain = terrain;
     t_enter = tr.Step(&crossed_x);
   }
   return hit;
@@ -100,12 +152,23 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
   Traversal tr(city, p, sun);
   double t_enter = 0.0;
   bool crossed_x = false;
+  const double band = TerrainBandM(city);
   for (int guard = 0; guard < 4 * (city.nx + city.ny); ++guard) {
     if (!city.Inside(tr.i, tr.j)) return false;
     const double z_enter = p.z() + t_enter * sun.z();
     if (z_enter > city.max_height_m) return false;
-    // Ascending: the lowest point of the ray in a cell is where it enters.
-    if (t_enter > 0 && z_enter < city.height_m[city.Index(tr.i, tr.j)] - 1e-4) return true;
+    const std::size_t k = city.Index(tr.i, tr.j);
+    if (OnTerrain(city, k)) {
+      // The terrain is smooth, and the ray straight: it is below the
+      // terrain somewhere in the cell only if it is at one of its ends.
+      const double t_exit = tr.NextBoundary();
+      if (z_enter < city.height_m[k] + band &&
+          ((t_enter > 0 && AboveTerrain(city, p + t_enter * sun) < -1e-4) ||
+           AboveTerrain(city, p + t_exit * sun) < -1e-4))
+        return true;
+    } else if (t_enter > 0 && z_enter < city.height_m[k] - 1e-4) {
+      return true;  // ascending: the lowest point of the ray in a cell is where it enters
+    }
     t_enter = tr.Step(&crossed_x);
   }
   return false;
@@ -183,7 +246,7 @@ Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
 }
 
 Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
-  if (hit.face == Face::kWall) return hit.normal;
+  if (hit.face == Face::kWall || hit.terrain) return hit.normal;
   const std::size_t k = city.Index(hit.i, hit.j);
   if (city.material[k] != Material::kGableRoof) return Eigen::Vector3d::UnitZ();
   const Building& b = city.buildings[city.object[k]];
@@ -218,9 +281,12 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
   view.hit_scene.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
   view.hit_object.assign(n, -1);
   const Eigen::Vector3d sun = lighting.sun_scene.normalized();
-  // Scene-frame z and ENU up differ by millimetres here: start the ray where
-  // its ENU height is just above the tallest column.
-  const double start_z = city.max_height_m + 1.0;
+  // Rays start above the tallest column: the traversal sees only columns
+  // below its start. The scene's z is the ellipsoidal height, ENU's up is
+  // measured from the frame's origin (the city's base height, the scene
+  // point of ENU's origin); over the city the two differ by that offset
+  // and millimetres (1 m of margin covers those).
+  const double start_z_enu = city.max_height_m + 1.0 - scene_from_enu.offset_m.z() + 1.0;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height_px), [&](const tbb::blocked_range<int>& rows) {
     for (int r = rows.begin(); r < rows.end(); ++r) {
@@ -228,7 +294,7 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
         const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
         const Eigen::Vector3d d_enu = camera.RayDirectionEnu(c, r);
         // (A camera below that height, such as a low orbit view, starts at itself.)
-        const double t_start = std::max(0.0, (start_z - camera.centre_enu_m.z()) / d_enu.z());
+        const double t_start = std::max(0.0, (start_z_enu - camera.centre_enu_m.z()) / d_enu.z());
         const Eigen::Vector3d o_scene = scene_from_enu.Apply(camera.centre_enu_m + t_start * d_enu);
         const Eigen::Vector3d d_scene = (scene_from_enu.linear * d_enu).normalized();
         const Hit hit = CastDown(city, o_scene, d_scene);

@@ -211,6 +211,70 @@ TEST(Synth, ShadowsDarkenGroundOnTheAntiSunSide) {
   EXPECT_GT(darker, counted * 8 / 10) << darker << " of " << counted;
 }
 
+TEST(Synth, HillsAreSmoothTerrainWithoutStairsOrStripesOfShadow) {
+  // 100 m of relief: slopes up to 31%. As flat-topped 0.25 m columns a
+  // hill would be stairs of 7.5 cm risers whose shadows stripe the slopes.
+  SynthOptions o = SmallScene();
+  o.relief_m = 100.0;
+  const Scene s = MakeScene(o);
+  const City& city = s.result.city;
+  const SynthView* v = &ExtremeView(s.result, /*most_oblique=*/true);
+  Lighting no_shadows = v->lighting;
+  no_shadows.cast_shadows = false;
+  const RenderedView lit = RenderView(city, v->camera, s.result.scene_from_enu, no_shadows);
+  const RenderedView shaded = RenderView(city, v->camera, s.result.scene_from_enu, v->lighting);
+  const Eigen::Vector3d sun = v->lighting.sun_scene.normalized();
+  const Eigen::Vector2d sun_xy = sun.head<2>();
+  // The sun is above any slope of the scene, so the terrain alone shades
+  // but casts no shadow: a terrain pixel is in shadow only where a column
+  // that is not terrain stands in the way of the sun.
+  ASSERT_GT(sun.z() / sun_xy.norm(), 0.45);
+  auto terrain_cell = [&](const Eigen::Vector2i& c) {
+    const Material m = city.material[city.Index(c.x(), c.y())];
+    return m == Material::kGrass || m == Material::kRoad;
+  };
+  auto object_towards_sun = [&](const Eigen::Vector3d& p) {
+    const double step_m = 0.5 * city.options.cell_m;
+    for (double t = step_m;; t += step_m / sun_xy.norm()) {
+      const Eigen::Vector3d q = p + t * sun;
+      if (q.z() > city.max_height_m) return false;
+      // The walk samples the way in steps; a 3x3 neighbourhood of cells
+      // covers the corners it could step over.
+      const Eigen::Vector2i c = city.CellOf(q.x(), q.y());
+      if (!city.Inside(c.x() - 1, c.y() - 1) || !city.Inside(c.x() + 1, c.y() + 1)) return false;
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) {
+          const Eigen::Vector2i n = c + Eigen::Vector2i(di, dj);
+          if (!terrain_cell(n) && city.height_m[city.Index(n.x(), n.y())] > q.z() - 0.5) return true;
+        }
+    }
+  };
+  int terrain = 0, open_to_sun = 0, darker = 0;
+  double worst_m = 0;
+  for (std::size_t k = 0; k < shaded.hit_scene.size(); k += 5) {
+    const Eigen::Vector3d h = shaded.hit_scene[k].cast<double>();
+    if (!h.allFinite()) continue;
+    // Terrain all round (a wall's hit lies on the boundary of its cell).
+    const Eigen::Vector2i c = city.CellOf(h.x(), h.y());
+    bool inside_terrain = true;
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int di = -1; di <= 1; ++di) inside_terrain &= terrain_cell(c + Eigen::Vector2i(di, dj));
+    if (!inside_terrain) continue;
+    ++terrain;
+    worst_m = std::max(worst_m, std::abs(h.z() - city.TerrainAt(h.x(), h.y())));
+    if (object_towards_sun(h)) continue;
+    ++open_to_sun;
+    const int sum_lit = lit.rgb[3 * k] + lit.rgb[3 * k + 1] + lit.rgb[3 * k + 2];
+    const int sum_shaded = shaded.rgb[3 * k] + shaded.rgb[3 * k + 1] + shaded.rgb[3 * k + 2];
+    darker += sum_shaded < sum_lit - 15;
+  }
+  ASSERT_GT(terrain, 2000);
+  ASSERT_GT(open_to_sun, 1000);
+  // Hits lie on the terrain itself (float storage of the hit: < 0.1 mm).
+  EXPECT_LT(worst_m, 1e-3);
+  EXPECT_EQ(darker, 0) << "of " << open_to_sun << " terrain pixels open to the sun";
+}
+
 TEST(Synth, IngestReadsTheSceneLikeRealData) {
   const Scene s = MakeScene(SmallScene());
   NullProgress progress;
