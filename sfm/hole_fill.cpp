@@ -289,9 +289,12 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   // Occluded ground takes the terrain only within the largest reach of a
   // measured cell, like every other hole: the terrain model spans the whole
   // grid, but beyond the reach nothing was measured to fill from.
-  std::vector<float> measured(h.size());
-  for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
-  const std::vector<float> in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
+  std::vector<float> in_reach;
+  if (occluded) {
+    std::vector<float> measured(h.size());
+    for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
+    in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
+  }
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {

@@ -38,24 +38,20 @@ SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points,
   nx_ = std::max(1, static_cast<int>(std::floor((hi.x() - x0_) / cell_m)) + 1);
   ny_ = std::max(1, static_cast<int>(std::floor((hi.y() - y0_) / cell_m)) + 1);
   std::vector<std::vector<float>> cells(static_cast<size_t>(nx_) * ny_);
-  if (!point_weights.empty()) weight_.assign(cells.size(), 0.0f);
-  std::vector<std::uint8_t> seen(point_weights.empty() ? 0 : cells.size(), 0);
+  if (!point_weights.empty()) weight_.assign(cells.size(), 1.0f);
   for (std::size_t k = 0; k < points.size(); ++k) {
-    const Eigen::Vector3f& p = points[k];
-    const int i = static_cast<int>(std::floor((p.x() - x0_) / cell_)),
-              j = static_cast<int>(std::floor((p.y() - y0_) / cell_));
-    const std::size_t cell = static_cast<size_t>(j) * nx_ + i;
-    cells[cell].push_back(p.z());
-    if (point_weights.empty()) continue;
-    const float w = std::clamp(point_weights[k], 0.0f, 1.0f);
-    weight_[cell] = seen[cell] ? std::min(weight_[cell], w) : w;
-    seen[cell] = 1;
+    const std::size_t cell = static_cast<std::size_t>(CellIndex(points[k].x(), points[k].y()));
+    cells[cell].push_back(points[k].z());
+    if (!weight_.empty()) weight_[cell] = std::min(weight_[cell], std::clamp(point_weights[k], 0.0f, 1.0f));
   }
   const float nan = std::numeric_limits<float>::quiet_NaN();
   height_.assign(cells.size(), nan);
   for (size_t k = 0; k < cells.size(); ++k) {
     auto& c = cells[k];
-    if (c.empty()) continue;
+    if (c.empty()) {
+      if (!weight_.empty()) weight_[k] = 0.0f;  // filled from neighbours below: nothing measured
+      continue;
+    }
     std::nth_element(c.begin(), c.begin() + c.size() / 2, c.end());
     height_[k] = c[c.size() / 2];
   }
@@ -88,16 +84,22 @@ SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points,
   max_z_ = *std::max_element(height_.begin(), height_.end());
 }
 
-float SurfaceDepthPrior::WeightAt(double x, double y) const {
+std::ptrdiff_t SurfaceDepthPrior::CellIndex(double x, double y) const {
   const int i = static_cast<int>(std::floor((x - x0_) / cell_)), j = static_cast<int>(std::floor((y - y0_) / cell_));
-  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return 0.0f;
-  return weight_.empty() ? 1.0f : weight_[static_cast<size_t>(j) * nx_ + i];
+  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return -1;
+  return static_cast<std::ptrdiff_t>(j) * nx_ + i;
+}
+
+float SurfaceDepthPrior::WeightAt(double x, double y) const {
+  const std::ptrdiff_t k = CellIndex(x, y);
+  if (k < 0) return 0.0f;
+  return weight_.empty() ? 1.0f : weight_[static_cast<std::size_t>(k)];
 }
 
 double SurfaceDepthPrior::HeightAt(double x, double y) const {
-  const int i = static_cast<int>(std::floor((x - x0_) / cell_)), j = static_cast<int>(std::floor((y - y0_) / cell_));
-  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return std::numeric_limits<double>::quiet_NaN();
-  return height_[static_cast<size_t>(j) * nx_ + i];
+  const std::ptrdiff_t k = CellIndex(x, y);
+  if (k < 0) return std::numeric_limits<double>::quiet_NaN();
+  return height_[static_cast<std::size_t>(k)];
 }
 
 DepthMap SurfaceDepthPrior::Estimate(const PinholeCamera& cam, const std::vector<float>&) {

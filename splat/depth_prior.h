@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <vector>
@@ -52,6 +53,9 @@ class SurfaceDepthPrior final : public DepthPrior {
   float WeightAt(double x_m, double y_m) const;
 
  private:
+  // Row-major index of the cell holding (x, y), -1 outside the grid.
+  std::ptrdiff_t CellIndex(double x_m, double y_m) const;
+
   double x0_ = 0, y0_ = 0, cell_ = 1;
   int nx_ = 0, ny_ = 0;
   std::vector<float> height_;

@@ -18,8 +18,7 @@ struct Hit {
   Eigen::Vector3d point;
   int i = 0, j = 0;
   Face face = Face::kTop;
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls and terrain; other tops: SurfaceNormal
-  bool terrain = false;  // on the smooth terrain (normal set)
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls and terrain tops; other tops: SurfaceNormal
 };
 
 // Bare ground (grass, streets): its columns sample the smooth terrain, and
@@ -134,7 +133,6 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     if (terrain && z_exit <= h + band && AboveTerrain(city, o + t_exit * d) <= 0) {
       const double t = AboveTerrain(city, o + t_enter * d) <= 0 ? t_enter : TerrainCrossing(city, o, d, t_enter, t_exit);
       const Eigen::Vector3d p = o + t * d;
-      hit.terrain = true;
       hit.normal = TerrainNormal(city, p.x(), p.y());
       return found(p, Face::kTop);
     }
@@ -246,8 +244,8 @@ Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
 }
 
 Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
-  if (hit.face == Face::kWall || hit.terrain) return hit.normal;
   const std::size_t k = city.Index(hit.i, hit.j);
+  if (hit.face == Face::kWall || OnTerrain(city, k)) return hit.normal;  // terrain: its own slope
   if (city.material[k] != Material::kGableRoof) return Eigen::Vector3d::UnitZ();
   const Building& b = city.buildings[city.object[k]];
   const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
