@@ -82,6 +82,7 @@ SurfaceDepthPrior::SurfaceDepthPrior(const std::vector<Eigen::Vector3f>& points,
   }
   min_z_ = *std::min_element(height_.begin(), height_.end());
   max_z_ = *std::max_element(height_.begin(), height_.end());
+  BuildBlockMaxima();
 }
 
 std::ptrdiff_t SurfaceDepthPrior::CellIndex(double x, double y) const {
@@ -161,28 +162,107 @@ DepthMap SurfaceDepthPrior::NadirDepthRelativeTo(const PinholeCamera& cam, doubl
 }
 
 DepthMap SurfaceDepthPrior::DepthRelativeTo(const PinholeCamera& cam, double reference_depth_m) const {
-  const double step = 0.5 * cell_;
   return CastRays(cam, reference_depth_m, [&](const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-    if (d.z() >= 0) return kNoHit;  // looking up: no surface
-    // March from the top of the surface's height range downwards.
-    double t = std::max(0.0, (max_z_ + 1.0 - c.z()) / d.z());
-    const double t_end = (min_z_ - 1.0 - c.z()) / d.z();
-    // At most half a cell horizontally and vertically per step.
-    const double dt = step / std::max(d.head<2>().norm(), std::abs(d.z()));
-    auto below = [&](double tt) {
-      const Eigen::Vector3d p = c + tt * d;
-      const double h = HeightAt(p.x(), p.y());
-      return std::isfinite(h) && p.z() <= h;
-    };
-    for (double prev = t; t <= t_end; prev = t, t += dt) {
-      if (!below(t)) continue;
-      // Bisection between the last sample above and the first below.
-      double a = prev, b = t;
-      for (int k = 0; k < 12; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
-      return b;
-    }
-    return kNoHit;
+    return FirstHit(c, d);
   }, weight_.empty() ? nullptr : this);
+}
+
+namespace {
+
+// A grid of square cells over the xy plane: the cells the ray c + t d
+// crosses for t in [t_in, t_out), in order (a 2-D DDA). `visit(i, j,
+// t_enter, t_exit)` returns a depth to stop at, or NaN to go on. The first
+// cell is taken from the ray's position at t_in, clamped to [first, last]
+// (per axis), so a walk started on a cell boundary stays in the intended
+// cell despite rounding. Every cell on the path is visited, however thin the
+// ray's path through its corner.
+struct CellGrid {
+  double x0, y0, cell;
+  int nx, ny;
+};
+
+template <class Visit>
+double WalkCells(const CellGrid& g, const Eigen::Vector3d& c, const Eigen::Vector3d& d, double t_in, double t_out,
+                 const int first[2], const int last[2], Visit visit) {
+  const double lo[2] = {g.x0, g.y0};
+  const Eigen::Vector3d start = c + t_in * d;
+  int cell[2], step[2];
+  double t_next[2], t_delta[2];
+  for (int a = 0; a < 2; ++a) {
+    cell[a] = std::clamp(static_cast<int>(std::floor((start[a] - lo[a]) / g.cell)), first[a], last[a]);
+    if (d[a] > 0) {
+      step[a] = 1;
+      t_next[a] = (lo[a] + (cell[a] + 1) * g.cell - c[a]) / d[a];
+      t_delta[a] = g.cell / d[a];
+    } else if (d[a] < 0) {
+      step[a] = -1;
+      t_next[a] = (lo[a] + cell[a] * g.cell - c[a]) / d[a];
+      t_delta[a] = -g.cell / d[a];
+    } else {
+      step[a] = 0;
+      t_next[a] = t_delta[a] = std::numeric_limits<double>::infinity();
+    }
+  }
+  for (double t_enter = t_in; t_enter < t_out;) {
+    const double t_exit = std::min({t_next[0], t_next[1], t_out});
+    const double hit = visit(cell[0], cell[1], t_enter, t_exit);
+    if (!std::isnan(hit)) return hit;
+    const int a = t_next[0] < t_next[1] ? 0 : 1;
+    cell[a] += step[a];
+    if (cell[a] < first[a] || cell[a] > last[a]) return kNoHit;
+    t_enter = t_exit;
+    t_next[a] += t_delta[a];
+  }
+  return kNoHit;
+}
+
+}  // namespace
+
+void SurfaceDepthPrior::BuildBlockMaxima() {
+  bx_ = (nx_ + kBlockCells - 1) / kBlockCells;
+  by_ = (ny_ + kBlockCells - 1) / kBlockCells;
+  block_max_.assign(static_cast<std::size_t>(bx_) * by_, -std::numeric_limits<float>::infinity());
+  for (int j = 0; j < ny_; ++j)
+    for (int i = 0; i < nx_; ++i) {
+      float& m = block_max_[static_cast<std::size_t>(j / kBlockCells) * bx_ + i / kBlockCells];
+      m = std::max(m, height_[static_cast<std::size_t>(j) * nx_ + i]);
+    }
+}
+
+double SurfaceDepthPrior::FirstHit(const Eigen::Vector3d& c, const Eigen::Vector3d& d) const {
+  if (d.z() >= 0) return kNoHit;  // looking up: no surface
+  // The part of the ray within the surface's height range and over its grid.
+  double t_in = std::max(0.0, (max_z_ + 1.0 - c.z()) / d.z());
+  double t_out = (min_z_ - 1.0 - c.z()) / d.z();
+  const double lo[2] = {x0_, y0_}, hi[2] = {x0_ + nx_ * cell_, y0_ + ny_ * cell_};
+  for (int a = 0; a < 2; ++a) {
+    if (d[a] == 0.0) {
+      if (c[a] < lo[a] || c[a] >= hi[a]) return kNoHit;
+      continue;
+    }
+    const double t0 = (lo[a] - c[a]) / d[a], t1 = (hi[a] - c[a]) / d[a];
+    t_in = std::max(t_in, std::min(t0, t1));
+    t_out = std::min(t_out, std::max(t0, t1));
+  }
+  if (!(t_in < t_out)) return kNoHit;
+  // Blocks of cells first: the ray descends, so it stays above a block whose
+  // highest cell is below it where it leaves the block; only the other blocks
+  // are walked cell by cell. The surface is constant over a cell, so the ray
+  // meets it in a cell either where it enters (a wall) or where it descends
+  // through the cell's height (a roof).
+  const CellGrid blocks{x0_, y0_, kBlockCells * cell_, bx_, by_}, cells{x0_, y0_, cell_, nx_, ny_};
+  const int first_block[2] = {0, 0}, last_block[2] = {bx_ - 1, by_ - 1};
+  return WalkCells(blocks, c, d, t_in, t_out, first_block, last_block, [&](int bi, int bj, double tb0, double tb1) {
+    if (c.z() + tb1 * d.z() > block_max_[static_cast<std::size_t>(bj) * bx_ + bi]) return kNoHit;
+    const int first[2] = {bi * kBlockCells, bj * kBlockCells};
+    const int last[2] = {std::min(nx_, (bi + 1) * kBlockCells) - 1, std::min(ny_, (bj + 1) * kBlockCells) - 1};
+    return WalkCells(cells, c, d, tb0, tb1, first, last, [&](int i, int j, double t0, double t1) {
+      const double h = height_[static_cast<std::size_t>(j) * nx_ + i];
+      if (c.z() + t0 * d.z() <= h) return t0;                   // meets the cell's wall
+      if (c.z() + t1 * d.z() <= h) return (h - c.z()) / d.z();  // meets its top
+      return kNoHit;
+    });
+  });
 }
 
 CommandDepthPrior::CommandDepthPrior(std::string command, std::string work_dir)

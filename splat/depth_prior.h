@@ -53,6 +53,11 @@ class SurfaceDepthPrior final : public DepthPrior {
   float WeightAt(double x_m, double y_m) const;
 
  private:
+  // Camera depth at which the ray c + t d (unit camera z) first meets the
+  // surface, NaN if it does not within the grid.
+  double FirstHit(const Eigen::Vector3d& c, const Eigen::Vector3d& d) const;
+  // The highest cell of each block of kBlockCells x kBlockCells cells.
+  void BuildBlockMaxima();
   // Row-major index of the cell holding (x, y), -1 outside the grid.
   std::ptrdiff_t CellIndex(double x_m, double y_m) const;
 
@@ -61,6 +66,9 @@ class SurfaceDepthPrior final : public DepthPrior {
   std::vector<float> height_;
   std::vector<float> weight_;  // per cell; empty without point weights
   float min_z_ = 0, max_z_ = 0;
+  static constexpr int kBlockCells = 8;
+  int bx_ = 0, by_ = 0;          // blocks per row and column
+  std::vector<float> block_max_;  // per block, row-major
 };
 
 // External estimator: runs `command` with {in} replaced by a PNG of the view

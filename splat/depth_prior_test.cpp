@@ -72,6 +72,73 @@ TEST(DepthPrior, NadirViewsOfAStepSeeBothLevelsAtTheirDepths) {
   }
 }
 
+// The first crossing of a ray with the surface found by a fine march (a
+// fiftieth of a cell per step) and bisection: slow, but simple enough to
+// trust as the reference for the cell walk.
+double FineMarchDepth(const SurfaceDepthPrior& prior, const Eigen::Vector3d& c, const Eigen::Vector3d& d,
+                      double cell_m, double top_m, double bottom_m) {
+  const double dt = cell_m / 50.0 / d.norm();
+  auto below = [&](double t) {
+    const Eigen::Vector3d p = c + t * d;
+    const double h = prior.HeightAt(p.x(), p.y());
+    return std::isfinite(h) && p.z() <= h;
+  };
+  const double t_end = (bottom_m - c.z()) / d.z();  // below every height: nothing more to meet
+  for (double t = (top_m - c.z()) / d.z(), prev = t; t <= t_end; prev = t, t += dt) {
+    if (!below(t)) continue;
+    double a = prev, b = t;
+    for (int k = 0; k < 30; ++k) (below(0.5 * (a + b)) ? b : a) = 0.5 * (a + b);
+    return b;
+  }
+  return NAN;
+}
+
+TEST(DepthPrior, CellWalkMeetsRoofsAndWallsWhereAFineMarchDoes) {
+  // Blocks of random height (0-40 m) and single-cell spikes on a 0.5 m grid
+  // (the walk skips whole blocks of 8 x 8 cells the ray passes above), seen obliquely at 45
+  // and 70 deg: every pixel's depth equals the fine march's, except where the
+  // march's steps cut a cell corner it then misses (the walk cannot miss one:
+  // it visits every cell on the ray's path), so it is never farther.
+  const double cell_m = 0.5;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> block_height(0.0f, 40.0f);
+  std::vector<float> blocks(16 * 16);
+  for (float& b : blocks) b = block_height(rng) < 16.0f ? 0.0f : block_height(rng);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 256; ++i)
+    for (int j = 0; j < 256; ++j)
+      pts.emplace_back(-64 + (i + 0.5f) * cell_m, -64 + (j + 0.5f) * cell_m,
+                       block_height(rng) < 1.0f ? block_height(rng) : blocks[(j / 16) * 16 + i / 16]);  // 2.5% spikes
+  const SurfaceDepthPrior prior(pts, cell_m);
+  for (double elevation_deg : {45.0, 70.0}) {
+    PseudoCameraOptions o;
+    o.min_elevation_deg = o.max_elevation_deg = elevation_deg;
+    o.look_at_sigma_m = 5;
+    o.radius_m = 150;
+    o.size_px = 64;
+    const PinholeCamera cam = SamplePseudoCamera(o, Eigen::Vector3d(0, 0, 0), 11);
+    const DepthMap walked = prior.DepthRelativeTo(cam, 0.0);
+    const Eigen::Vector3d c = cam.Centre();
+    int both = 0, agree = 0;
+    for (int r = 0; r < cam.height_px; ++r)
+      for (int col = 0; col < cam.width_px; ++col) {
+        const std::size_t p = static_cast<std::size_t>(r) * cam.width_px + col;
+        const double yn = (r - cam.cy) / cam.fy;
+        const Eigen::Vector3d d = cam.cam_from_world_rotation.transpose() * Eigen::Vector3d((col - cam.cx) / cam.fx, yn, 1);
+        const double fine = FineMarchDepth(prior, c, d, cell_m, 41.0, -1.0);
+        ASSERT_EQ(static_cast<bool>(walked.valid[p]), std::isfinite(fine)) << elevation_deg << " deg, " << col << "," << r;
+        if (!walked.valid[p]) continue;
+        ++both;
+        // Tolerance: the march's step, 1/50 of a cell along the ray.
+        const double step_m = cell_m / 50.0 / d.norm();
+        EXPECT_LE(walked.depth[p], fine + step_m) << elevation_deg << " deg, " << col << "," << r;
+        if (std::abs(walked.depth[p] - fine) <= step_m) ++agree;
+      }
+    EXPECT_GT(both, 64 * 64 / 2) << elevation_deg;  // most of the view lies on the grid
+    EXPECT_GE(agree, both * 995 / 1000) << elevation_deg << " deg: " << both - agree << " of " << both << " differ";
+  }
+}
+
 TEST(DepthPrior, DenseCellCentresKeepTheirOwnCellsAndTheEdgeOfARoof) {
   // The dense heights' layout: one point per 0.5 m cell centre, written with
   // three decimals and read back as float, whose rounding puts some points a
