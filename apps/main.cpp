@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
+#include "core/allocator.h"
 #include "core/error.h"
 #include "core/simd.h"
 #include "pipeline/event_log.h"
@@ -35,6 +36,7 @@ int main(int argc, char** argv) {
   // A full disk or a file-size limit makes writes fail (EFBIG, ENOSPC) and
   // the atomic writers name the file, instead of the process being killed.
   signal(SIGXFSZ, SIG_IGN);
+  skyfall::KeepFreedMemoryForReuse();
   CLI::App app{
       "skyfall " SKYFALL_VERSION
       ": batch tiler from multi-view satellite imagery (DFC2019 + RPC) to 3D Gaussian-splat "

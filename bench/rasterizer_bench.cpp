@@ -3,7 +3,9 @@
 #include <benchmark/benchmark.h>
 
 #include "bench/bench_scene.h"
+#include "core/allocator.h"
 #include "splat/appearance.h"
+#include "splat/losses.h"
 #include "splat/rasterizer.h"
 
 namespace skyfall {
@@ -54,11 +56,35 @@ void BM_AppearanceForwardBackward(benchmark::State& state) {
   }
 }
 
+// The photometric loss (L1 + D-SSIM) with its gradient on one RGB image of
+// width x height: the training step's loss phase.
+void BM_PhotometricLoss(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  std::vector<float> x(3 * static_cast<std::size_t>(w) * h), target(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    x[k] = 0.5f + 0.4f * std::sin(0.37f * static_cast<float>(k));
+    target[k] = 0.5f + 0.4f * std::cos(0.11f * static_cast<float>(k));
+  }
+  std::vector<float> grad;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(PhotometricLoss(x, target, w, h, PhotometricLossOptions{}, &grad));
+    benchmark::DoNotOptimize(grad.data());
+  }
+}
+
 BENCHMARK(BM_Forward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ForwardBackward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_AppearanceForwardBackward)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_PhotometricLoss)->Args({256, 256})->Args({512, 384})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace skyfall
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  skyfall::KeepFreedMemoryForReuse();  // as the skyfall binary does
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

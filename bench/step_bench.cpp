@@ -15,6 +15,7 @@
 #include <string>
 
 #include "bench/bench_scene.h"
+#include "core/allocator.h"
 #include "core/stage.h"
 #include "splat/depth_prior.h"
 #include "splat/rasterizer.h"
@@ -64,6 +65,7 @@ std::vector<TrainView> BenchViews(int gaussians) {
 }
 
 int Main(int argc, char** argv) {
+  KeepFreedMemoryForReuse();  // as the skyfall binary does
   const BenchArgs args = ParseArgs(argc, argv);
   const GaussianCloud cloud = BenchCloud(args.gaussians);
   const std::vector<TrainView> views = BenchViews(args.gaussians);

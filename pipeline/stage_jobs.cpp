@@ -28,8 +28,8 @@ namespace fs = std::filesystem;
 
 // Mean milliseconds per training step, by phase (trainer.h, StepProfile).
 nlohmann::json StepMsJson(const StepProfile& p) {
-  nlohmann::json j = {{"steps", p.steps}, {"step", p.StepMs()}};
-  for (int k = 0; k < StepProfile::kCount; ++k) j[StepProfile::kPhases[k]] = p.MeanMs(k);
+  nlohmann::json j = {{"steps", p.steps}};
+  for (const auto& [phase, ms] : p.MeanMsByPhase()) j[phase] = ms;
   return j;
 }
 

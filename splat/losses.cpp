@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -28,50 +29,84 @@ std::array<double, kWindow> GaussianWindow() {
   return w;
 }
 
-// Separable 'same' convolution with the (symmetric) window, zero padding.
-// Symmetric and zero-padded, so it is its own adjoint. Rows run in
-// parallel; the inner loops have no bounds tests (edges are done apart), so
-// the compiler vectorizes them. In T: float for training (as 3DGS does; the
-// SSIM constants C1, C2 keep the variances' rounding harmless), double for
-// the finite-difference tests.
+// Separable 'same' convolution of one w x h plane with the (symmetric)
+// window, zero padding: symmetric and zero-padded, so it is its own adjoint.
+// One plane runs on one thread (the SSIM blurs its planes in parallel). Both
+// passes sum the 11 taps of a pixel in registers, in tap order, with the
+// pixels along a row in the vector lanes; rows outside the plane read a row
+// of zeros. `row` holds w + 2r values, `zeros` w, `tmp` w * h. In T: float
+// for training (as 3DGS does; the SSIM constants C1, C2 keep the variances'
+// rounding harmless), double for the finite-difference tests.
+// dst[x] = sum over k of win[k] * src[k][x], in tap order. The rows as
+// separate restrict pointers: through the array GCC does not vectorize.
 template <typename T>
-std::vector<T> Blur(const std::vector<T>& in, int w, int h) {
+void VerticalTaps(const T* const* src, const std::array<T, kWindow>& win, T* __restrict dst, int w) {
+  static_assert(kWindow == 11, "one pointer per tap");
+  const T* __restrict s0 = src[0];
+  const T* __restrict s1 = src[1];
+  const T* __restrict s2 = src[2];
+  const T* __restrict s3 = src[3];
+  const T* __restrict s4 = src[4];
+  const T* __restrict s5 = src[5];
+  const T* __restrict s6 = src[6];
+  const T* __restrict s7 = src[7];
+  const T* __restrict s8 = src[8];
+  const T* __restrict s9 = src[9];
+  const T* __restrict s10 = src[10];
+  for (int x = 0; x < w; ++x) {
+    T acc = 0;
+    acc += win[0] * s0[x];
+    acc += win[1] * s1[x];
+    acc += win[2] * s2[x];
+    acc += win[3] * s3[x];
+    acc += win[4] * s4[x];
+    acc += win[5] * s5[x];
+    acc += win[6] * s6[x];
+    acc += win[7] * s7[x];
+    acc += win[8] * s8[x];
+    acc += win[9] * s9[x];
+    acc += win[10] * s10[x];
+    dst[x] = acc;
+  }
+}
+
+template <typename T>
+void BlurPlane(const T* in, T* out, T* tmp, T* row, const T* zeros, int w, int h) {
   static const auto win64 = GaussianWindow();
   std::array<T, kWindow> win;
   for (int k = 0; k < kWindow; ++k) win[k] = T(win64[k]);
   constexpr int r = kWindow / 2;
-  std::vector<T> tmp(in.size()), out(in.size(), T(0));
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      const T* src = in.data() + static_cast<std::size_t>(y) * w;
-      T* dst = tmp.data() + static_cast<std::size_t>(y) * w;
-      auto edge = [&](int x) {
-        T acc = 0;
-        for (int k = -r; k <= r; ++k)
-          if (x + k >= 0 && x + k < w) acc += win[k + r] * src[x + k];
-        dst[x] = acc;
-      };
-      for (int x = 0; x < std::min(r, w); ++x) edge(x);
-      for (int x = r; x < w - r; ++x) {
-        T acc = 0;
-        for (int k = 0; k < kWindow; ++k) acc += win[k] * src[x - r + k];
-        dst[x] = acc;
-      }
-      for (int x = std::max(r, w - r); x < w; ++x) edge(x);
+  std::fill(row, row + r, T(0));
+  std::fill(row + r + w, row + 2 * r + w, T(0));
+  for (int y = 0; y < h; ++y) {
+    std::copy(in + static_cast<std::size_t>(y) * w, in + static_cast<std::size_t>(y + 1) * w, row + r);
+    T* dst = tmp + static_cast<std::size_t>(y) * w;
+    for (int x = 0; x < w; ++x) {
+      T acc = 0;
+#pragma GCC unroll 11
+      for (int k = 0; k < kWindow; ++k) acc += win[k] * row[x + k];
+      dst[x] = acc;
     }
-  });
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      T* dst = out.data() + static_cast<std::size_t>(y) * w;
-      for (int k = -r; k <= r; ++k) {
-        if (y + k < 0 || y + k >= h) continue;
-        const T* src = tmp.data() + static_cast<std::size_t>(y + k) * w;
-        const T wk = win[k + r];
-        for (int x = 0; x < w; ++x) dst[x] += wk * src[x];
-      }
+  }
+  for (int y = 0; y < h; ++y) {
+    const T* src[kWindow];
+    for (int k = 0; k < kWindow; ++k) {
+      const int yy = y + k - r;
+      src[k] = yy < 0 || yy >= h ? zeros : tmp + static_cast<std::size_t>(yy) * w;
     }
+    VerticalTaps(src, win, out + static_cast<std::size_t>(y) * w, w);
+  }
+}
+
+// Blurs `planes` consecutive w x h planes of `in` into `out`, planes in parallel.
+template <typename T>
+void BlurPlanes(const std::vector<T>& in, std::vector<T>& out, int planes, int w, int h) {
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  out.resize(in.size());
+  tbb::parallel_for(0, planes, [&](int k) {
+    std::vector<T> tmp(n), row(static_cast<std::size_t>(w) + kWindow), zeros(static_cast<std::size_t>(w), T(0));
+    BlurPlane(in.data() + k * n, out.data() + k * n, tmp.data(), row.data(), zeros.data(), w, h);
   });
-  return out;
 }
 
 void RequireSameSize(size_t a, size_t b, const char* what) {
@@ -98,62 +133,138 @@ double L1Loss(const std::vector<T>& x, const std::vector<T>& target, std::vector
 }
 
 template <typename T>
-double Ssim(const std::vector<T>& x, const std::vector<T>& target, int w, int h, int channels,
-            std::vector<T>* grad) {
-  RequireSameSize(x.size(), target.size(), "ssim");
+double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int w, int h, int channels,
+                std::vector<T>* grad) {
+  if (targets.empty()) throw Error("loss", "ssim", "no target image");
+  for (const auto* t : targets) RequireSameSize(x.size(), t->size(), "ssim");
   RequireSameSize(x.size(), static_cast<size_t>(w) * h * channels, "ssim image");
   const size_t n = static_cast<size_t>(w) * h;
+  const int S = static_cast<int>(targets.size());
   if (grad) grad->assign(x.size(), T(0));
-  double total = 0;
-  const T inv = T(1.0 / static_cast<double>(n * channels));
+  const T inv = T(1.0 / static_cast<double>(n * channels * S));
   const T c1 = T(kC1), c2 = T(kC2);
-  for (int c = 0; c < channels; ++c) {
-    std::vector<T> a(n), b(n), aa(n), bb(n), ab(n);
-    for (size_t p = 0; p < n; ++p) {
-      a[p] = x[p * channels + c];
-      b[p] = target[p * channels + c];
-      aa[p] = a[p] * a[p];
-      bb[p] = b[p] * b[p];
-      ab[p] = a[p] * b[p];
+  // The statistics of every channel as planes: a and a^2 once, then b, b^2
+  // and ab of each target; all blurred in parallel. The render's own blurs
+  // are shared by the targets.
+  const int stats_per_channel = 2 + 3 * S;
+  auto plane = [&](int c, int k) { return (static_cast<size_t>(c) * stats_per_channel + k) * n; };
+  enum { kA, kAA };
+  auto b_plane = [&](int c, int s, int k) { return plane(c, 2 + 3 * s + k); };  // k: 0 b, 1 b^2, 2 ab
+  std::vector<T> stats(n * stats_per_channel * channels), blurred;
+  auto rows = [&](const std::function<void(size_t, size_t)>& body) {  // pixel ranges of whole rows, in parallel
+    tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
+      body(static_cast<size_t>(r.begin()) * w, static_cast<size_t>(r.end()) * w);
+    });
+  };
+  rows([&](size_t p0, size_t p1) {
+    for (int c = 0; c < channels; ++c)
+      for (size_t p = p0; p < p1; ++p) {
+        const T a = x[p * channels + c];
+        stats[plane(c, kA) + p] = a;
+        stats[plane(c, kAA) + p] = a * a;
+        for (int s = 0; s < S; ++s) {
+          const T b = (*targets[s])[p * channels + c];
+          stats[b_plane(c, s, 0) + p] = b;
+          stats[b_plane(c, s, 1) + p] = b * b;
+          stats[b_plane(c, s, 2) + p] = a * b;
+        }
+      }
+  });
+  BlurPlanes(stats, blurred, stats_per_channel * channels, w, h);
+  // Per pixel: SSIM and its derivatives by the blurred statistics, rows in
+  // parallel; each row's sum in double, the rows summed in order
+  // (deterministic). Gradient planes per channel: the mu_a and var_a terms
+  // summed over targets (they are blurred alike), then each target's cov term
+  // (its blur is multiplied by that target's b).
+  const int grads_per_channel = 2 + S;
+  enum { kGMu, kDVar };
+  std::vector<T> d_stats(grad ? n * grads_per_channel * channels : 0, T(0)), d_blurred;
+  std::vector<double> row_total(static_cast<size_t>(h) * channels, 0.0);
+  tbb::parallel_for(0, h * channels, [&](int task) {
+    const int c = task / h, y = task % h;
+    const T* mu_a = blurred.data() + plane(c, kA);
+    const T* e_aa = blurred.data() + plane(c, kAA);
+    T* g = grad ? d_stats.data() + static_cast<size_t>(c) * grads_per_channel * n : nullptr;
+    double total = 0;
+    std::vector<T> row_ssim(static_cast<size_t>(w));  // summed after the row: the pixel loop vectorizes
+    const size_t row0 = static_cast<size_t>(y) * w;
+    for (int s = 0; s < S; ++s) {
+      const T* mu_b = blurred.data() + b_plane(c, s, 0);
+      const T* e_bb = blurred.data() + b_plane(c, s, 1);
+      const T* e_ab = blurred.data() + b_plane(c, s, 2);
+      for (size_t p = row0; p < row0 + w; ++p) {
+        const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
+        const T cov = e_ab[p] - mu_a[p] * mu_b[p];
+        const T l_num = 2 * mu_a[p] * mu_b[p] + c1, l_den = mu_a[p] * mu_a[p] + mu_b[p] * mu_b[p] + c1;
+        const T c_num = 2 * cov + c2, c_den = va + vb + c2;
+        const T ssim = (l_num * c_num) / (l_den * c_den);
+        row_ssim[p - row0] = ssim;
+        if (!g) continue;
+        // dS/dmu_a, dS/dvar_a, dS/dcov (var and cov as independent
+        // statistics), then var_a = E[a^2] - mu_a^2, cov = E[ab] - mu_a mu_b
+        // chained to mu_a.
+        const T dmu = inv * ssim * (2 * mu_b[p] / l_num - 2 * mu_a[p] / l_den);
+        const T dvar = inv * (-ssim / c_den), dcov = inv * (2 * ssim / c_num);
+        g[kDVar * n + p] += dvar;
+        g[(2 + s) * n + p] = dcov;
+        g[kGMu * n + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;
+      }
+      for (T v : row_ssim) total += v;
     }
-    const auto mu_a = Blur(a, w, h), mu_b = Blur(b, w, h);
-    const auto e_aa = Blur(aa, w, h), e_bb = Blur(bb, w, h), e_ab = Blur(ab, w, h);
-    std::vector<T> g_mu(n), dvar(n), dcov(n);
-    double channel_total = 0;  // summed in double, in pixel order: deterministic
-    for (size_t p = 0; p < n; ++p) {
-      const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
-      const T cov = e_ab[p] - mu_a[p] * mu_b[p];
-      const T l_num = 2 * mu_a[p] * mu_b[p] + c1, l_den = mu_a[p] * mu_a[p] + mu_b[p] * mu_b[p] + c1;
-      const T c_num = 2 * cov + c2, c_den = va + vb + c2;
-      const T s = (l_num * c_num) / (l_den * c_den);
-      channel_total += s;
-      // dS/dmu_a, dS/dvar_a, dS/dcov (var and cov as independent statistics),
-      // then var_a = E[a^2] - mu_a^2, cov = E[ab] - mu_a mu_b chained to mu_a.
-      const T dmu = inv * s * (2 * mu_b[p] / l_num - 2 * mu_a[p] / l_den);
-      dvar[p] = inv * (-s / c_den);
-      dcov[p] = inv * (2 * s / c_num);
-      g_mu[p] = dmu - 2 * mu_a[p] * dvar[p] - mu_b[p] * dcov[p];
-    }
-    total += channel_total;
-    if (!grad) continue;
+    row_total[static_cast<size_t>(task)] = total;
+  });
+  double total = 0;
+  for (double t : row_total) total += t;
+  if (grad) {
     // Through the (self-adjoint) blur.
-    const auto bg_mu = Blur(g_mu, w, h), bg_var = Blur(dvar, w, h), bg_cov = Blur(dcov, w, h);
-    for (size_t p = 0; p < n; ++p) (*grad)[p * channels + c] = bg_mu[p] + 2 * a[p] * bg_var[p] + b[p] * bg_cov[p];
+    BlurPlanes(d_stats, d_blurred, grads_per_channel * channels, w, h);
+    rows([&](size_t p0, size_t p1) {
+      for (int c = 0; c < channels; ++c) {
+        const T* bg = d_blurred.data() + static_cast<size_t>(c) * grads_per_channel * n;
+        const T* a = stats.data() + plane(c, kA);
+        for (size_t p = p0; p < p1; ++p) {
+          T v = bg[kGMu * n + p] + 2 * a[p] * bg[kDVar * n + p];
+          for (int s = 0; s < S; ++s) v += stats[b_plane(c, s, 0) + p] * bg[(2 + s) * n + p];
+          (*grad)[p * channels + c] = v;
+        }
+      }
+    });
   }
-  return total * (1.0 / static_cast<double>(n * channels));
+  return total * (1.0 / static_cast<double>(n * channels * S));
+}
+
+template <typename T>
+double Ssim(const std::vector<T>& x, const std::vector<T>& target, int w, int h, int channels,
+            std::vector<T>* grad) {
+  return SsimMean(x, {&target}, w, h, channels, grad);
+}
+
+template <typename T>
+double PhotometricLossMean(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int w, int h,
+                           const PhotometricLossOptions& o, std::vector<T>* grad) {
+  if (targets.empty()) throw Error("loss", "photometric", "no target image");
+  std::vector<T> g_l1, g_ssim;
+  double l1 = L1Loss(x, *targets[0], grad ? &g_l1 : nullptr);
+  for (size_t s = 1; s < targets.size(); ++s) {
+    l1 += L1Loss(x, *targets[s], grad ? &g_ssim : nullptr);  // g_ssim as scratch until the SSIM
+    if (grad)
+      for (size_t k = 0; k < x.size(); ++k) g_l1[k] += g_ssim[k];
+  }
+  const double inv_s = 1.0 / static_cast<double>(targets.size());
+  l1 *= inv_s;
+  const double ssim = SsimMean(x, targets, w, h, 3, grad ? &g_ssim : nullptr);
+  if (grad) {
+    grad->resize(x.size());
+    const double l1_weight = (1 - o.lambda_dssim) * inv_s;
+    for (size_t k = 0; k < x.size(); ++k) (*grad)[k] = T(l1_weight * g_l1[k] - o.lambda_dssim * g_ssim[k]);
+  }
+  return (1 - o.lambda_dssim) * l1 + o.lambda_dssim * (1 - ssim);
 }
 
 template <typename T>
 double PhotometricLoss(const std::vector<T>& x, const std::vector<T>& target, int w, int h,
                        const PhotometricLossOptions& o, std::vector<T>* grad) {
-  std::vector<T> g_l1, g_ssim;
-  const double l1 = L1Loss(x, target, grad ? &g_l1 : nullptr);
-  const double ssim = Ssim(x, target, w, h, 3, grad ? &g_ssim : nullptr);
-  if (grad) {
-    grad->resize(x.size());
-    for (size_t k = 0; k < x.size(); ++k) (*grad)[k] = T((1 - o.lambda_dssim) * g_l1[k] - o.lambda_dssim * g_ssim[k]);
-  }
-  return (1 - o.lambda_dssim) * l1 + o.lambda_dssim * (1 - ssim);
+  return PhotometricLossMean(x, {&target}, w, h, o, grad);
 }
 
 template <typename T>
@@ -258,6 +369,10 @@ double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alph
   template double Ssim(const std::vector<T>&, const std::vector<T>&, int, int, int, std::vector<T>*);      \
   template double PhotometricLoss(const std::vector<T>&, const std::vector<T>&, int, int,                  \
                                   const PhotometricLossOptions&, std::vector<T>*);                        \
+  template double SsimMean(const std::vector<T>&, const std::vector<const std::vector<T>*>&, int, int, int,  \
+                           std::vector<T>*);                                                                \
+  template double PhotometricLossMean(const std::vector<T>&, const std::vector<const std::vector<T>*>&, int, \
+                                      int, const PhotometricLossOptions&, std::vector<T>*);                 \
   template double OpacityEntropy(const std::vector<T>&, std::vector<T>*);                                   \
   template double PearsonDepthLoss(const std::vector<T>&, const std::vector<T>&,                           \
                                    const std::vector<unsigned char>&, std::vector<T>*);                     \

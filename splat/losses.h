@@ -17,6 +17,12 @@ template <typename T>
 double Ssim(const std::vector<T>& x, const std::vector<T>& target, int width, int height, int channels,
             std::vector<T>* grad);
 
+// The mean of Ssim(x, target) over `targets` (at least one), and its
+// gradient: the render's own statistics are blurred once for all targets.
+template <typename T>
+double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int width, int height,
+                int channels, std::vector<T>* grad);
+
 // The reconstruction loss of 3DGS / Skyfall-GS: (1 - lambda) L1 + lambda (1 - SSIM).
 struct PhotometricLossOptions {
   double lambda_dssim = 0.2;
@@ -24,6 +30,11 @@ struct PhotometricLossOptions {
 template <typename T>
 double PhotometricLoss(const std::vector<T>& x, const std::vector<T>& target, int width, int height,
                        const PhotometricLossOptions& options, std::vector<T>* grad);
+// Its mean over several targets (at least one; e.g. the N_s refined samples
+// of one view), computed at the cost of little more than one.
+template <typename T>
+double PhotometricLossMean(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int width,
+                           int height, const PhotometricLossOptions& options, std::vector<T>* grad);
 
 // Opacity entropy -a log a - (1 - a) log(1 - a) with a = sigmoid(logit),
 // averaged over Gaussians. Written in the logit, so it is finite and smooth

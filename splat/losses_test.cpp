@@ -66,6 +66,32 @@ TEST(Losses, FloatSsimFollowsDoubleAtAnySize) {
   }
 }
 
+TEST(Losses, MeanOverTargetsEqualsTheMeanOfEachTargetsLossAndGradient) {
+  // The shared-blur form against one call per target, and its gradient
+  // against finite differences.
+  const int w = 13, h = 12;
+  auto x = RandomImage(w * h * 3, 21);
+  const auto y1 = RandomImage(w * h * 3, 22), y2 = RandomImage(w * h * 3, 23), y3 = RandomImage(w * h * 3, 24);
+  for (size_t k = 0; k < x.size(); ++k)
+    for (const auto* y : {&y1, &y2, &y3})
+      if (std::abs(x[k] - (*y)[k]) < 1e-3) x[k] += 2e-3;  // away from the L1 kinks
+  const std::vector<const std::vector<double>*> targets = {&y1, &y2, &y3};
+  const PhotometricLossOptions o;
+  std::vector<double> grad, g1, g2, g3;
+  const double mean = PhotometricLossMean(x, targets, w, h, o, &grad);
+  const double each = (PhotometricLoss(x, y1, w, h, o, &g1) + PhotometricLoss(x, y2, w, h, o, &g2) +
+                       PhotometricLoss(x, y3, w, h, o, &g3)) / 3;
+  EXPECT_NEAR(mean, each, 1e-12);
+  for (size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(grad[k], (g1[k] + g2[k] + g3[k]) / 3, 1e-12) << k;
+  CheckGradient(x, [&](const std::vector<double>& v) { return PhotometricLossMean<double>(v, targets, w, h, o, nullptr); },
+                grad, 1e-7, 1e-6);
+  std::vector<double> gs;
+  EXPECT_NEAR(SsimMean(x, targets, w, h, 3, &gs),
+              (Ssim<double>(x, y1, w, h, 3, nullptr) + Ssim<double>(x, y2, w, h, 3, nullptr) +
+               Ssim<double>(x, y3, w, h, 3, nullptr)) / 3, 1e-12);
+  EXPECT_THROW(SsimMean<double>(x, {}, w, h, 3, &gs), Error);
+}
+
 TEST(Losses, PhotometricLossGradientAwayFromL1Kinks) {
   const int w = 12, h = 11;
   auto x = RandomImage(w * h * 3, 3);

@@ -384,17 +384,9 @@ int PickView(const std::vector<int>& satellite, const std::vector<int>& syntheti
 // The photometric loss of a view, averaged over its colour targets.
 double ViewPhotometricLoss(const RenderOutput<float>& r, const TrainView& view, const PhotometricLossOptions& o,
                            std::vector<float>* d_rgb) {
-  const int w = view.camera.width_px, h = view.camera.height_px;
-  double loss = PhotometricLoss(r.rgb, view.rgb, w, h, o, d_rgb);
-  if (view.extra_rgb.empty()) return loss;
-  std::vector<float> d;
-  for (const auto& target : view.extra_rgb) {
-    loss += PhotometricLoss(r.rgb, target, w, h, o, &d);
-    for (std::size_t k = 0; k < d.size(); ++k) (*d_rgb)[k] += d[k];
-  }
-  const float scale = 1.0f / static_cast<float>(1 + view.extra_rgb.size());
-  for (float& g : *d_rgb) g *= scale;
-  return loss * scale;
+  std::vector<const std::vector<float>*> targets = {&view.rgb};
+  for (const auto& extra : view.extra_rgb) targets.push_back(&extra);
+  return PhotometricLossMean(r.rgb, targets, view.camera.width_px, view.camera.height_px, o, d_rgb);
 }
 
 // lambda times the Pearson depth loss against the view's depth target, over
@@ -591,6 +583,12 @@ double StepProfile::StepMs() const {
   double ms = 0;
   for (int k = 0; k < kCount; ++k) ms += MeanMs(k);
   return ms;
+}
+
+std::vector<std::pair<std::string, double>> StepProfile::MeanMsByPhase() const {
+  std::vector<std::pair<std::string, double>> out = {{"step", StepMs()}};
+  for (int k = 0; k < kCount; ++k) out.emplace_back(kPhases[k], MeanMs(k));
+  return out;
 }
 
 namespace {

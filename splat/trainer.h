@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/gaussians.h"
@@ -142,6 +143,8 @@ struct StepProfile {
   // Mean milliseconds per step of phase `k`, and of the whole step.
   double MeanMs(int k) const { return steps ? 1e3 * seconds[k] / steps : 0.0; }
   double StepMs() const;
+  // ("step", StepMs()) then (phase, MeanMs) for every phase, for reports.
+  std::vector<std::pair<std::string, double>> MeanMsByPhase() const;
 };
 
 struct TrainResult {
