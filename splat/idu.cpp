@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -91,6 +92,16 @@ void PlaceOnSurface(const SurfaceDepthPrior& surface, OrbitRender* render) {
   }
 }
 
+// One PNG per view (`image(v)`: its RGB in [0, 1]) in `dir`, written in
+// parallel with fast compression: working images, hundreds per run.
+template <class Image>
+void WriteViewPngs(const fs::path& dir, const std::vector<OrbitView>& views, Image image) {
+  tbb::parallel_for(std::size_t{0}, views.size(), [&](std::size_t v) {
+    WriteUnitPng((dir / (views[v].name + ".png")).string(), views[v].camera.width_px, views[v].camera.height_px, 3,
+                 image(v), PngCompression::kFast);
+  });
+}
+
 double MedianHeight(const GaussianCloud& cloud) {
   if (cloud.size() == 0) return 0.0;
   std::vector<float> z;
@@ -124,12 +135,14 @@ TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episod
 }
 
 json EpisodeJson(const IduEpisode& e) {
+  json step_ms = json::object();
+  for (const auto& [phase, ms] : e.step_ms) step_ms[phase] = ms;
   return {{"episode", e.episode},         {"elevation_deg", e.elevation_deg},   {"radius_m", e.radius_m},
           {"views", e.views},             {"render_seconds", e.render_seconds}, {"refine_seconds", e.refine_seconds},
           {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
           {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? json(e.psnr_test_start_db) : json(nullptr)},
           {"psnr_test_db", std::isfinite(e.psnr_test_db) ? json(e.psnr_test_db) : json(nullptr)},
-          {"gaussians", e.gaussians},     {"reused", e.reused}};
+          {"gaussians", e.gaussians},     {"step_ms", step_ms},  {"reused", e.reused}};
 }
 
 IduEpisode EpisodeFromJson(const json& j) {
@@ -145,6 +158,8 @@ IduEpisode EpisodeFromJson(const json& j) {
   e.psnr_test_start_db = j.at("psnr_test_start_db").is_null() ? NAN : j.at("psnr_test_start_db").get<double>();
   e.psnr_test_db = j.at("psnr_test_db").is_null() ? NAN : j.at("psnr_test_db").get<double>();
   e.gaussians = j.at("gaussians");
+  if (j.contains("step_ms"))
+    for (const auto& [phase, ms] : j.at("step_ms").items()) e.step_ms.emplace_back(phase, ms.get<double>());
   e.reused = true;
   return e;
 }
@@ -232,9 +247,8 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       inputs.push_back(renders.back().input);
       for (std::uint8_t m : renders.back().valid) opaque += m;
       pixels += renders.back().valid.size();
-      WriteUnitPng((dir / "renders" / (v.name + ".png")).string(), v.camera.width_px, v.camera.height_px, 3,
-                   renders.back().input.rgb);
     }
+    WriteViewPngs(dir / "renders", views, [&](std::size_t v) -> const std::vector<float>& { return inputs[v].rgb; });
     ep.refined_coverage = pixels ? static_cast<double>(opaque) / pixels : 0.0;
     ep.render_seconds = phase.Seconds();
     // Refine them.
@@ -252,8 +266,6 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       if (static_cast<int>(refined[v].size()) != o.samples)
         throw Error("idu", views[v].name, "the refiner returned " + std::to_string(refined[v].size()) + " samples, not " +
                                               std::to_string(o.samples));
-      WriteUnitPng((dir / "refined" / (views[v].name + ".png")).string(), views[v].camera.width_px,
-                   views[v].camera.height_px, 3, refined[v][0]);
       TrainView t;
       t.name = views[v].name;
       t.camera = views[v].camera;
@@ -264,6 +276,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       t.depth_target = renders[v].depth_target;
       mixed.push_back(std::move(t));
     }
+    WriteViewPngs(dir / "refined", views, [&](std::size_t v) -> const std::vector<float>& { return mixed[satellite.size() + v].rgb; });
     Stopwatch train_clock;
     TrainResult trained = TrainGaussians(EpisodeTrainOptions(o, train, k), std::move(cloud), mixed, "", progress,
                                          nullptr, surface);
@@ -272,6 +285,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     ep.psnr_test_start_db = trained.series.empty() ? NAN : trained.series.front().psnr_test_db;
     ep.psnr_test_db = trained.series.empty() ? NAN : trained.series.back().psnr_test_db;
     ep.gaussians = cloud.size();
+    ep.step_ms = trained.profile.MeanMsByPhase();
     WriteGaussiansPly((dir / "scene.ply").string(), cloud);
     WriteFileAtomic((dir / "episode.json").string(), EpisodeJson(ep).dump(2) + "\n");  // last: the episode is done
     result.episodes.push_back(ep);

@@ -69,6 +69,7 @@ struct IduEpisode {
   double psnr_test_start_db = 0;      // held-out satellite PSNR of the scene the episode started from
   double psnr_test_db = 0;            // held-out satellite PSNR after the episode (NaN: none held out)
   std::size_t gaussians = 0;
+  std::vector<std::pair<std::string, double>> step_ms;  // mean per training step, by phase (StepProfile)
   bool reused = false;                // finished by an earlier, killed run
 };
 

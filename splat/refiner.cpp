@@ -243,7 +243,7 @@ std::vector<RefinedSamples> CommandRefiner::Refine(const GaussianCloud& /*scene*
   for (std::size_t v = 0; v < views.size(); ++v) {
     const RefineInput& in = views[v];
     const int W = in.camera.width_px, H = in.camera.height_px;
-    WriteUnitPng((in_dir / (in.name + ".png")).string(), W, H, 3, in.rgb);
+    WriteUnitPng((in_dir / (in.name + ".png")).string(), W, H, 3, in.rgb, PngCompression::kFast);
     json seeds = json::array();
     for (int k = 0; k < request.samples; ++k) seeds.push_back(SampleSeed(request, v, k));
     list.push_back({{"name", in.name}, {"file", in.name + ".png"}, {"width_px", W}, {"height_px", H},

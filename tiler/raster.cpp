@@ -180,15 +180,19 @@ void WriteUInt16Tiff(const std::string& path, int width_px, int height_px, int b
   WriteTiff(path, width_px, height_px, bands, GDT_UInt16, pixels, options);
 }
 
-void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels) {
-  WriteThroughMem(path, "PNG", width_px, height_px, bands, GDT_Byte, pixels, nullptr, {});
+void WriteBytePng(const std::string& path, int width_px, int height_px, int bands, const std::uint8_t* pixels,
+                  PngCompression compression) {
+  std::vector<const char*> options;
+  if (compression == PngCompression::kFast) options.push_back("ZLEVEL=1");
+  WriteThroughMem(path, "PNG", width_px, height_px, bands, GDT_Byte, pixels, nullptr, options);
 }
 
-void WriteUnitPng(const std::string& path, int width_px, int height_px, int bands, const std::vector<float>& values) {
+void WriteUnitPng(const std::string& path, int width_px, int height_px, int bands, const std::vector<float>& values,
+                  PngCompression compression) {
   std::vector<std::uint8_t> bytes(values.size());
   for (std::size_t k = 0; k < bytes.size(); ++k)
     bytes[k] = static_cast<std::uint8_t>(std::clamp(values[k], 0.0f, 1.0f) * 255.0f + 0.5f);
-  WriteBytePng(path, width_px, height_px, bands, bytes.data());
+  WriteBytePng(path, width_px, height_px, bands, bytes.data(), compression);
 }
 
 void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
