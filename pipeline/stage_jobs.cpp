@@ -336,9 +336,14 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
     return result;
   }
   const std::vector<TrainView> views = LoadTrainViews(sfm_dir, train.downscale);
+  const GaussianCloud scene = ReadGaussiansPly(scene_ply);
   std::vector<TrainView> satellite_train;
   for (const TrainView& v : views)
     if (!v.held_out) satellite_train.push_back(v);
+  satellite_train = MatchSceneAppearance(scene, std::move(satellite_train), train.optimizer.raster);
+  std::vector<TrainView> idu_views = satellite_train;  // held-out views keep their own colours: they measure
+  for (const TrainView& v : views)
+    if (v.held_out) idu_views.push_back(v);
   std::unique_ptr<SurfaceDepthPrior> surface;
   if (!dense.points.empty())
     surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
@@ -348,7 +353,7 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),
                   "idu.refiner", options.options.geometry == "surface" ? surface.get() : nullptr);
   fs::remove(scene_out);  // until this run has finished
-  result.idu = RunIdu(options.options, train.optimizer, ReadGaussiansPly(scene_ply), views, core,
+  result.idu = RunIdu(options.options, train.optimizer, scene, idu_views, core,
                       ReadCamerasFrameOrigin((fs::path(sfm_dir) / "cameras.json").string()), height, surface.get(), *refiner,
                       out_dir, episodes_stamp, progress);
   WriteGaussiansPly(scene_out.string(), result.idu.cloud);

@@ -97,6 +97,17 @@ IduResult RunIdu(const IduOptions& options, const TrainOptions& train, GaussianC
                  const std::function<double(double, double)>& surface_height_m, const SurfaceDepthPrior* surface,
                  Refiner& refiner, const std::string& out_dir, const std::string& options_json, Progress& progress);
 
+// The satellite views' colours carried to the scene's one appearance: each
+// view's channels mapped by the gain and offset that best fit (least
+// squares, over the pixels with data where the render is opaque) the scene
+// rendered from that view. The reconstruction's plain colours are those of
+// one image (the appearance it was fused for); satellite views of other
+// dates would otherwise pull the stage's refined views, and the scene
+// trained on them, towards a mix of dates. Views with too few opaque pixels
+// (under a tenth) or a flat channel keep their colours.
+std::vector<TrainView> MatchSceneAppearance(const GaussianCloud& scene, std::vector<TrainView> views,
+                                            const RasterOptions& raster);
+
 // `--idu auto`: whether the stage can help a tile, from its dense heights.
 struct IduAutoOptions {
   double step_m = 3.0;                 // a height step between neighbouring cells this tall or taller is a facade

@@ -189,6 +189,34 @@ TEST(ReprojectRefiner, PaintsOrbitPixelsWithTheColourTheSatelliteSawThere) {
   }
 }
 
+TEST(Idu, SatelliteViewsOfAnotherDateTakeTheScenesAppearance) {
+  // The scene: a plane whose colours vary per channel. A satellite view of
+  // "another date": the same image with each channel's gain and offset
+  // changed (clamped nowhere). Matched, it returns to the scene's colours;
+  // a view that barely sees the scene keeps its own.
+  GaussianCloud plane = Plane(30.0, 0.5, 0.0);
+  for (std::size_t k = 0; k < plane.size(); ++k) {
+    const float x = plane.means[k].x(), y = plane.means[k].y();
+    const Eigen::Vector3f c = GroundColour(x, y) + Eigen::Vector3f(0, 0, 0.2f * std::sin((x + y) / 6.0f));
+    for (int ch = 0; ch < 3; ++ch) plane.sh[k][ch * kShCoeffsPerChannel] = static_cast<float>((c[ch] - 0.5) / kShC0);
+  }
+  RasterOptions raster;
+  TrainView seen = NadirSatellite(0.25, 96);
+  const RenderOutput<float> scene = RenderGaussians(plane, seen.camera, raster);
+  const float gain[3] = {0.6f, 1.3f, 0.8f}, offset[3] = {0.1f, -0.1f, 0.15f};
+  seen.rgb = scene.rgb;
+  for (std::size_t p = 0; p < seen.rgb.size(); ++p) seen.rgb[p] = gain[p % 3] * seen.rgb[p] + offset[p % 3];
+  TrainView aside = seen;
+  aside.camera = NadirCamera({200, 0, 0}, 0.25, 96, 5.0e5);  // 200 m east: the plane is not in view
+  const std::vector<TrainView> matched = MatchSceneAppearance(plane, {seen, aside}, raster);
+  ASSERT_EQ(matched.size(), 2u);
+  float worst = 0;
+  for (std::size_t p = 0; p < scene.rgb.size(); ++p)
+    if (scene.alpha[p / 3] > 0.5f) worst = std::max(worst, std::abs(matched[0].rgb[p] - scene.rgb[p]));
+  EXPECT_LT(worst, 1e-4f);  // an exact affine change: recovered to float rounding
+  EXPECT_EQ(matched[1].rgb, aside.rgb);
+}
+
 TEST(ReprojectRefiner, InpaintsWhatNoSatelliteSeesAndRejectsBadOptions) {
   const GaussianCloud plane = Plane(30.0, 0.5, 0.0);
   // The satellite sees only the middle 16 x 16 m: the rest of the orbit view must be inpainted.
