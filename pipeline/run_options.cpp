@@ -245,6 +245,8 @@ template <class IO> void Visit(IO& io, IduStageOptions& o) {
   io("densify_interval", i.densify_interval);
   io("geometry", i.geometry);
   io("anchor_refined_views", i.anchor_refined_views);
+  io("fill_holes", i.fill_holes);
+  io("fill_voxel_m", i.fill_voxel_m);
   io("seed", i.seed);
   io("prompts", i.request);
   io("reproject", o.reproject);

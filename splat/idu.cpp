@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <unordered_set>
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
@@ -53,6 +54,7 @@ struct OrbitRender {
   RefineInput input;
   std::vector<float> depth_target;
   std::vector<std::uint8_t> valid;
+  std::vector<std::uint8_t> hole;  // surface where the render is transparent (PlaceOnSurface with fill_holes)
 };
 
 OrbitRender RenderOrbitView(const GaussianCloud& cloud, const OrbitView& view, RasterOptions raster) {
@@ -81,15 +83,59 @@ OrbitRender RenderOrbitView(const GaussianCloud& cloud, const OrbitView& view, R
 // Geometry "surface": where the render is opaque and the height field has an
 // answer, the orbit pixel lies on the height field (its steps are the walls
 // the Gaussians lack) for the refiner and for the depth target alike.
-void PlaceOnSurface(const SurfaceDepthPrior& surface, OrbitRender* render) {
+// With `fill_holes`, also where the render is transparent: those pixels
+// become valid and are marked as holes.
+void PlaceOnSurface(const SurfaceDepthPrior& surface, bool fill_holes, OrbitRender* render) {
   const PinholeCamera& cam = render->input.camera;
   const double reference_m = cam.cam_from_world_translation.z();  // the render's reference depth
   const DepthMap m = surface.DepthRelativeTo(cam, reference_m);
+  render->hole.assign(m.depth.size(), 0);
   for (std::size_t p = 0; p < m.depth.size(); ++p) {
-    if (!m.valid[p] || !render->valid[p]) continue;
+    if (!m.valid[p]) continue;
+    if (!render->valid[p]) {
+      if (!fill_holes) continue;
+      render->valid[p] = 1;
+      render->hole[p] = 1;
+    }
     render->depth_target[p] = m.depth[p];
     render->input.depth_m[p] = static_cast<float>(m.depth[p] + reference_m);
   }
+}
+
+// One Gaussian per `voxel_m` cube at the hole pixels' surface points, of the
+// refined colour there (the first such pixel of a cube), isotropic with half
+// the cube's size as its standard deviation, opacity 0.5: enough for the
+// photometric loss to shape it from the first step.
+GaussianCloud HoleGaussians(const std::vector<OrbitRender>& renders, const std::vector<RefinedSamples>& refined,
+                            double voxel_m) {
+  GaussianCloud out;
+  std::unordered_set<std::uint64_t> taken;
+  auto key = [&](const Eigen::Vector3d& x) {
+    auto q = [&](double v) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(v / voxel_m)) & 0x1FFFFF); };
+    return q(x.x()) | (q(x.y()) << 21) | (q(x.z()) << 42);
+  };
+  for (std::size_t v = 0; v < renders.size(); ++v) {
+    const OrbitRender& r = renders[v];
+    const PinholeCamera& cam = r.input.camera;
+    const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
+    for (std::size_t p = 0; p < r.hole.size(); ++p) {
+      if (!r.hole[p]) continue;
+      const int x = static_cast<int>(p % cam.width_px), y = static_cast<int>(p / cam.width_px);
+      const Eigen::Vector3d X =
+          R_t * (K_inv * Eigen::Vector3d(x, y, 1.0) * static_cast<double>(r.input.depth_m[p]) - cam.cam_from_world_translation);
+      if (!taken.insert(key(X)).second) continue;
+      const std::size_t k = out.size();
+      out.resize(k + 1);
+      out.means[k] = X.cast<float>();
+      out.log_scales[k].setConstant(static_cast<float>(std::log(0.5 * voxel_m)));
+      out.rotations[k] = Eigen::Vector4f(1, 0, 0, 0);
+      out.opacity_logits[k] = 0.0f;  // sigmoid(0) = 0.5
+      out.sh[k].fill(0.0f);
+      for (int c = 0; c < 3; ++c)
+        out.sh[k][c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(refined[v][0][3 * p + c]));
+    }
+  }
+  return out;
 }
 
 // One PNG per view (`image(v)`: its RGB in [0, 1]) in `dir`, written in
@@ -142,7 +188,7 @@ json EpisodeJson(const IduEpisode& e) {
           {"train_seconds", e.train_seconds}, {"refined_coverage", e.refined_coverage},
           {"psnr_test_start_db", std::isfinite(e.psnr_test_start_db) ? json(e.psnr_test_start_db) : json(nullptr)},
           {"psnr_test_db", std::isfinite(e.psnr_test_db) ? json(e.psnr_test_db) : json(nullptr)},
-          {"gaussians", e.gaussians},     {"step_ms", step_ms},  {"reused", e.reused}};
+          {"gaussians", e.gaussians},     {"hole_gaussians", e.hole_gaussians}, {"step_ms", step_ms},  {"reused", e.reused}};
 }
 
 IduEpisode EpisodeFromJson(const json& j) {
@@ -158,6 +204,7 @@ IduEpisode EpisodeFromJson(const json& j) {
   e.psnr_test_start_db = j.at("psnr_test_start_db").is_null() ? NAN : j.at("psnr_test_start_db").get<double>();
   e.psnr_test_db = j.at("psnr_test_db").is_null() ? NAN : j.at("psnr_test_db").get<double>();
   e.gaussians = j.at("gaussians");
+  e.hole_gaussians = j.value("hole_gaussians", std::size_t{0});
   if (j.contains("step_ms"))
     for (const auto& [phase, ms] : j.at("step_ms").items()) e.step_ms.emplace_back(phase, ms.get<double>());
   e.reused = true;
@@ -200,6 +247,7 @@ void IduOptions::Check() const {
   need(densify_from_fraction >= 0 && densify_from_fraction <= 1, "densify_from_fraction", densify_from_fraction);
   need(densify_until_fraction >= 0 && densify_until_fraction <= 1, "densify_until_fraction", densify_until_fraction);
   need(densify_interval >= 1, "densify_interval", densify_interval);
+  need(fill_voxel_m > 0 && std::isfinite(fill_voxel_m), "fill_voxel_m", fill_voxel_m);
   if (geometry != "surface" && geometry != "render")
     throw Error("idu", "geometry", "'" + geometry + "' is not surface or render");
 }
@@ -243,7 +291,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     std::size_t opaque = 0, pixels = 0;
     for (const OrbitView& v : views) {
       renders.push_back(RenderOrbitView(cloud, v, train.raster));
-      if (surface && o.geometry == "surface") PlaceOnSurface(*surface, &renders.back());
+      if (surface && o.geometry == "surface") PlaceOnSurface(*surface, o.fill_holes, &renders.back());
       inputs.push_back(renders.back().input);
       for (std::uint8_t m : renders.back().valid) opaque += m;
       pixels += renders.back().valid.size();
@@ -277,6 +325,11 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       mixed.push_back(std::move(t));
     }
     WriteViewPngs(dir / "refined", views, [&](std::size_t v) -> const std::vector<float>& { return mixed[satellite.size() + v].rgb; });
+    if (o.fill_holes) {
+      const GaussianCloud added = HoleGaussians(renders, refined, o.fill_voxel_m);
+      for (std::size_t i = 0; i < added.size(); ++i) cloud.Append(added, i);
+      ep.hole_gaussians = added.size();
+    }
     Stopwatch train_clock;
     TrainResult trained = TrainGaussians(EpisodeTrainOptions(o, train, k), std::move(cloud), mixed, "", progress,
                                          nullptr, surface);

@@ -385,5 +385,64 @@ TEST(Idu, EpisodesCheckpointAndAKilledRunResumesAfterTheLastFinishedOne) {
   EXPECT_FALSE(fresh.episodes[0].reused);
 }
 
+TEST(Idu, HolesWhereTheHeightFieldHasASurfaceGetGaussiansOfTheRefinedColour) {
+  // The plane with a 10 m square hole; the height field (the dense heights)
+  // covers the whole plane, and the satellite saw the ground there.
+  const GaussianCloud plane = Plane(20.0, 1.0, 0.0);
+  GaussianCloud holed;
+  for (std::size_t i = 0; i < plane.size(); ++i)
+    if (std::abs(plane.means[i].x()) > 5 || std::abs(plane.means[i].y()) > 5) holed.Append(plane, i);
+  std::vector<Eigen::Vector3f> ground;
+  for (float y = -19.75f; y < 20; y += 0.5f)
+    for (float x = -19.75f; x < 20; x += 0.5f) ground.emplace_back(x, y, 0.0f);
+  const SurfaceDepthPrior surface(ground, 0.5);
+  std::vector<TrainView> satellite = {NadirSatellite(0.5, 64)};
+  ReprojectRefiner reproject(satellite, ReprojectOptions{}, RasterOptions{}, &surface);
+  TrainOptions train;
+  train.lambda_surface_depth = train.lambda_surface_alpha = 0;
+  IduOptions o = TinyIdu();
+  o.orbit.episodes = 1;
+  o.fill_voxel_m = 1.0;
+  const GroundBox core = Box(-16, -16, 16, 16);
+  auto flat = [](double, double) { return 0.0; };
+  NullProgress quiet;
+  const PinholeCamera hole_view = NadirCamera({0, 0, 0}, 0.5, 16, 5.0e5);  // 8 m, inside the hole
+  auto mean_alpha = [&](const GaussianCloud& c) {
+    const RenderOutput<float> r = RenderGaussians(c, hole_view, RasterOptions{});
+    double sum = 0;
+    for (float a : r.alpha) sum += a;
+    return sum / static_cast<double>(r.alpha.size());
+  };
+  ASSERT_LT(mean_alpha(holed), 0.05);
+
+  const IduResult filled = RunIdu(o, train, holed, satellite, core, {}, flat, &surface, reproject,
+                                  ScratchDir("idu_fill").string(), "A", quiet);
+  ASSERT_EQ(filled.episodes.size(), 1u);
+  const std::size_t added = filled.episodes[0].hole_gaussians;
+  EXPECT_GT(added, 50u);  // the hole is 100 m^2 of 1 m cubes
+  EXPECT_EQ(filled.cloud.size(), holed.size() + added);
+  EXPECT_GT(mean_alpha(filled.cloud), 0.5);
+  // The added Gaussians: in the hole (its rim included: a plane's border
+  // renders less than opaque too), on the ground, of the ground's colour.
+  std::size_t in_hole = 0;
+  double colour_error = 0;
+  for (std::size_t i = holed.size(); i < filled.cloud.size(); ++i) {
+    const Eigen::Vector3f m = filled.cloud.means[i];
+    if (std::abs(m.x()) < 6 && std::abs(m.y()) < 6) ++in_hole;
+    EXPECT_NEAR(m.z(), 0.0, 0.3) << i;
+    const Eigen::Vector3f truth = GroundColour(m.x(), m.y());
+    for (int c = 0; c < 3; ++c)
+      colour_error += std::abs(kShC0 * filled.cloud.sh[i][c * kShCoeffsPerChannel] + 0.5 - truth[c]) / (3.0 * added);
+  }
+  EXPECT_GE(in_hole, added * 8 / 10);
+  EXPECT_LT(colour_error, 0.1);  // trained a few steps from the refined colour: smoothing, inpainting
+
+  o.fill_holes = false;
+  const IduResult unfilled = RunIdu(o, train, holed, satellite, core, {}, flat, &surface, reproject,
+                                    ScratchDir("idu_nofill").string(), "A", quiet);
+  EXPECT_EQ(unfilled.episodes[0].hole_gaussians, 0u);
+  EXPECT_LT(mean_alpha(unfilled.cloud), 0.05);
+}
+
 }  // namespace
 }  // namespace skyfall
