@@ -324,7 +324,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       t.depth_target = renders[v].depth_target;
       mixed.push_back(std::move(t));
     }
-    WriteViewPngs(dir / "refined", views, [&](std::size_t v) -> const std::vector<float>& { return mixed[satellite.size() + v].rgb; });
+    WriteViewPngs(dir / "refined", views, [&](std::size_t v) -> const std::vector<float>& { return refined[v][0]; });
     if (o.fill_holes) {
       const GaussianCloud added = HoleGaussians(renders, refined, o.fill_voxel_m);
       for (std::size_t i = 0; i < added.size(); ++i) cloud.Append(added, i);

@@ -99,7 +99,6 @@ ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, Repr
     : satellite_(satellite), options_(std::move(options)), raster_(raster), surface_(surface) {
   options_.Check();
   if (satellite_.empty()) throw Error("idu", "refiner", "reproject needs satellite views");
-  if (satellite_.size() > 65535) throw Error("idu", "refiner", "reproject takes at most 65535 satellite views");
 }
 
 std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene, const std::vector<RefineInput>& views,
@@ -128,10 +127,8 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
     const int W = cam.width_px, H = cam.height_px;
     const std::size_t n = static_cast<std::size_t>(W) * H;
     if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
-    // Each satellite view's vote at each pixel (computed once, used by every
-    // sample): up to S per pixel, in view order, at p * S.
-    std::vector<Vote> votes(n * static_cast<std::size_t>(S));
-    std::vector<std::uint16_t> vote_count(n, 0);
+    // Each satellite view's vote at each pixel (computed once, used by every sample).
+    std::vector<std::vector<Vote>> votes(n);
     const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
     const Eigen::Vector3d eye = cam.Centre();
     tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
@@ -154,8 +151,8 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
             const double here = sv.camera.Depth(X) - sat_depth[s].reference_m;
             if (std::abs(here - seen) > options_.visibility_tolerance_m) continue;  // hidden from this view
             const double cosine = std::max(0.0, to_orbit.dot((sv.camera.Centre() - X).normalized()));
-            votes[p * S + vote_count[p]++] = {s, static_cast<float>(std::pow(cosine, options_.angle_weight_power)) + 1e-6f,
-                                              Bilinear(sv, uv.x(), uv.y())};
+            votes[p].push_back({s, static_cast<float>(std::pow(cosine, options_.angle_weight_power)) + 1e-6f,
+                                Bilinear(sv, uv.x(), uv.y())});
           }
         }
       }
@@ -182,18 +179,16 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
             cv::Vec3f& px = image.at<cv::Vec3f>(y, x);
             for (int c = 0; c < 3; ++c) px[c] = in.rgb[3 * p + c];
             if (!std::isfinite(in.depth_m[p])) continue;  // no surface: the render stays (masked in training)
-            const Vote* vs_begin = votes.data() + p * S;
-            const Vote* vs_end = vs_begin + vote_count[p];
-            if (vs_begin == vs_end) {
+            const auto& vs = votes[p];
+            if (vs.empty()) {
               unseen.at<std::uint8_t>(y, x) = 255;
               continue;
             }
             bool subset = false;
-            for (const Vote* v = vs_begin; v != vs_end; ++v) subset = subset || factor[v->view] > 0;
+            for (const Vote& v : vs) subset = subset || factor[v.view] > 0;
             for (int c = 0; c < 3; ++c) {
               channel.clear();
-              for (const Vote* vp = vs_begin; vp != vs_end; ++vp) {
-                const Vote& v = *vp;
+              for (const Vote& v : vs) {
                 const float w = subset ? v.weight * factor[v.view] : v.weight;
                 if (w > 0) channel.emplace_back(v.colour[c], w);
               }
