@@ -35,6 +35,22 @@ struct PinholeCamera {
   }
 };
 
+// Back-projects pixels of a known depth along the optical axis to world
+// points: X = R^T (K^-1 (x, y, 1) depth - t), with K^-1 and R^T computed once
+// for the many pixels of one camera.
+class PixelToWorld {
+ public:
+  explicit PixelToWorld(const PinholeCamera& cam)
+      : K_inv_(cam.K().inverse()), R_t_(cam.cam_from_world_rotation.transpose()), t_(cam.cam_from_world_translation) {}
+  Eigen::Vector3d operator()(double x_px, double y_px, double depth_m) const {
+    return R_t_ * (K_inv_ * Eigen::Vector3d(x_px, y_px, 1.0) * depth_m - t_);
+  }
+
+ private:
+  Eigen::Matrix3d K_inv_, R_t_;
+  Eigen::Vector3d t_;
+};
+
 // A perspective camera at `eye` looking at `target` (ENU: z up), image rows
 // pointing down the vertical through the target, `fov_deg` across the width,
 // square pixels. The view direction must not be vertical.

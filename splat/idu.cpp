@@ -117,12 +117,11 @@ GaussianCloud HoleGaussians(const std::vector<OrbitRender>& renders, const std::
   for (std::size_t v = 0; v < renders.size(); ++v) {
     const OrbitRender& r = renders[v];
     const PinholeCamera& cam = r.input.camera;
-    const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
+    const PixelToWorld to_world(cam);
     for (std::size_t p = 0; p < r.hole.size(); ++p) {
       if (!r.hole[p]) continue;
       const int x = static_cast<int>(p % cam.width_px), y = static_cast<int>(p / cam.width_px);
-      const Eigen::Vector3d X =
-          R_t * (K_inv * Eigen::Vector3d(x, y, 1.0) * static_cast<double>(r.input.depth_m[p]) - cam.cam_from_world_translation);
+      const Eigen::Vector3d X = to_world(x, y, r.input.depth_m[p]);
       if (!taken.insert(key(X)).second) continue;
       const std::size_t k = out.size();
       out.resize(k + 1);

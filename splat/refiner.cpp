@@ -129,7 +129,7 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
     if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
     // Each satellite view's vote at each pixel (computed once, used by every sample).
     std::vector<std::vector<Vote>> votes(n);
-    const Eigen::Matrix3d K_inv = cam.K().inverse(), R_t = cam.cam_from_world_rotation.transpose();
+    const PixelToWorld to_world(cam);
     const Eigen::Vector3d eye = cam.Centre();
     tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
       for (int y = rows.begin(); y < rows.end(); ++y) {
@@ -137,7 +137,7 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
           const std::size_t p = static_cast<std::size_t>(y) * W + x;
           const double depth = in.depth_m[p];
           if (!std::isfinite(depth)) continue;
-          const Eigen::Vector3d X = R_t * (K_inv * Eigen::Vector3d(x, y, 1.0) * depth - cam.cam_from_world_translation);
+          const Eigen::Vector3d X = to_world(x, y, depth);
           const Eigen::Vector3d to_orbit = (eye - X).normalized();
           for (int s = 0; s < S; ++s) {
             const TrainView& sv = satellite_[s];
