@@ -96,9 +96,9 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
       const DsmComparison r = CompareDsm(cropped, truth, a->cls.empty() ? nullptr : &cls, *opts);
       WriteDsmComparison(r, truth, *opts, {a->pred, a->gt, a->cls}, a->out);
       spdlog::info("dsm compare: MAE {:.3f} m, RMSE {:.3f} m, median {:.3f} m, NMAD {:.3f} m, completeness {:.1f}%, "
-                   "within 1 m {:.1f}%, shift ({}, {}) px, bias {:.3f} m -> {}",
+                   "within 1 m {:.1f}%, shift ({}, {}) px, vertical offset {:.3f} m -> {}",
                    r.mae_m, r.rmse_m, r.median_abs_m, r.nmad_m, 100 * r.completeness, 100 * r.within_fraction,
-                   r.shift_col_px, r.shift_row_px, r.bias_m, a->out);
+                   r.shift_col_px, r.shift_row_px, r.z_offset_m, a->out);
       return 0;
     };
   });

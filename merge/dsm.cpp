@@ -241,7 +241,7 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   }
   out.shift_col_px = bx;
   out.shift_row_px = by;
-  // Bias, then the metrics, over pixels valid in both.
+  // Vertical offset, then the metrics, over pixels valid in both.
   const int W = truth.width_px, H = truth.height_px;
   out.error_m.assign(static_cast<size_t>(W) * H, kNoData);
   std::vector<double> diff;
@@ -264,11 +264,15 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   double sum = 0;
   for (double d : diff) sum += d;
   out.bias_m = sum / diff.size();
+  // The vertical offset removed is the median difference, as in the DFC2019
+  // alignment (align3d): a mean would let a few large errors (a roof missed
+  // by 30 m) shift every correct pixel and count those errors twice.
+  out.z_offset_m = Median(diff);
   double abs_sum = 0, sq_sum = 0;
   int within = 0;
   std::vector<double> abs_err(diff.size()), centred(diff.size());
   for (size_t k = 0; k < diff.size(); ++k) {
-    const double e = diff[k] - out.bias_m;
+    const double e = diff[k] - out.z_offset_m;
     diff[k] = e;
     abs_err[k] = std::abs(e);
     abs_sum += abs_err[k];
@@ -276,7 +280,7 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
     within += abs_err[k] <= o.within_m;
   }
   for (float& e : out.error_m)
-    if (std::isfinite(e)) e = static_cast<float>(e - out.bias_m);
+    if (std::isfinite(e)) e = static_cast<float>(e - out.z_offset_m);
   out.mae_m = abs_sum / diff.size();
   out.rmse_m = std::sqrt(sq_sum / diff.size());
   out.median_abs_m = Median(abs_err);

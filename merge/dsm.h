@@ -81,7 +81,8 @@ struct DsmComparison {
   int shift_col_px = 0;   // prediction sampled at (col + shift_col, row + shift_row)
   int shift_row_px = 0;
   double ncc = 0;         // normalized cross-correlation at the shift
-  double bias_m = 0;      // mean (pred - truth) removed before the metrics
+  double bias_m = 0;      // mean (pred - truth) after the shift, before z_offset_m is removed
+  double z_offset_m = 0;  // median (pred - truth): the vertical offset removed before the metrics
   double mae_m = 0, rmse_m = 0, median_abs_m = 0, nmad_m = 0;
   double completeness = 0;     // valid in both / valid in truth
   double within_fraction = 0;  // |error| <= within_m, over valid in both

@@ -83,7 +83,7 @@ void HistogramPng(const DsmComparison& r, const std::string& path) {
                 1, cv::LINE_AA);
   }
   char title[160];
-  std::snprintf(title, sizeof(title), "DSM error (pred - gt - bias) [m]: MAE %.2f, RMSE %.2f, NMAD %.2f, n=%d", r.mae_m,
+  std::snprintf(title, sizeof(title), "DSM error (pred - gt - offset) [m]: MAE %.2f, RMSE %.2f, NMAD %.2f, n=%d", r.mae_m,
                 r.rmse_m, r.nmad_m, r.valid_pixels);
   cv::putText(img, title, {kMargin, 22}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::putText(img, "pixels (max " + std::to_string(peak) + ")", {4, kMargin - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.35,
@@ -101,16 +101,16 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
       {"protocol", {{"max_shift_px", o.max_shift_px}, {"pyramid_levels", o.pyramid_levels},
                     {"mask_water", o.mask_water}, {"within_m", o.within_m}}},
       {"shift_col_px", r.shift_col_px}, {"shift_row_px", r.shift_row_px}, {"ncc", r.ncc},
-      {"bias_m", r.bias_m}, {"mae_m", r.mae_m}, {"rmse_m", r.rmse_m}, {"median_abs_m", r.median_abs_m},
+      {"bias_m", r.bias_m}, {"z_offset_m", r.z_offset_m}, {"mae_m", r.mae_m}, {"rmse_m", r.rmse_m}, {"median_abs_m", r.median_abs_m},
       {"nmad_m", r.nmad_m}, {"completeness", r.completeness}, {"within_fraction", r.within_fraction},
       {"valid_pixels", r.valid_pixels}};
   WriteFileAtomic((dir / "report.json").string(), report.dump(2) + "\n");
   char csv[512];
   std::snprintf(csv, sizeof(csv),
                 "mae_m,rmse_m,median_abs_m,nmad_m,completeness,within_fraction,bias_m,shift_col_px,shift_row_px,"
-                "valid_pixels\n%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d,%d,%d\n",
+                "valid_pixels,z_offset_m\n%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d,%d,%d,%.6f\n",
                 r.mae_m, r.rmse_m, r.median_abs_m, r.nmad_m, r.completeness, r.within_fraction, r.bias_m,
-                r.shift_col_px, r.shift_row_px, r.valid_pixels);
+                r.shift_col_px, r.shift_row_px, r.valid_pixels, r.z_offset_m);
   WriteFileAtomic((dir / "report.csv").string(), csv);
   DsmGrid error = truth;
   error.height_m = r.error_m;

@@ -38,11 +38,38 @@ TEST(Dsm, RecoversAKnownShiftAndBiasWithZeroError) {
   EXPECT_EQ(r.shift_col_px, 3);
   EXPECT_EQ(r.shift_row_px, -2);
   EXPECT_NEAR(r.bias_m, 1.7, 1e-5);
+  EXPECT_NEAR(r.z_offset_m, 1.7, 1e-5);
   EXPECT_LT(r.mae_m, 1e-5);  // float storage of heights ~30 m: ~2e-6 m
   EXPECT_LT(r.rmse_m, 1e-5);
   EXPECT_NEAR(r.within_fraction, 1.0, 1e-12);
   // Only the band the shift moved out of the grid is missing.
   EXPECT_NEAR(r.completeness, (512.0 - 3) * (512.0 - 2) / (512.0 * 512.0), 1e-9);
+}
+
+// A few large errors (2% of the pixels 30 m low: missed roofs) do not move
+// the vertical offset removed, so every other pixel keeps zero error; with
+// the mean removed they would all read 0.6 m off.
+TEST(Dsm, AFewLargeErrorsDoNotShiftTheCorrectPixels) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  DsmGrid pred = Shifted(truth, 0, 0, 0.25f);
+  std::size_t holes = 0, valid = 0;
+  for (std::size_t p = 0; p < pred.height_m.size(); ++p) {
+    if (!std::isfinite(pred.height_m[p])) continue;
+    ++valid;
+    if (p % 50 == 7) {
+      pred.height_m[p] -= 30.0f;
+      ++holes;
+    }
+  }
+  DsmCompareOptions o;
+  o.max_shift_px = 0;  // the errors are vertical only
+  const DsmComparison r = CompareDsm(pred, truth, nullptr, o);
+  EXPECT_NEAR(r.z_offset_m, 0.25, 1e-5);
+  EXPECT_NEAR(r.bias_m, 0.25 - 30.0 * holes / valid, 1e-3);
+  EXPECT_NEAR(r.mae_m, 30.0 * holes / valid, 1e-3);  // only the holes count
+  EXPECT_LT(r.median_abs_m, 1e-5);
+  EXPECT_NEAR(r.within_fraction, 1.0 - static_cast<double>(holes) / valid, 1e-6);
 }
 
 TEST(Dsm, LargerShiftsAreFoundThroughThePyramid) {
