@@ -183,6 +183,8 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("lambda_surface_depth", t.lambda_surface_depth);
   io("lambda_surface_alpha", t.lambda_surface_alpha);
   io("surface_huber_m", t.surface_huber_m);
+  io("lambda_surface_height", t.lambda_surface_height);
+  io("surface_height_band_m", t.surface_height_band_m);
   io("surface_nadir_interval", t.surface_nadir_interval);
   io("surface_nadir_size_px", t.surface_nadir_size_px);
   io("surface_nadir_gsd_m", t.surface_nadir_gsd_m);

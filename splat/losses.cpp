@@ -364,6 +364,24 @@ double SurfaceAnchorLoss(const std::vector<T>& depth, const std::vector<T>& alph
   return loss;
 }
 
+double SurfaceHeightLoss(const std::vector<float>& z_m, const std::vector<float>& surface_height_m,
+                         const SurfaceHeightOptions& o, std::vector<float>* d_z, const std::vector<float>* weight) {
+  RequireSameSize(surface_height_m.size(), z_m.size(), "surface height (heights, centres)");
+  RequireSameSize(d_z->size(), z_m.size(), "surface height (gradient, centres)");
+  if (weight) RequireSameSize(weight->size(), z_m.size(), "surface height (weights, centres)");
+  if (z_m.empty() || o.lambda <= 0) return 0.0;
+  const double scale = o.lambda / static_cast<double>(z_m.size());
+  double loss = 0;
+  for (std::size_t i = 0; i < z_m.size(); ++i) {
+    const double e = static_cast<double>(z_m[i]) - surface_height_m[i];
+    if (!(std::abs(e) < o.band_m)) continue;  // NaN height, or off the surface
+    const double w = scale * (weight ? (*weight)[i] : 1.0f);
+    loss += 0.5 * w * e * e;
+    (*d_z)[i] += static_cast<float>(w * e);
+  }
+  return loss;
+}
+
 #define SKYFALL_INSTANTIATE_LOSSES(T)                                                                       \
   template double L1Loss(const std::vector<T>&, const std::vector<T>&, std::vector<T>*);                   \
   template double Ssim(const std::vector<T>&, const std::vector<T>&, int, int, int, std::vector<T>*);      \

@@ -178,6 +178,38 @@ TEST(Losses, SurfaceAnchorGradientsMatchFiniteDifferences) {
   for (double g : d_alpha) EXPECT_EQ(g, 0.0);
 }
 
+TEST(Losses, SurfaceHeightHoldsCentresWithinTheBandAndMatchesFiniteDifferences) {
+  // On the surface, 0.3 m above, 0.4 m below with half confidence, 2 m
+  // above (a wall: beyond the 1 m band), over no surface (NaN).
+  const std::vector<double> z = {5.0, 5.3, 11.6, 7.0, 3.0};
+  const std::vector<float> height = {5.0f, 5.0f, 12.0f, 5.0f, NAN};
+  const std::vector<float> weight = {1.0f, 1.0f, 0.5f, 1.0f, 1.0f};
+  const SurfaceHeightOptions o{2.0, 1.0};
+  auto loss = [&](const std::vector<double>& v, std::vector<float>* d_z) {
+    const std::vector<float> zf(v.begin(), v.end());
+    std::vector<float> unused(v.size(), 0.0f);
+    return SurfaceHeightLoss(zf, height, o, d_z ? d_z : &unused, &weight);
+  };
+  std::vector<float> d_z(z.size(), 0.0f);
+  const double l = loss(z, &d_z);
+  // By hand: 2 / 5 * 0.5 * (0.3^2 + 0.5 * 0.4^2).
+  EXPECT_NEAR(l, 0.2 * (0.09 + 0.08), 1e-6);
+  EXPECT_EQ(d_z[0], 0.0f);
+  EXPECT_EQ(d_z[3], 0.0f);
+  EXPECT_EQ(d_z[4], 0.0f);
+  // Float centres: a 1e-3 m step keeps the difference quotient within ~1e-4
+  // of the derivative (rounding ~6e-8 * 0.03 / 1e-3), so 1e-3 is ample.
+  constexpr double kStepM = 1e-3, kTol = 1e-3;
+  CheckGradient(z, [&](const std::vector<double>& v) { return loss(v, nullptr); },
+                std::vector<double>(d_z.begin(), d_z.end()), kStepM, kTol);
+  // The gradient adds to what is there; a size mismatch is an error.
+  std::vector<float> d_more(z.size(), 1.0f);
+  loss(z, &d_more);
+  EXPECT_NEAR(d_more[1], 1.0f + d_z[1], 1e-6);
+  std::vector<float> short_grad(2, 0.0f);
+  EXPECT_THROW(SurfaceHeightLoss(std::vector<float>(z.begin(), z.end()), height, o, &short_grad), Error);
+}
+
 TEST(Losses, SurfaceAnchorDepthWeightsScaleOnlyTheDepthTerm) {
   const std::vector<double> target = {10.0, 10.0, -3.0, 7.5};
   const std::vector<double> depth = {10.4, 12.5, -7.0, 0.0};

@@ -369,6 +369,23 @@ double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, 
                            surface.weight.empty() ? nullptr : &surface.weight);
 }
 
+// Gaussians on the surface held to its height (SurfaceHeightLoss); adds
+// the gradient of the centres' heights to `d`.
+double SurfaceHeightTerm(const SurfaceDepthPrior& surface, const GaussianCloud& cloud, const TrainOptions& o,
+                         GaussianCloud* d) {
+  const std::size_t n = cloud.size();
+  std::vector<float> z(n), height(n), weight(n), d_z(n, 0.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f& m = cloud.means[i];
+    z[i] = m.z();
+    height[i] = static_cast<float>(surface.HeightAt(m.x(), m.y()));
+    weight[i] = surface.WeightAt(m.x(), m.y());
+  }
+  const double loss = SurfaceHeightLoss(z, height, {o.lambda_surface_height, o.surface_height_band_m}, &d_z, &weight);
+  for (std::size_t i = 0; i < n; ++i) d->means[i].z() += d_z[i];
+  return loss;
+}
+
 // A training view: a satellite view, or with probability `synthetic_fraction`
 // a synthetic one when there are any (the satellite-only stream of random
 // numbers stays as it was).
@@ -481,6 +498,8 @@ void TrainOptions::Check() const {
   need(lambda_surface_depth >= 0, "lambda_surface_depth", lambda_surface_depth);
   need(lambda_surface_alpha >= 0, "lambda_surface_alpha", lambda_surface_alpha);
   need(surface_huber_m > 0, "surface_huber_m", surface_huber_m);
+  need(lambda_surface_height >= 0, "lambda_surface_height", lambda_surface_height);
+  need(surface_height_band_m > 0, "surface_height_band_m", surface_height_band_m);
   need(surface_nadir_interval >= 0, "surface_nadir_interval", surface_nadir_interval);
   need(surface_nadir_size_px >= 16, "surface_nadir_size_px", surface_nadir_size_px);
   need(surface_nadir_gsd_m > 0, "surface_nadir_gsd_m", surface_nadir_gsd_m);
@@ -755,6 +774,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
       for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
     }
+    if (surface && o.lambda_surface_height > 0) loss += SurfaceHeightTerm(*surface, cloud, o, &g.d);
     phase.Lap(kLoss);
     if (anchored && o.surface_nadir_interval > 0 && it % o.surface_nadir_interval == 0) {
       // A nadir patch around a look-at point drawn like the pseudo views'.

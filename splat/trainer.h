@@ -95,6 +95,14 @@ struct TrainOptions {
   double lambda_surface_depth = 1.0;   // per metre of depth error
   double lambda_surface_alpha = 0.5;
   double surface_huber_m = 1.0;        // [m] errors beyond this count linearly
+  // And each Gaussian whose centre is within surface_height_band_m of the
+  // surface height below it: lambda_surface_height times half its squared
+  // height error (SurfaceHeightLoss), weighted like the anchor's depth.
+  // The anchor holds the blend of a pixel's Gaussians, not each centre, and
+  // the DSM is read from centres; 10 was chosen on syn_default and
+  // syn_south45 (DSM MAE -25% and -19%, 100 no better; docs/benchmarks.md).
+  double lambda_surface_height = 10.0;  // per m^2, averaged over the Gaussians
+  double surface_height_band_m = 1.0;
   // Every this many iterations the anchor also holds a nadir view of a patch
   // (the view the DSM is exported from; the satellite views alone leave its
   // coverage free to thin out): 0 = never.
