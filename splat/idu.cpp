@@ -102,18 +102,52 @@ void PlaceOnSurface(const SurfaceDepthPrior& surface, bool fill_holes, OrbitRend
   }
 }
 
+// The surface normal at pixel (x, y) of a depth map, from the back-projected
+// neighbours: along each image axis the neighbour nearer in depth, so that a
+// pixel next to a depth step takes the tangent of its own face. Zero where a
+// neighbour pair is missing.
+Eigen::Vector3d SurfaceNormal(const PixelToWorld& to_world, const std::vector<float>& depth_m, int W, int H, int x,
+                              int y) {
+  auto point = [&](int u, int v, Eigen::Vector3d* X) {
+    if (u < 0 || v < 0 || u >= W || v >= H) return false;
+    const float d = depth_m[static_cast<std::size_t>(v) * W + u];
+    if (!std::isfinite(d)) return false;
+    *X = to_world(u, v, d);
+    return true;
+  };
+  Eigen::Vector3d centre;
+  if (!point(x, y, &centre)) return Eigen::Vector3d::Zero();
+  auto tangent = [&](int dx, int dy, Eigen::Vector3d* t) {
+    Eigen::Vector3d a, b;
+    const bool has_a = point(x + dx, y + dy, &a), has_b = point(x - dx, y - dy, &b);
+    if (!has_a && !has_b) return false;
+    if (has_a && (!has_b || (a - centre).squaredNorm() <= (b - centre).squaredNorm())) *t = a - centre;
+    else *t = centre - b;
+    return true;
+  };
+  Eigen::Vector3d tu, tv;
+  if (!tangent(1, 0, &tu) || !tangent(0, 1, &tv)) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d n = tu.cross(tv);
+  return n.norm() > 0 ? n.normalized() : Eigen::Vector3d::Zero();
+}
+
 // One Gaussian per `voxel_m` cube at the hole pixels' surface points, of the
-// refined colour there (the first such pixel of a cube), isotropic with half
-// the cube's size as its standard deviation, opacity 0.5: enough for the
-// photometric loss to shape it from the first step.
+// refined colour there (the first such pixel of a cube), opacity 0.5: enough
+// for the photometric loss to shape it from the first step. It is a disc in
+// the surface's plane (standard deviation half the cube across, a tenth of
+// that along the normal): a ball on a wall would reach half a cube out over
+// the ground beside it and raise the nadir DSM there.
 GaussianCloud HoleGaussians(const std::vector<OrbitRender>& renders, const std::vector<RefinedSamples>& refined,
                             double voxel_m) {
+  constexpr double kThicknessRatio = 0.1;  // normal / in-plane standard deviation
   GaussianCloud out;
   std::unordered_set<std::uint64_t> taken;
   auto key = [&](const Eigen::Vector3d& x) {
     auto q = [&](double v) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(v / voxel_m)) & 0x1FFFFF); };
     return q(x.x()) | (q(x.y()) << 21) | (q(x.z()) << 42);
   };
+  const float log_across = static_cast<float>(std::log(0.5 * voxel_m));
+  const float log_along_normal = static_cast<float>(std::log(0.5 * voxel_m * kThicknessRatio));
   for (std::size_t v = 0; v < renders.size(); ++v) {
     const OrbitRender& r = renders[v];
     const PinholeCamera& cam = r.input.camera;
@@ -123,11 +157,17 @@ GaussianCloud HoleGaussians(const std::vector<OrbitRender>& renders, const std::
       const int x = static_cast<int>(p % cam.width_px), y = static_cast<int>(p / cam.width_px);
       const Eigen::Vector3d X = to_world(x, y, r.input.depth_m[p]);
       if (!taken.insert(key(X)).second) continue;
+      const Eigen::Vector3d normal = SurfaceNormal(to_world, r.input.depth_m, cam.width_px, cam.height_px, x, y);
       const std::size_t k = out.size();
       out.resize(k + 1);
       out.means[k] = X.cast<float>();
-      out.log_scales[k].setConstant(static_cast<float>(std::log(0.5 * voxel_m)));
+      out.log_scales[k].setConstant(log_across);
       out.rotations[k] = Eigen::Vector4f(1, 0, 0, 0);
+      if (normal.squaredNorm() > 0) {  // local z along the normal
+        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal);
+        out.rotations[k] = Eigen::Vector4f(q.w(), q.x(), q.y(), q.z());
+        out.log_scales[k].z() = log_along_normal;
+      }
       out.opacity_logits[k] = 0.0f;  // sigmoid(0) = 0.5
       out.sh[k].fill(0.0f);
       for (int c = 0; c < 3; ++c)

@@ -436,6 +436,18 @@ TEST(Idu, HolesWhereTheHeightFieldHasASurfaceGetGaussiansOfTheRefinedColour) {
   }
   EXPECT_GE(in_hole, added * 8 / 10);
   EXPECT_LT(colour_error, 0.1);  // trained a few steps from the refined colour: smoothing, inpainting
+  // Discs in the ground's plane (a tenth as thick as wide when added), not
+  // balls: their thinnest axis stays near vertical.
+  std::size_t discs = 0;
+  for (std::size_t i = holed.size(); i < filled.cloud.size(); ++i) {
+    const Eigen::Vector4f q = filled.cloud.rotations[i].normalized();
+    const Eigen::Matrix3f R = Eigen::Quaternionf(q[0], q[1], q[2], q[3]).toRotationMatrix();
+    const Eigen::Vector3f& s = filled.cloud.log_scales[i];
+    int thin = 0;
+    s.minCoeff(&thin);
+    if (std::abs(R.col(thin).z()) > 0.9f && s[thin] < s.maxCoeff() - std::log(3.0f)) ++discs;
+  }
+  EXPECT_GE(discs, added * 9 / 10);
 
   o.fill_holes = false;
   const IduResult unfilled = RunIdu(o, train, holed, satellite, core, {}, flat, &surface, reproject,
