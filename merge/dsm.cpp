@@ -270,10 +270,9 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   out.z_offset_m = Median(diff);
   double abs_sum = 0, sq_sum = 0;
   int within = 0;
-  std::vector<double> abs_err(diff.size()), centred(diff.size());
+  std::vector<double> abs_err(diff.size());
   for (size_t k = 0; k < diff.size(); ++k) {
     const double e = diff[k] - out.z_offset_m;
-    diff[k] = e;
     abs_err[k] = std::abs(e);
     abs_sum += abs_err[k];
     sq_sum += e * e;
@@ -284,9 +283,10 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   out.mae_m = abs_sum / diff.size();
   out.rmse_m = std::sqrt(sq_sum / diff.size());
   out.median_abs_m = Median(abs_err);
-  const double med = Median(diff);
-  for (size_t k = 0; k < diff.size(); ++k) centred[k] = std::abs(diff[k] - med);
-  out.nmad_m = 1.4826 * Median(centred);
+  // The errors are centred on their own median (z_offset_m is a sample of
+  // diff, so the centred median is exactly 0): NMAD is the scaled median
+  // absolute error.
+  out.nmad_m = 1.4826 * out.median_abs_m;
   out.within_fraction = static_cast<double>(within) / diff.size();
   return out;
 }
