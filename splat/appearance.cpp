@@ -10,14 +10,80 @@
 
 #include "core/error.h"
 #include "core/format.h"
+#include "core/simd.h"
+#include "core/simd_target.h"
 
 namespace skyfall {
 namespace {
+// What a layer kernel does to W x + b before it stores it (mlp_kernels.inc).
+enum class Epilogue { kNone, kRelu, kGate };
+}  // namespace
 
-// Gaussians per block of the batched MLP: large enough for efficient matrix
-// products, small enough that a block's activations (2 x hidden x block
-// floats = 2 MB) stay in cache and the blocks spread over the cores.
-constexpr std::size_t kBlock = 2048;
+// The MLP's kernels, once per SIMD path (core/simd_target.h): the same
+// source at 4 lanes for the x86-64 baseline, 8 for AVX2 + FMA and 16 for
+// AVX-512. GCC contracts a * b + c into one fused multiply-add where the
+// target has FMA (its default for C++), so the wider paths also round once
+// per multiply-add.
+namespace mlp_baseline {
+#define SKYFALL_MLP_LANES 4
+#include "splat/mlp_kernels.inc"
+#undef SKYFALL_MLP_LANES
+}  // namespace mlp_baseline
+
+#if defined(__x86_64__)
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX2)
+namespace mlp_avx2 {
+#define SKYFALL_MLP_LANES 8
+#include "splat/mlp_kernels.inc"
+#undef SKYFALL_MLP_LANES
+}  // namespace mlp_avx2
+SKYFALL_TARGET_END
+
+SKYFALL_TARGET_BEGIN(SKYFALL_TARGET_AVX512)
+namespace mlp_avx512 {
+#define SKYFALL_MLP_LANES 16
+#include "splat/mlp_kernels.inc"
+#undef SKYFALL_MLP_LANES
+}  // namespace mlp_avx512
+SKYFALL_TARGET_END
+#define SKYFALL_MLP_PATHS(call)   \
+  switch (ActiveSimdPath()) {     \
+    case SimdPath::kAvx512:       \
+      return mlp_avx512::call;    \
+    case SimdPath::kAvx2:         \
+      return mlp_avx2::call;      \
+    case SimdPath::kBaseline:     \
+      break;                      \
+  }                               \
+  return mlp_baseline::call
+#else
+#define SKYFALL_MLP_PATHS(call) return mlp_baseline::call
+#endif
+
+namespace {
+
+// Gaussians per block of the batched MLP: enough columns for the kernels'
+// passes, few enough that a block's inputs and activations (about 3 x hidden
+// x block values, 200 kB in float) stay in the core's L2 cache.
+constexpr std::size_t kBlock = 512;
+// Blocks are padded with zero columns to a multiple of the widest path's
+// pass (2 x 16 lanes).
+constexpr std::size_t kColumnMultiple = 32;
+std::size_t PaddedColumns(std::size_t n) { return (n + kColumnMultiple - 1) / kColumnMultiple * kColumnMultiple; }
+
+template <typename T>
+void LayerForward(const T* w, int out, int in, const T* bias, const T* x, int n, T* y, Epilogue e,
+                  const T* gate = nullptr) {
+  SKYFALL_MLP_PATHS(LayerForward(w, out, in, bias, x, n, n, y, n, e, gate));
+}
+template <typename T>
+void AccumulateOuter(const T* a, int rows_a, const T* b, int rows_b, int n, T* c) {
+  SKYFALL_MLP_PATHS(AccumulateOuter(a, rows_a, n, b, rows_b, n, n, c));
+}
+template <typename T>
+void AccumulateRowSums(const T* a, int rows, int n, T* s) {
+  SKYFALL_MLP_PATHS(AccumulateRowSums(a, rows, n, n, s));
+}
 
 template <typename T>
 using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
@@ -33,29 +99,76 @@ Mat<T> BaseColours(const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n)
   return c;
 }
 
-// Forward activations of one block of Gaussians. ReLU masks are read off
-// h > 0 (equivalent to z > 0), so the pre-activations need not be kept.
 template <typename T>
-struct BlockActivations {
-  Mat<T> colour, h1, h2, out;
+using RowMat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// The MLP's weights laid out for the kernels: row-major, and transposed for
+// the backward pass. A column-major Eigen matrix is its transpose in
+// row-major order, so the transposes are the model's own storage.
+template <typename T>
+struct MlpLayers {
+  int hidden = 0, inputs = 0;  // inputs per Gaussian: gaussian_dim + 3 (the image's part is in b1)
+  RowMat<T> w1, w2, w3;        // (hidden x inputs), (hidden x hidden), (6 x hidden)
+  const T* w1_t = nullptr;     // (inputs x hidden)
+  const T* w2_t = nullptr;     // (hidden x hidden)
+  const T* w3_t = nullptr;     // (hidden x 6)
+  Vec<T> b1;                   // the first layer's bias plus its image term
+  const T* b2 = nullptr;
+  const T* b3 = nullptr;
 };
 
 template <typename T>
-BlockActivations<T> ForwardBlock(const AppearanceModelT<T>& m, const Vec<T>& first_layer_image_term,
-                                 const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n) {
-  const int de = m.image_dim(), dg = m.gaussian_dim();
-  BlockActivations<T> act;
-  act.colour = BaseColours(cloud, a, n);
+MlpLayers<T> LayoutMlp(const AppearanceModelT<T>& m, const Vec<T>& first_layer_image_term) {
+  MlpLayers<T> l;
+  l.hidden = static_cast<int>(m.w1.rows());
+  l.inputs = m.gaussian_dim() + 3;
+  l.w1 = m.w1.rightCols(l.inputs);
+  l.w2 = m.w2;
+  l.w3 = m.w3;
+  l.w1_t = m.w1.data() + static_cast<std::size_t>(m.image_dim()) * l.hidden;
+  l.w2_t = m.w2.data();
+  l.w3_t = m.w3.data();
   // The first layer is linear in the concatenated input [e; g; c], so the
   // image term is computed once per call, not once per Gaussian.
-  act.h1 = m.w1.middleCols(de, dg) * m.gaussian_embeddings.middleCols(a, n) + m.w1.rightCols(3) * act.colour;
-  act.h1.colwise() += first_layer_image_term;
-  act.h1 = act.h1.cwiseMax(T(0));
-  act.h2 = m.w2 * act.h1;
-  act.h2.colwise() += m.b2;
-  act.h2 = act.h2.cwiseMax(T(0));
-  act.out = m.w3 * act.h2;
-  act.out.colwise() += m.b3;
+  l.b1 = first_layer_image_term;
+  l.b2 = m.b2.data();
+  l.b3 = m.b3.data();
+  return l;
+}
+
+// The MLP's per-Gaussian input of Gaussians [a, a + n), feature-major with
+// `np` columns: the embedding, then the SH degree-0 colour; padding is 0.
+template <typename T>
+std::vector<T> BlockInput(const AppearanceModelT<T>& m, const GaussianCloudT<T>& cloud, std::size_t a, std::size_t n,
+                          std::size_t np) {
+  const int dg = m.gaussian_dim();
+  std::vector<T> x((dg + 3) * np, T(0));
+  for (std::size_t k = 0; k < n; ++k) {
+    const T* g = m.gaussian_embeddings.col(static_cast<Eigen::Index>(a + k)).data();
+    for (int f = 0; f < dg; ++f) x[f * np + k] = g[f];
+    for (int ch = 0; ch < 3; ++ch) x[(dg + ch) * np + k] = T(kShC0) * cloud.sh[a + k][ch * 4] + T(0.5);
+  }
+  return x;
+}
+
+// Forward activations of one block of Gaussians, feature-major (hidden x np).
+// ReLU masks are read off h > 0 (equivalent to z > 0), so the
+// pre-activations need not be kept.
+template <typename T>
+struct BlockActivations {
+  std::vector<T> h1, h2, out;
+};
+
+template <typename T>
+BlockActivations<T> ForwardBlock(const MlpLayers<T>& l, const std::vector<T>& x, std::size_t np) {
+  const int n = static_cast<int>(np), h = l.hidden;
+  BlockActivations<T> act;
+  act.h1.resize(h * np);
+  act.h2.resize(h * np);
+  act.out.resize(6 * np);
+  LayerForward(l.w1.data(), h, l.inputs, l.b1.data(), x.data(), n, act.h1.data(), Epilogue::kRelu);
+  LayerForward(l.w2.data(), h, h, l.b2, act.h1.data(), n, act.h2.data(), Epilogue::kRelu);
+  LayerForward(l.w3.data(), 6, h, l.b3, act.h2.data(), n, act.out.data(), Epilogue::kNone);
   return act;
 }
 
@@ -249,19 +362,19 @@ std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, co
     if (keep) *keep = AppearanceActivations<T>{{}, {}, cloud.size()};
     return EvaluateBilinear(m, embedding, cloud);
   }
-  const Vec<T> image_term = ImageTerm(m, embedding);
+  const MlpLayers<T> layers = LayoutMlp(m, ImageTerm(m, embedding));
   std::vector<ColourAffine<T>> affine(cloud.size());
   const std::size_t blocks = Blocks(cloud.size());
   if (keep) {
-    keep->h1.assign(blocks, Mat<T>());
-    keep->h2.assign(blocks, Mat<T>());
+    keep->h1.assign(blocks, {});
+    keep->h2.assign(blocks, {});
     keep->gaussians = cloud.size();
   }
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
-    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
-    BlockActivations<T> act = ForwardBlock(m, image_term, cloud, a, n);
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a), np = PaddedColumns(n);
+    BlockActivations<T> act = ForwardBlock(layers, BlockInput(m, cloud, a, n, np), np);
     for (std::size_t k = 0; k < n; ++k) {
-      affine[a + k] = act.out.col(k);
+      for (int f = 0; f < 6; ++f) affine[a + k][f] = act.out[f * np + k];
       affine[a + k].template head<3>().array() += T(1);
     }
     if (keep) {
@@ -285,46 +398,57 @@ Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
   if (d_affine.size() != cloud.size()) throw Error("appearance", "d_affine", "size differs from the cloud");
   if (m.bilinear()) return BackwardBilinear(m, embedding, cloud, d_affine, grad, d_sh);
   const int de = m.image_dim(), dg = m.gaussian_dim();
-  const Vec<T> image_term = ImageTerm(m, embedding);
-  // Weight gradients are summed per block, then over blocks in block order,
-  // so the result does not depend on thread scheduling.
+  const MlpLayers<T> l = LayoutMlp(m, ImageTerm(m, embedding));
+  const int h = l.hidden;
+  // Weight gradients (row-major, as the kernels write them) are summed per
+  // block, then over blocks in block order, so the result does not depend
+  // on thread scheduling.
   const std::size_t blocks = Blocks(cloud.size());
   struct Partial {
-    Mat<T> w1, w2, w3;
+    RowMat<T> w1, w2, w3;  // w1: the per-Gaussian inputs' columns only
     Vec<T> b1, b2, b3;
   };
   std::vector<Partial> partial(blocks);
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
-    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a);
+    const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a), np = PaddedColumns(n);
+    const int cols = static_cast<int>(np);
+    const std::vector<T> x = BlockInput(m, cloud, a, n, np);
     BlockActivations<T> recomputed;
-    if (!kept) recomputed = ForwardBlock(m, image_term, cloud, a, n);
-    const Mat<T>& h1 = kept ? kept->h1[b] : recomputed.h1;
-    const Mat<T>& h2 = kept ? kept->h2[b] : recomputed.h2;
-    const Mat<T> colour = kept ? BaseColours(cloud, a, n) : recomputed.colour;
-    Mat<T> d_out(6, n);
-    for (std::size_t k = 0; k < n; ++k) d_out.col(k) = d_affine[a + k];
+    if (!kept) recomputed = ForwardBlock(l, x, np);
+    const std::vector<T>& h1 = kept ? kept->h1[b] : recomputed.h1;
+    const std::vector<T>& h2 = kept ? kept->h2[b] : recomputed.h2;
+    std::vector<T> d_out(6 * np, T(0));  // zero in the padding: no gradient flows from it
+    for (std::size_t k = 0; k < n; ++k)
+      for (int f = 0; f < 6; ++f) d_out[f * np + k] = d_affine[a + k][f];
     Partial& p = partial[b];
-    p.w3 = d_out * h2.transpose();
-    p.b3 = d_out.rowwise().sum();
-    const Mat<T> d_z2 = (m.w3.transpose() * d_out).cwiseProduct((h2.array() > T(0)).matrix().template cast<T>());
-    p.w2 = d_z2 * h1.transpose();
-    p.b2 = d_z2.rowwise().sum();
-    const Mat<T> d_z1 = (m.w2.transpose() * d_z2).cwiseProduct((h1.array() > T(0)).matrix().template cast<T>());
-    p.b1 = d_z1.rowwise().sum();
-    p.w1.setZero(m.w1.rows(), m.w1.cols());
-    p.w1.leftCols(de) = p.b1 * embedding.transpose();
-    p.w1.middleCols(de, dg) = d_z1 * m.gaussian_embeddings.middleCols(a, n).transpose();
-    p.w1.rightCols(3) = d_z1 * colour.transpose();
-    grad->gaussian_embeddings.middleCols(a, n) += m.w1.middleCols(de, dg).transpose() * d_z1;
+    p.w3.setZero(6, h);
+    p.w2.setZero(h, h);
+    p.w1.setZero(h, l.inputs);
+    p.b3.setZero(6);
+    p.b2.setZero(h);
+    p.b1.setZero(h);
+    AccumulateOuter(d_out.data(), 6, h2.data(), h, cols, p.w3.data());
+    AccumulateRowSums(d_out.data(), 6, cols, p.b3.data());
+    std::vector<T> d_z2(h * np), d_z1(h * np), d_x(l.inputs * np);
+    LayerForward(l.w3_t, h, 6, static_cast<const T*>(nullptr), d_out.data(), cols, d_z2.data(), Epilogue::kGate, h2.data());
+    AccumulateOuter(d_z2.data(), h, h1.data(), h, cols, p.w2.data());
+    AccumulateRowSums(d_z2.data(), h, cols, p.b2.data());
+    LayerForward(l.w2_t, h, h, static_cast<const T*>(nullptr), d_z2.data(), cols, d_z1.data(), Epilogue::kGate, h1.data());
+    AccumulateOuter(d_z1.data(), h, x.data(), l.inputs, cols, p.w1.data());
+    AccumulateRowSums(d_z1.data(), h, cols, p.b1.data());
+    LayerForward(l.w1_t, l.inputs, h, static_cast<const T*>(nullptr), d_z1.data(), cols, d_x.data(), Epilogue::kNone);
+    for (std::size_t k = 0; k < n; ++k) {
+      T* g = grad->gaussian_embeddings.col(static_cast<Eigen::Index>(a + k)).data();
+      for (int f = 0; f < dg; ++f) g[f] += d_x[f * np + k];
+    }
     if (d_sh) {
-      const Mat<T> d_colour = m.w1.rightCols(3).transpose() * d_z1;
       for (std::size_t k = 0; k < n; ++k)
-        for (int ch = 0; ch < 3; ++ch) (*d_sh)[a + k][ch * 4] += T(kShC0) * d_colour(ch, k);
+        for (int ch = 0; ch < 3; ++ch) (*d_sh)[a + k][ch * 4] += T(kShC0) * d_x[(dg + ch) * np + k];
     }
   });
   Vec<T> d_b1_total = Vec<T>::Zero(m.b1.size());
   for (const Partial& p : partial) {
-    grad->w1 += p.w1;
+    grad->w1.rightCols(l.inputs) += p.w1;
     grad->w2 += p.w2;
     grad->w3 += p.w3;
     grad->b1 += p.b1;
@@ -332,8 +456,10 @@ Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
     grad->b3 += p.b3;
     d_b1_total += p.b1;
   }
-  // The embedding enters only through w1's left block: its gradient is that
-  // block's transpose times the summed first-layer gradient.
+  // The image embedding enters only through w1's left block, like a bias:
+  // that block's gradient is the summed first-layer gradient times e^T, and
+  // the embedding's is the block's transpose times that sum.
+  grad->w1.leftCols(de) += d_b1_total * embedding.transpose();
   return m.w1.leftCols(de).transpose() * d_b1_total;
 }
 

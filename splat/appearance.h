@@ -84,7 +84,7 @@ AppearanceModel InitAppearance(const AppearanceOptions& options, int images, std
 // need not recompute them.
 template <typename T>
 struct AppearanceActivations {
-  std::vector<Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>> h1, h2;  // per block of Gaussians
+  std::vector<std::vector<T>> h1, h2;  // per block of Gaussians, feature-major
   std::size_t gaussians = 0;
 };
 

@@ -229,6 +229,89 @@ TEST(Appearance, KeptActivationsGiveTheSameGradients) {
   EXPECT_THROW(BackwardAppearance<double>(m5, s.embedding, fewer, d5, &g5, nullptr, &kept), Error);
 }
 
+// Largest |a - b| over the entries, relative to the largest |b| (at least 1e-30).
+double RelativeDifference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(1e-30, b.cwiseAbs().maxCoeff());
+}
+
+TEST(Appearance, EverySimdPathGivesTheBaselineResults) {
+  // The MLP in float on every path against the baseline path, over 1100
+  // Gaussians (three blocks, the last one padded). Each output is a sum of
+  // at most hidden + 7 products, each weight gradient a sum over 1100
+  // Gaussians; the paths add them in a different order (lane width) and the
+  // wider ones multiply-add in one rounding. Float keeps 6e-8 relative per
+  // operation, so sums of a few thousand terms agree within 1e-5 of their
+  // largest entry; 1e-4 leaves room for cancellation in single entries.
+  constexpr double kPathTol = 1e-4;
+  const std::size_t n = 1100;
+  const Model md = RandomModel(static_cast<int>(n), 21, "mlp");
+  AppearanceModel m;
+  for (auto [dst, src] : {std::pair{&m.image_embeddings, &md.image_embeddings},
+                          std::pair{&m.gaussian_embeddings, &md.gaussian_embeddings}, std::pair{&m.w1, &md.w1},
+                          std::pair{&m.w2, &md.w2}, std::pair{&m.w3, &md.w3}})
+    *dst = src->cast<float>();
+  m.b1 = md.b1.cast<float>();
+  m.b2 = md.b2.cast<float>();
+  m.b3 = md.b3.cast<float>();
+  const GaussianCloud cloud = ToFloat(SmallCloud(static_cast<int>(n), 22));
+  const Eigen::VectorXf e = m.image_embeddings.col(0);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<ColourAffine<float>> d_affine(n);
+  for (auto& d : d_affine) d = ColourAffine<float>::NullaryExpr([&] { return u(rng); });
+  struct Result {
+    Eigen::MatrixXd affine, d_embedding, d_w1, d_w2, d_w3, d_gaussian, d_sh;
+  };
+  auto run = [&] {
+    Result r;
+    const auto affine = EvaluateAppearance(m, e, cloud);
+    r.affine.resize(6, n);
+    for (std::size_t i = 0; i < n; ++i) r.affine.col(i) = affine[i].cast<double>();
+    AppearanceModel g = m.ZerosLike();
+    std::vector<std::array<float, 12>> d_sh(n, std::array<float, 12>{});
+    r.d_embedding = BackwardAppearance(m, e, cloud, d_affine, &g, &d_sh).cast<double>();
+    r.d_w1 = g.w1.cast<double>();
+    r.d_w2 = g.w2.cast<double>();
+    r.d_w3 = g.w3.cast<double>();
+    r.d_gaussian = g.gaussian_embeddings.cast<double>();
+    r.d_sh.resize(3, n);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int ch = 0; ch < 3; ++ch) r.d_sh(ch, i) = d_sh[i][ch * 4];
+    return r;
+  };
+  Result base;
+  {
+    testing::ScopedSimdPath scoped(SimdPath::kBaseline);
+    base = run();
+  }
+  EXPECT_GT(base.d_w2.norm(), 1e-3);  // not a vacuous comparison
+  // The baseline against the paper's formula written out in double:
+  // gamma = 1 + o[0..2], beta = o[3..5], o = w3 relu(w2 relu(w1 [e; g; c] + b1) + b2) + b3.
+  for (std::size_t i = 0; i < n; i += 97) {
+    Eigen::VectorXd input(md.w1.cols());
+    input << e.cast<double>(), m.gaussian_embeddings.col(i).cast<double>(),
+        Eigen::Vector3d(kShC0 * cloud.sh[i][0] + 0.5, kShC0 * cloud.sh[i][4] + 0.5, kShC0 * cloud.sh[i][8] + 0.5);
+    const Eigen::VectorXd h1 = (m.w1.cast<double>() * input + m.b1.cast<double>()).cwiseMax(0.0);
+    const Eigen::VectorXd h2 = (m.w2.cast<double>() * h1 + m.b2.cast<double>()).cwiseMax(0.0);
+    Eigen::VectorXd o = m.w3.cast<double>() * h2 + m.b3.cast<double>();
+    o.head(3).array() += 1.0;
+    EXPECT_LT((base.affine.col(i) - o).cwiseAbs().maxCoeff(), kPathTol * std::max(1.0, o.cwiseAbs().maxCoeff()))
+        << "Gaussian " << i;
+  }
+  for (SimdPath path : SupportedSimdPaths()) {
+    SCOPED_TRACE(SimdPathName(path));
+    testing::ScopedSimdPath scoped(path);
+    const Result r = run();
+    EXPECT_LT(RelativeDifference(r.affine, base.affine), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_embedding, base.d_embedding), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_w1, base.d_w1), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_w2, base.d_w2), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_w3, base.d_w3), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_gaussian, base.d_gaussian), kPathTol);
+    EXPECT_LT(RelativeDifference(r.d_sh, base.d_sh), kPathTol);
+  }
+}
+
 TEST(Appearance, ColourTransformGradientsOfTheRasterizerMatchFiniteDifferences) {
   Scene s;
   std::vector<ColourAffine<double>> affine = EvaluateAppearance(s.model, s.embedding, s.cloud);

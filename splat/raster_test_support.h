@@ -1,10 +1,23 @@
 // Shared by the splat tests that compare analytic gradients with central
-// differences.
+// differences, or the SIMD paths with each other.
 #pragma once
 
+#include "core/simd.h"
 #include "splat/rasterizer.h"
 
 namespace skyfall::testing {
+
+// Switches the SIMD path for one scope, then back.
+class ScopedSimdPath {
+ public:
+  explicit ScopedSimdPath(SimdPath p) : previous_(ActiveSimdPath()) { SetSimdPath(p); }
+  ~ScopedSimdPath() { SetSimdPath(previous_); }
+  ScopedSimdPath(const ScopedSimdPath&) = delete;
+  ScopedSimdPath& operator=(const ScopedSimdPath&) = delete;
+
+ private:
+  SimdPath previous_;
+};
 
 // Options that make the rendered image a smooth function of the parameters,
 // so central differences are meaningful: no alpha cut-off, no early stop, and

@@ -54,16 +54,52 @@ struct Adam {
   }
 };
 
-void AdamUpdate(float* p, float* m, float* v, const float* g, std::size_t n, double lr, double bc1, double bc2) {
+// Adam's bias corrections at one step, folded into float constants so the
+// update itself runs in float (it vectorizes; in double it was most of the
+// optimizer phase).
+struct AdamStepScale {
+  float step_per_lr;  // 1 / (1 - beta1^t)
+  float inv_sqrt_bc2;  // 1 / sqrt(1 - beta2^t)
+};
+AdamStepScale ScaleAtStep(long step) {
+  const double bc1 = 1 - std::pow(kAdamBeta1, step), bc2 = 1 - std::pow(kAdamBeta2, step);
+  return {static_cast<float>(1.0 / bc1), static_cast<float>(1.0 / std::sqrt(bc2))};
+}
+
+// `step_of(k)`: the learning rate of value k times AdamStepScale::step_per_lr.
+template <typename StepOf>
+void AdamLoop(float* p, float* m, float* v, const float* g, std::size_t n, float inv_sqrt_bc2, StepOf step_of) {
+  constexpr float b1 = static_cast<float>(kAdamBeta1), b2 = static_cast<float>(kAdamBeta2);
+  constexpr float eps = static_cast<float>(kAdamEps);
   for (std::size_t k = 0; k < n; ++k) {
-    m[k] = static_cast<float>(kAdamBeta1 * m[k] + (1 - kAdamBeta1) * g[k]);
-    v[k] = static_cast<float>(kAdamBeta2 * v[k] + (1 - kAdamBeta2) * g[k] * g[k]);
-    p[k] -= static_cast<float>(lr * (m[k] / bc1) / (std::sqrt(v[k] / bc2) + kAdamEps));
+    m[k] = b1 * m[k] + (1.0f - b1) * g[k];
+    v[k] = b2 * v[k] + (1.0f - b2) * g[k] * g[k];
+    p[k] -= step_of(k) * m[k] / (std::sqrt(v[k]) * inv_sqrt_bc2 + eps);
   }
 }
-template <int N>
-void AdamUpdate(float* p, float* m, float* v, const float* g, double lr, double bc1, double bc2) {
-  AdamUpdate(p, m, v, g, N, lr, bc1, bc2);
+
+void AdamUpdate(float* p, float* m, float* v, const float* g, std::size_t n, double lr, const AdamStepScale& s) {
+  const float step = static_cast<float>(lr) * s.step_per_lr;
+  AdamLoop(p, m, v, g, n, s.inv_sqrt_bc2, [step](std::size_t) { return step; });
+}
+
+// Adam over one field of every Gaussian (contiguous in the cloud), in
+// parallel chunks: each value's update is independent, so the result does
+// not depend on the chunking.
+template <typename Field>
+void AdamField(std::vector<Field>& p, std::vector<Field>& m, std::vector<Field>& v, const std::vector<Field>& g,
+               double lr, const AdamStepScale& s) {
+  static_assert(sizeof(Field) % sizeof(float) == 0, "a field is whole floats");
+  constexpr std::size_t kChunk = 16384;
+  const std::size_t n = p.size() * sizeof(Field) / sizeof(float);
+  auto* pf = reinterpret_cast<float*>(p.data());
+  auto* mf = reinterpret_cast<float*>(m.data());
+  auto* vf = reinterpret_cast<float*>(v.data());
+  const auto* gf = reinterpret_cast<const float*>(g.data());
+  tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t c) {
+    const std::size_t a = c * kChunk;
+    AdamUpdate(pf + a, mf + a, vf + a, gf + a, std::min(kChunk, n - a), lr, s);
+  });
 }
 
 // The appearance model with its Adam moments.
@@ -86,7 +122,7 @@ std::vector<ParamBlock> Blocks(AppearanceModel& x, const AppearanceOptions& o) {
 }
 
 void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, const AppearanceOptions& o) {
-  const double bc1 = 1 - std::pow(kAdamBeta1, step), bc2 = 1 - std::pow(kAdamBeta2, step);
+  const AdamStepScale scale = ScaleAtStep(step);
   const auto p = Blocks(a.model, o), m = Blocks(a.m, o), v = Blocks(a.v, o), g = Blocks(grad, o);
   // Elementwise, so chunks of a block can run in parallel (the Gaussian
   // embeddings are 24 values per Gaussian).
@@ -94,29 +130,31 @@ void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, co
   for (std::size_t k = 0; k < p.size(); ++k) {
     tbb::parallel_for(std::size_t{0}, (p[k].size + kChunk - 1) / kChunk, [&](std::size_t c) {
       const std::size_t a = c * kChunk, n = std::min(kChunk, p[k].size - a);
-      AdamUpdate(p[k].data + a, m[k].data + a, v[k].data + a, g[k].data + a, n, p[k].lr, bc1, bc2);
+      AdamUpdate(p[k].data + a, m[k].data + a, v[k].data + a, g[k].data + a, n, p[k].lr, scale);
     });
   }
 }
 
-
 void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
   ++adam.step;
-  const double bc1 = 1 - std::pow(kAdamBeta1, adam.step), bc2 = 1 - std::pow(kAdamBeta2, adam.step);
-  // Each Gaussian's update is independent: in parallel, the same result.
-  tbb::parallel_for(std::size_t{0}, c.size(), [&](std::size_t i) {
-    AdamUpdate<3>(c.means[i].data(), adam.m.means[i].data(), adam.v.means[i].data(), g.means[i].data(), lr_mean, bc1, bc2);
-    AdamUpdate<3>(c.log_scales[i].data(), adam.m.log_scales[i].data(), adam.v.log_scales[i].data(),
-                  g.log_scales[i].data(), o.lr_scale, bc1, bc2);
-    AdamUpdate<4>(c.rotations[i].data(), adam.m.rotations[i].data(), adam.v.rotations[i].data(),
-                  g.rotations[i].data(), o.lr_rotation, bc1, bc2);
-    AdamUpdate<1>(&c.opacity_logits[i], &adam.m.opacity_logits[i], &adam.v.opacity_logits[i], &g.opacity_logits[i],
-                  o.lr_opacity, bc1, bc2);
-    for (int ch = 0; ch < 3; ++ch) {
-      AdamUpdate<1>(&c.sh[i][ch * 4], &adam.m.sh[i][ch * 4], &adam.v.sh[i][ch * 4], &g.sh[i][ch * 4], o.lr_sh_dc, bc1, bc2);
-      AdamUpdate<3>(&c.sh[i][ch * 4 + 1], &adam.m.sh[i][ch * 4 + 1], &adam.v.sh[i][ch * 4 + 1], &g.sh[i][ch * 4 + 1],
-                    o.lr_sh_rest, bc1, bc2);
-    }
+  const AdamStepScale scale = ScaleAtStep(adam.step);
+  AdamField(c.means, adam.m.means, adam.v.means, g.means, lr_mean, scale);
+  AdamField(c.log_scales, adam.m.log_scales, adam.v.log_scales, g.log_scales, o.lr_scale, scale);
+  AdamField(c.rotations, adam.m.rotations, adam.v.rotations, g.rotations, o.lr_rotation, scale);
+  AdamField(c.opacity_logits, adam.m.opacity_logits, adam.v.opacity_logits, g.opacity_logits, o.lr_opacity, scale);
+  // SH: per channel, 4 coefficients, the degree-0 one at its own rate.
+  static_assert(kShCoeffsPerChannel == 4, "the rate pattern below has period 4");
+  const float step_dc = static_cast<float>(o.lr_sh_dc) * scale.step_per_lr;
+  const float step_rest = static_cast<float>(o.lr_sh_rest) * scale.step_per_lr;
+  constexpr std::size_t kChunk = 16384;  // a multiple of 4: every chunk starts at a degree-0 value
+  const std::size_t n = 12 * c.size();
+  tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t k) {
+    const std::size_t a = k * kChunk;
+    auto flat = [](auto& sh) { return reinterpret_cast<float*>(sh.data()); };
+    AdamLoop(flat(c.sh) + a, flat(adam.m.sh) + a, flat(adam.v.sh) + a,
+             reinterpret_cast<const float*>(g.sh.data()) + a,
+             std::min(kChunk, n - a), scale.inv_sqrt_bc2,
+             [step_dc, step_rest](std::size_t j) { return j % 4 == 0 ? step_dc : step_rest; });
   });
 }
 
