@@ -64,6 +64,10 @@ struct RasterState {
   std::vector<int> order;
   std::vector<int> tile_begin, tile_end;
   std::vector<std::uint8_t> entry_blended;  // per `order` entry: it blended at least one pixel
+  // Per Gaussian: its positions in `order`, in tile order, as ranges into
+  // `entries` (the backward pass sums its gradient over them).
+  std::vector<int> entries_begin;
+  std::vector<int> entries;
   // Per pixel: final transmittance and 1 + the tile-list position of the
   // last Gaussian blended (0 when none).
   std::vector<T> final_transmittance;
