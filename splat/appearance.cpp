@@ -143,10 +143,12 @@ std::vector<T> BlockInput(const AppearanceModelT<T>& m, const GaussianCloudT<T>&
                           std::size_t np) {
   const int dg = m.gaussian_dim();
   std::vector<T> x((dg + 3) * np, T(0));
-  for (std::size_t k = 0; k < n; ++k) {
-    const T* g = m.gaussian_embeddings.col(static_cast<Eigen::Index>(a + k)).data();
-    for (int f = 0; f < dg; ++f) x[f * np + k] = g[f];
-    for (int ch = 0; ch < 3; ++ch) x[(dg + ch) * np + k] = T(kShC0) * cloud.sh[a + k][ch * 4] + T(0.5);
+  Eigen::Map<RowMat<T>> rows(x.data(), dg + 3, static_cast<Eigen::Index>(np));
+  rows.topLeftCorner(dg, static_cast<Eigen::Index>(n)) =
+      m.gaussian_embeddings.middleCols(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(n));
+  for (int ch = 0; ch < 3; ++ch) {
+    T* row = x.data() + (dg + ch) * np;
+    for (std::size_t k = 0; k < n; ++k) row[k] = T(kShC0) * cloud.sh[a + k][ch * 4] + T(0.5);
   }
   return x;
 }
@@ -359,25 +361,28 @@ std::vector<ColourAffine<T>> EvaluateAppearance(const AppearanceModelT<T>& m, co
                                                 const GaussianCloudT<T>& cloud, AppearanceActivations<T>* keep) {
   CheckCloud(m, cloud);
   if (m.bilinear()) {
-    if (keep) *keep = AppearanceActivations<T>{{}, {}, cloud.size()};
+    if (keep) *keep = AppearanceActivations<T>{{}, {}, {}, cloud.size()};
     return EvaluateBilinear(m, embedding, cloud);
   }
   const MlpLayers<T> layers = LayoutMlp(m, ImageTerm(m, embedding));
   std::vector<ColourAffine<T>> affine(cloud.size());
   const std::size_t blocks = Blocks(cloud.size());
   if (keep) {
+    keep->x.assign(blocks, {});
     keep->h1.assign(blocks, {});
     keep->h2.assign(blocks, {});
     keep->gaussians = cloud.size();
   }
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
     const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a), np = PaddedColumns(n);
-    BlockActivations<T> act = ForwardBlock(layers, BlockInput(m, cloud, a, n, np), np);
+    std::vector<T> x = BlockInput(m, cloud, a, n, np);
+    BlockActivations<T> act = ForwardBlock(layers, x, np);
     for (std::size_t k = 0; k < n; ++k) {
       for (int f = 0; f < 6; ++f) affine[a + k][f] = act.out[f * np + k];
       affine[a + k].template head<3>().array() += T(1);
     }
     if (keep) {
+      keep->x[b] = std::move(x);
       keep->h1[b] = std::move(act.h1);
       keep->h2[b] = std::move(act.h2);
     }
@@ -412,7 +417,9 @@ Vec<T> BackwardAppearance(const AppearanceModelT<T>& m, const Vec<T>& embedding,
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
     const std::size_t a = b * kBlock, n = std::min(kBlock, cloud.size() - a), np = PaddedColumns(n);
     const int cols = static_cast<int>(np);
-    const std::vector<T> x = BlockInput(m, cloud, a, n, np);
+    std::vector<T> fresh_x;
+    if (!kept) fresh_x = BlockInput(m, cloud, a, n, np);
+    const std::vector<T>& x = kept ? kept->x[b] : fresh_x;
     BlockActivations<T> recomputed;
     if (!kept) recomputed = ForwardBlock(l, x, np);
     const std::vector<T>& h1 = kept ? kept->h1[b] : recomputed.h1;

@@ -79,12 +79,12 @@ using AppearanceModel = AppearanceModelT<float>;
 // A model for `images` images and `gaussians` Gaussians.
 AppearanceModel InitAppearance(const AppearanceOptions& options, int images, std::size_t gaussians, std::uint64_t seed);
 
-// The hidden activations of one evaluation, kept for the backward pass
-// (2 x hidden floats per Gaussian: 1 kB at the paper's sizes) so that it
-// need not recompute them.
+// The inputs and hidden activations of one evaluation, kept for the
+// backward pass (gaussian_dim + 3 + 2 x hidden floats per Gaussian: 1.1 kB at
+// the paper's sizes) so that it need not recompute them.
 template <typename T>
 struct AppearanceActivations {
-  std::vector<std::vector<T>> h1, h2;  // per block of Gaussians, feature-major
+  std::vector<std::vector<T>> x, h1, h2;  // per block of Gaussians, feature-major
   std::size_t gaussians = 0;
 };
 
