@@ -192,7 +192,9 @@ TEST(Dense, GroundNoPairSeesIsOccludedAndOpenHolesAreNot) {
   for (int j = 5; j < 9; ++j)
     for (int i = 5; i < 9; ++i) EXPECT_FALSE(occluded(i, j, three)) << i << "," << j;
   for (std::size_t k = 0; k < surface.size(); ++k)
-    if (std::isfinite(surface[k])) EXPECT_EQ(three[k], 0);
+    if (std::isfinite(surface[k])) {
+      EXPECT_EQ(three[k], 0);
+    }
   // A second southern view makes a pair that sees the strip.
   views.emplace_back(0.3, -1, 2);
   const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, kTolM, -5.0);

@@ -19,10 +19,43 @@
 #include "core/simd.h"
 #include "core/simd_target.h"
 
+namespace skyfall {
+namespace {
+
+// Sorts (depth, Gaussian index) pairs that arrive in index order by depth,
+// ties by index (front to back, deterministic). Float depths take a stable
+// least-significant-digit radix sort of their order-preserving bits: three
+// passes of 11 bits, several times faster than a comparison sort at 100k
+// Gaussians. Double depths (the finite-difference tests) take a plain sort.
+void SortFrontToBack(std::vector<std::pair<float, int>>& v) {
+  constexpr int kBits = 11, kBuckets = 1 << kBits;
+  const std::size_t n = v.size();
+  std::vector<std::uint32_t> key(n), key_tmp(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::uint32_t u;
+    std::memcpy(&u, &v[k].first, sizeof(u));
+    key[k] = (u & 0x80000000u) ? ~u : (u | 0x80000000u);  // negative floats reversed, below positive ones
+  }
+  std::vector<std::pair<float, int>> tmp(n);
+  for (int shift = 0; shift < 32; shift += kBits) {
+    std::vector<std::size_t> start(kBuckets + 1, 0);
+    for (std::size_t k = 0; k < n; ++k) ++start[((key[k] >> shift) & (kBuckets - 1)) + 1];
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::size_t at = start[(key[k] >> shift) & (kBuckets - 1)]++;
+      tmp[at] = v[k];
+      key_tmp[at] = key[k];
+    }
+    v.swap(tmp);
+    key.swap(key_tmp);
+  }
+}
+void SortFrontToBack(std::vector<std::pair<double, int>>& v) { tbb::parallel_sort(v.begin(), v.end()); }
+
+}  // namespace
+
 // The kernels, once per SIMD path (core/simd_target.h): the same source at 4
 // lanes for the x86-64 baseline, 8 for AVX2 + FMA and 16 for AVX-512.
-
-namespace skyfall {
 
 namespace raster_baseline {
 #define SKYFALL_RASTER_LANES 4

@@ -97,7 +97,7 @@ TEST(Geo, EnuToUtmToEnuRoundTrips) {
   for (const Site& s : kSites) {
     const EnuFrame frame({s.lon_deg, s.lat_deg, 5.0});
     const UtmZone zone = StandardUtmZone(s.lon_deg, s.lat_deg);
-    for (const Eigen::Vector3d enu : {Eigen::Vector3d(-700, 300, 20), Eigen::Vector3d(512, -256, -30)}) {
+    for (const Eigen::Vector3d& enu : {Eigen::Vector3d(-700, 300, 20), Eigen::Vector3d(512, -256, -30)}) {
       const GeodeticPoint g = frame.GeodeticFromEnu(enu);
       const Eigen::Vector2d en = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
       const Eigen::Vector2d ll = GeodeticFromUtm(zone, en.x(), en.y());

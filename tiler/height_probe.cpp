@@ -91,9 +91,11 @@ double Score(const std::vector<View>& views, const std::vector<Eigen::Vector2d>&
     } catch (const Error&) {
       continue;  // this height is outside what the reference RPC can place
     }
-    const Eigen::FullPivLU<Eigen::Matrix2d> lu(J);
-    if (!lu.isInvertible()) continue;
-    const Eigen::Matrix2d lonlat_from_px = lu.inverse();
+    // A 2 x 2 Jacobian: invertible when its determinant is clearly non-zero
+    // against the size of its entries.
+    const double det = J.determinant();
+    if (!(std::abs(det) > 1e-12 * J.squaredNorm())) continue;
+    const Eigen::Matrix2d lonlat_from_px = J.inverse();
     for (std::size_t v = 1; v < views.size(); ++v) {
       a.clear();
       b.clear();

@@ -129,9 +129,12 @@ void WriteThroughMem(const std::string& path, const char* driver, int width_px, 
   GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", width_px, height_px, bands, type, nullptr);
   if (!mem) throw Error("raster", path, "cannot allocate the image: " + quiet.LastMessage());
   const int type_bytes = GDALGetDataTypeSizeBytes(type);
-  GDALDatasetRasterIO(mem, GF_Write, 0, 0, width_px, height_px, const_cast<void*>(pixels), width_px, height_px, type,
-                      bands, nullptr, static_cast<GSpacing>(type_bytes) * bands,
-                      static_cast<GSpacing>(type_bytes) * bands * width_px, type_bytes);
+  if (GDALDatasetRasterIO(mem, GF_Write, 0, 0, width_px, height_px, const_cast<void*>(pixels), width_px, height_px,
+                          type, bands, nullptr, static_cast<GSpacing>(type_bytes) * bands,
+                          static_cast<GSpacing>(type_bytes) * bands * width_px, type_bytes) != CE_None) {
+    GDALClose(mem);
+    throw Error("raster", path, "cannot copy the pixels into the image: " + quiet.LastMessage());
+  }
   if (prepare) prepare(mem);
   const std::string tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
   std::error_code ec;
