@@ -101,6 +101,7 @@ class ReprojectRefiner final : public Refiner {
   RasterOptions raster_;
   const SurfaceDepthPrior* surface_;
   std::vector<DepthMap> surface_in_satellite_;  // the surface's depth in each satellite view (computed once)
+  std::vector<Eigen::Vector3d> satellite_centres_;  // world position of each satellite camera
 };
 
 // External refiner: for each call, writes the renders as IN/<name>.png and
