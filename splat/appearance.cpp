@@ -5,6 +5,9 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#if defined(__x86_64__)
+#include <immintrin.h>  // lanes_body.inc: one-instruction mask tests
+#endif
 #include <limits>
 #include <random>
 

@@ -15,6 +15,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#if defined(__x86_64__)
+#include <immintrin.h>  // lanes_body.inc: one-instruction mask tests
+#endif
 
 namespace skyfall::lanes {
 

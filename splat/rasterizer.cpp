@@ -10,6 +10,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#if defined(__x86_64__)
+#include <immintrin.h>  // lanes_body.inc: one-instruction mask tests
+#endif
 #include <limits>
 #include <memory>
 #include <numeric>
