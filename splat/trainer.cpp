@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "core/atomic_file.h"
@@ -389,13 +390,20 @@ double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions&
 // they are rendered with the mean training embedding.
 // Adds the geometry and opacity gradients of an extra view (a pseudo or
 // nadir view, which supervises no colour) to the step's gradients.
-void AddGeometryGradients(const GaussianGradients<float>& extra, GaussianGradients<float>* g) {
-  for (std::size_t i = 0; i < extra.d.means.size(); ++i) {
-    g->d.means[i] += extra.d.means[i];
-    g->d.log_scales[i] += extra.d.log_scales[i];
-    g->d.rotations[i] += extra.d.rotations[i];
-    g->d.opacity_logits[i] += extra.d.opacity_logits[i];
-  }
+// Only the Gaussians the extra view rendered (`seen`) have a gradient from
+// it; the small regularizer views see a few percent of the cloud.
+void AddGeometryGradients(const GaussianGradients<float>& extra, const RasterState<float>& seen,
+                          GaussianGradients<float>* g) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, extra.d.means.size(), 4096),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i < range.end(); ++i) {
+                        if (!seen.radius_px[i]) continue;
+                        g->d.means[i] += extra.d.means[i];
+                        g->d.log_scales[i] += extra.d.log_scales[i];
+                        g->d.rotations[i] += extra.d.rotations[i];
+                        g->d.opacity_logits[i] += extra.d.opacity_logits[i];
+                      }
+                    });
 }
 
 // The surface anchor on one rendered training view (the surface's depth is
@@ -825,7 +833,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       const DepthMap target = surface->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
       std::vector<float> n_alpha, n_depth;
       loss += SurfaceAnchorLoss(nr, target, o, &n_alpha, &n_depth);
-      AddGeometryGradients(BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth), &g);
+      AddGeometryGradients(BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth), nr.state, &g);
     }
     if (depth_prior && o.pseudo_interval > 0 && it % o.pseudo_interval == 0) {
       // Pseudo view: the same sample for the same iteration, so resumes match.
@@ -836,7 +844,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       std::vector<float> d_depth;
       loss += o.lambda_depth * PearsonDepthLoss(pr.depth, prior.depth, prior.valid, &d_depth);
       for (float& v : d_depth) v *= static_cast<float>(o.lambda_depth);
-      AddGeometryGradients(BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth), &g);
+      AddGeometryGradients(BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth), pr.state, &g);
     }
     phase.Lap(kRegularizerViews);
     loss_sum += loss;
