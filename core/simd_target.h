@@ -24,3 +24,21 @@
 
 #define SKYFALL_TARGET_AVX2 "avx2,fma"
 #define SKYFALL_TARGET_AVX512 "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma"
+
+// `return prefix_<path>::call` for the active path, where a file compiled its
+// kernels into the namespaces prefix_baseline, prefix_avx2 and
+// prefix_avx512 as above (the caller includes core/simd.h).
+#if defined(__x86_64__)
+#define SKYFALL_RETURN_FOR_ACTIVE_PATH(prefix, call) \
+  switch (ActiveSimdPath()) {                       \
+    case SimdPath::kAvx512:                         \
+      return prefix##_avx512::call;                 \
+    case SimdPath::kAvx2:                           \
+      return prefix##_avx2::call;                   \
+    case SimdPath::kBaseline:                       \
+      break;                                        \
+  }                                                 \
+  return prefix##_baseline::call
+#else
+#define SKYFALL_RETURN_FOR_ACTIVE_PATH(prefix, call) return prefix##_baseline::call
+#endif

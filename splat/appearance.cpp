@@ -49,19 +49,8 @@ namespace mlp_avx512 {
 #undef SKYFALL_MLP_LANES
 }  // namespace mlp_avx512
 SKYFALL_TARGET_END
-#define SKYFALL_MLP_PATHS(call)   \
-  switch (ActiveSimdPath()) {     \
-    case SimdPath::kAvx512:       \
-      return mlp_avx512::call;    \
-    case SimdPath::kAvx2:         \
-      return mlp_avx2::call;      \
-    case SimdPath::kBaseline:     \
-      break;                      \
-  }                               \
-  return mlp_baseline::call
-#else
-#define SKYFALL_MLP_PATHS(call) return mlp_baseline::call
 #endif
+#define SKYFALL_MLP_PATHS(call) SKYFALL_RETURN_FOR_ACTIVE_PATH(mlp, call)
 
 namespace {
 

@@ -82,19 +82,8 @@ namespace raster_avx512 {
 #undef SKYFALL_RASTER_LANES
 }  // namespace raster_avx512
 SKYFALL_TARGET_END
-#define SKYFALL_RASTER_PATHS(call)                           \
-  switch (ActiveSimdPath()) {                                \
-    case SimdPath::kAvx512:                                  \
-      return raster_avx512::call;                            \
-    case SimdPath::kAvx2:                                    \
-      return raster_avx2::call;                              \
-    case SimdPath::kBaseline:                                \
-      break;                                                 \
-  }                                                          \
-  return raster_baseline::call
-#else
-#define SKYFALL_RASTER_PATHS(call) return raster_baseline::call
 #endif
+#define SKYFALL_RASTER_PATHS(call) SKYFALL_RETURN_FOR_ACTIVE_PATH(raster, call)
 
 void RasterOptions::Check() const {
   auto need = [](bool ok, const char* field, double v) {
