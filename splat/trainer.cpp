@@ -391,7 +391,8 @@ double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions&
 // Adds the geometry and opacity gradients of an extra view (a pseudo or
 // nadir view, which supervises no colour) to the step's gradients.
 // Only the Gaussians the extra view rendered (`seen`) have a gradient from
-// it; the small regularizer views see a few percent of the cloud.
+// it; a 192 px regularizer view sees part of the cloud (half of it in
+// step_bench's compact scene, less in a 256 m tile).
 void AddGeometryGradients(const GaussianGradients<float>& extra, const RasterState<float>& seen,
                           GaussianGradients<float>* g) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, extra.d.means.size(), 4096),
