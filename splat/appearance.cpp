@@ -138,10 +138,7 @@ std::vector<T> BlockInput(const AppearanceModelT<T>& m, const GaussianCloudT<T>&
   Eigen::Map<RowMat<T>> rows(x.data(), dg + 3, static_cast<Eigen::Index>(np));
   rows.topLeftCorner(dg, static_cast<Eigen::Index>(n)) =
       m.gaussian_embeddings.middleCols(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(n));
-  for (int ch = 0; ch < 3; ++ch) {
-    T* row = x.data() + (dg + ch) * np;
-    for (std::size_t k = 0; k < n; ++k) row[k] = T(kShC0) * cloud.sh[a + k][ch * 4] + T(0.5);
-  }
+  rows.block(dg, 0, 3, static_cast<Eigen::Index>(n)) = BaseColours(cloud, a, n);
   return x;
 }
 

@@ -102,12 +102,12 @@ void PlaceOnSurface(const SurfaceDepthPrior& surface, bool fill_holes, OrbitRend
   }
 }
 
-// The surface normal at pixel (x, y) of a depth map, from the back-projected
-// neighbours: along each image axis the neighbour nearer in depth, so that a
-// pixel next to a depth step takes the tangent of its own face. Zero where a
-// neighbour pair is missing.
+// The surface normal at pixel (x, y) of a depth map, whose back-projected
+// point is `centre`, from the back-projected neighbours: along each image
+// axis the neighbour nearer in depth, so that a pixel next to a depth step
+// takes the tangent of its own face. Zero where a neighbour pair is missing.
 Eigen::Vector3d SurfaceNormal(const PixelToWorld& to_world, const std::vector<float>& depth_m, int W, int H, int x,
-                              int y) {
+                              int y, const Eigen::Vector3d& centre) {
   auto point = [&](int u, int v, Eigen::Vector3d* X) {
     if (u < 0 || v < 0 || u >= W || v >= H) return false;
     const float d = depth_m[static_cast<std::size_t>(v) * W + u];
@@ -115,8 +115,7 @@ Eigen::Vector3d SurfaceNormal(const PixelToWorld& to_world, const std::vector<fl
     *X = to_world(u, v, d);
     return true;
   };
-  Eigen::Vector3d centre;
-  if (!point(x, y, &centre)) return Eigen::Vector3d::Zero();
+  if (!centre.allFinite()) return Eigen::Vector3d::Zero();
   auto tangent = [&](int dx, int dy, Eigen::Vector3d* t) {
     Eigen::Vector3d a, b;
     const bool has_a = point(x + dx, y + dy, &a), has_b = point(x - dx, y - dy, &b);
@@ -157,7 +156,7 @@ GaussianCloud HoleGaussians(const std::vector<OrbitRender>& renders, const std::
       const int x = static_cast<int>(p % cam.width_px), y = static_cast<int>(p / cam.width_px);
       const Eigen::Vector3d X = to_world(x, y, r.input.depth_m[p]);
       if (!taken.insert(key(X)).second) continue;
-      const Eigen::Vector3d normal = SurfaceNormal(to_world, r.input.depth_m, cam.width_px, cam.height_px, x, y);
+      const Eigen::Vector3d normal = SurfaceNormal(to_world, r.input.depth_m, cam.width_px, cam.height_px, x, y, X);
       const std::size_t k = out.size();
       out.resize(k + 1);
       out.means[k] = X.cast<float>();
