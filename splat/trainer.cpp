@@ -79,28 +79,43 @@ void AdamLoop(float* p, float* m, float* v, const float* g, std::size_t n, float
   }
 }
 
-void AdamUpdate(float* p, float* m, float* v, const float* g, std::size_t n, double lr, const AdamStepScale& s) {
-  const float step = static_cast<float>(lr) * s.step_per_lr;
-  AdamLoop(p, m, v, g, n, s.inv_sqrt_bc2, [step](std::size_t) { return step; });
+// AdamLoop over n values in parallel chunks: each value's update is
+// independent, so the result does not depend on the chunking. `step_of`
+// takes the index into the whole array.
+template <typename StepOf>
+void AdamParallel(float* p, float* m, float* v, const float* g, std::size_t n, float inv_sqrt_bc2, StepOf step_of) {
+  constexpr std::size_t kChunk = 16384;
+  tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t c) {
+    const std::size_t a = c * kChunk;
+    AdamLoop(p + a, m + a, v + a, g + a, std::min(kChunk, n - a), inv_sqrt_bc2,
+             [&](std::size_t k) { return step_of(a + k); });
+  });
 }
 
-// Adam over one field of every Gaussian (contiguous in the cloud), in
-// parallel chunks: each value's update is independent, so the result does
-// not depend on the chunking.
+void AdamUpdate(float* p, float* m, float* v, const float* g, std::size_t n, double lr, const AdamStepScale& s) {
+  const float step = static_cast<float>(lr) * s.step_per_lr;
+  AdamParallel(p, m, v, g, n, s.inv_sqrt_bc2, [step](std::size_t) { return step; });
+}
+
+// The values of one field of every Gaussian (contiguous in the cloud) as one array.
+template <typename Field>
+float* Flat(std::vector<Field>& f) {
+  static_assert(sizeof(Field) % sizeof(float) == 0, "a field is whole floats");
+  return reinterpret_cast<float*>(f.data());
+}
+template <typename Field>
+const float* Flat(const std::vector<Field>& f) {
+  return reinterpret_cast<const float*>(f.data());
+}
+template <typename Field>
+std::size_t FlatSize(const std::vector<Field>& f) {
+  return f.size() * sizeof(Field) / sizeof(float);
+}
+
 template <typename Field>
 void AdamField(std::vector<Field>& p, std::vector<Field>& m, std::vector<Field>& v, const std::vector<Field>& g,
                double lr, const AdamStepScale& s) {
-  static_assert(sizeof(Field) % sizeof(float) == 0, "a field is whole floats");
-  constexpr std::size_t kChunk = 16384;
-  const std::size_t n = p.size() * sizeof(Field) / sizeof(float);
-  auto* pf = reinterpret_cast<float*>(p.data());
-  auto* mf = reinterpret_cast<float*>(m.data());
-  auto* vf = reinterpret_cast<float*>(v.data());
-  const auto* gf = reinterpret_cast<const float*>(g.data());
-  tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t c) {
-    const std::size_t a = c * kChunk;
-    AdamUpdate(pf + a, mf + a, vf + a, gf + a, std::min(kChunk, n - a), lr, s);
-  });
+  AdamUpdate(Flat(p), Flat(m), Flat(v), Flat(g), FlatSize(p), lr, s);
 }
 
 // The appearance model with its Adam moments.
@@ -125,15 +140,7 @@ std::vector<ParamBlock> Blocks(AppearanceModel& x, const AppearanceOptions& o) {
 void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, const AppearanceOptions& o) {
   const AdamStepScale scale = ScaleAtStep(step);
   const auto p = Blocks(a.model, o), m = Blocks(a.m, o), v = Blocks(a.v, o), g = Blocks(grad, o);
-  // Elementwise, so chunks of a block can run in parallel (the Gaussian
-  // embeddings are 24 values per Gaussian).
-  constexpr std::size_t kChunk = 16384;
-  for (std::size_t k = 0; k < p.size(); ++k) {
-    tbb::parallel_for(std::size_t{0}, (p[k].size + kChunk - 1) / kChunk, [&](std::size_t c) {
-      const std::size_t a = c * kChunk, n = std::min(kChunk, p[k].size - a);
-      AdamUpdate(p[k].data + a, m[k].data + a, v[k].data + a, g[k].data + a, n, p[k].lr, scale);
-    });
-  }
+  for (std::size_t k = 0; k < p.size(); ++k) AdamUpdate(p[k].data, m[k].data, v[k].data, g[k].data, p[k].size, p[k].lr, scale);
 }
 
 void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
@@ -147,16 +154,8 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
   static_assert(kShCoeffsPerChannel == 4, "the rate pattern below has period 4");
   const float step_dc = static_cast<float>(o.lr_sh_dc) * scale.step_per_lr;
   const float step_rest = static_cast<float>(o.lr_sh_rest) * scale.step_per_lr;
-  constexpr std::size_t kChunk = 16384;  // a multiple of 4: every chunk starts at a degree-0 value
-  const std::size_t n = 12 * c.size();
-  tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t k) {
-    const std::size_t a = k * kChunk;
-    auto flat = [](auto& sh) { return reinterpret_cast<float*>(sh.data()); };
-    AdamLoop(flat(c.sh) + a, flat(adam.m.sh) + a, flat(adam.v.sh) + a,
-             reinterpret_cast<const float*>(g.sh.data()) + a,
-             std::min(kChunk, n - a), scale.inv_sqrt_bc2,
-             [step_dc, step_rest](std::size_t j) { return j % 4 == 0 ? step_dc : step_rest; });
-  });
+  AdamParallel(Flat(c.sh), Flat(adam.m.sh), Flat(adam.v.sh), Flat(g.sh), FlatSize(c.sh), scale.inv_sqrt_bc2,
+               [step_dc, step_rest](std::size_t j) { return j % 4 == 0 ? step_dc : step_rest; });
 }
 
 Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
