@@ -249,6 +249,7 @@ template <class IO> void Visit(IO& io, IduStageOptions& o) {
   io("anchor_refined_views", i.anchor_refined_views);
   io("fill_holes", i.fill_holes);
   io("fill_voxel_m", i.fill_voxel_m);
+  io("hold_geometry", i.hold_geometry);
   io("seed", i.seed);
   io("prompts", i.request);
   io("reproject", o.reproject);

@@ -65,6 +65,13 @@ struct IduOptions {
   // views +3.9 dB instead of +1.8 dB (docs/benchmarks.md); 1 m cubes add a
   // third of the Gaussians 0.5 m cubes do, for 0.2 dB less.
   bool fill_holes = true;
+  // The reconstruction's Gaussians keep their geometry (centre, shape,
+  // opacity) through the episodes and train only their colours; the hole
+  // Gaussians the stage adds train fully. Off by default: it kept the DSM of
+  // the 128 m syn_south45 closer to its reconstruction (0.41 -> 0.34 m, the
+  // reconstruction's 0.32 m) but cost the 256 m default city DSM accuracy
+  // (1.91 -> 2.00 m) and 0.7 dB at 45 deg (docs/benchmarks.md).
+  bool hold_geometry = false;
   double fill_voxel_m = 1.0;
   std::uint64_t seed = 1;
   RefineRequest request;              // prompts and FlowEdit settings for external refiners

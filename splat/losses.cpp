@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -333,6 +334,53 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   for (size_t k = 0; k < x.size(); ++k) mse += (static_cast<double>(x[k]) - target[k]) * (static_cast<double>(x[k]) - target[k]);
   mse /= std::max<size_t>(1, x.size());
   return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
+}
+
+double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>& target, int width_px,
+                      int height_px, const std::vector<std::uint8_t>& valid) {
+  const std::size_t pixels = static_cast<std::size_t>(width_px) * static_cast<std::size_t>(height_px);
+  RequireSameSize(render.size(), 3 * pixels, "half-fitted psnr (render, size)");
+  RequireSameSize(target.size(), 3 * pixels, "half-fitted psnr (target, size)");
+  if (!valid.empty()) RequireSameSize(valid.size(), pixels, "half-fitted psnr (valid, size)");
+  const int half = width_px / 2;
+  auto used = [&](std::size_t p) { return valid.empty() || valid[p]; };
+  // Least-squares gain and offset per channel on the left half.
+  double n = 0, s[3] = {}, t[3] = {}, ss[3] = {}, st[3] = {};
+  for (int y = 0; y < height_px; ++y)
+    for (int x = 0; x < half; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * width_px + x;
+      if (!used(p)) continue;
+      ++n;
+      for (int c = 0; c < 3; ++c) {
+        const double a = render[3 * p + c], b = target[3 * p + c];
+        s[c] += a;
+        t[c] += b;
+        ss[c] += a * a;
+        st[c] += a * b;
+      }
+    }
+  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+  double gain[3], offset[3];
+  for (int c = 0; c < 3; ++c) {
+    const double var = ss[c] / n - (s[c] / n) * (s[c] / n);
+    constexpr double kMinVariance = 1e-8;  // a flat channel: only its offset is fitted
+    gain[c] = var > kMinVariance ? (st[c] / n - (s[c] / n) * (t[c] / n)) / var : 1.0;
+    offset[c] = t[c] / n - gain[c] * s[c] / n;
+  }
+  double mse = 0, scored = 0;
+  for (int y = 0; y < height_px; ++y)
+    for (int x = half; x < width_px; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * width_px + x;
+      if (!used(p)) continue;
+      ++scored;
+      for (int c = 0; c < 3; ++c) {
+        const double a = std::clamp(gain[c] * render[3 * p + c] + offset[c], 0.0, 1.0);
+        mse += (a - target[3 * p + c]) * (a - target[3 * p + c]);
+      }
+    }
+  if (scored == 0) return std::numeric_limits<double>::quiet_NaN();
+  mse /= 3 * scored;
+  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // as Psnr: identical halves capped at 100 dB
 }
 
 template <typename T>

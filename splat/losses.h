@@ -2,6 +2,7 @@
 // float/double RGB (3 values per pixel, row-major), as the rasterizer outputs.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 namespace skyfall {
@@ -91,5 +92,16 @@ double SurfaceHeightLoss(const std::vector<float>& z_m, const std::vector<float>
 // Peak signal-to-noise ratio of images in [0, 1] [dB].
 template <typename T>
 double Psnr(const std::vector<T>& x, const std::vector<T>& target);
+
+// PSNR [dB] of the right half of an RGB `render` against `target` (3 floats
+// per pixel in [0, 1], row-major) after each channel of the render is mapped
+// by the gain and offset that best fit (least squares) the left half. A
+// held-out satellite image was taken on a date the model never saw; its
+// radiometry is fitted on pixels the score does not use (NeRF-W's
+// half-image protocol, with a colour affine in place of an embedding).
+// `valid` (empty: all) masks pixels without data out of both halves. NaN
+// when either half has no valid pixel.
+double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>& target, int width_px,
+                      int height_px, const std::vector<std::uint8_t>& valid = {});
 
 }  // namespace skyfall

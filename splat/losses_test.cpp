@@ -238,5 +238,34 @@ TEST(Losses, PsnrOfKnownError) {
   EXPECT_NEAR(Psnr(a, b), 20.0, 1e-4);  // MSE 0.01
 }
 
+// A render that is the truth seen through a per-channel gain and offset (a
+// different date) scores as perfect once the affine is fitted on the left
+// half; an error confined to the left half does not count; one on the right
+// half does, at its known MSE; an all-masked half gives NaN.
+TEST(Losses, HalfFittedPsnrFitsTheLeftHalfAndScoresTheRight) {
+  const int w = 8, h = 4;
+  std::vector<float> truth(3 * w * h), render(truth.size());
+  for (int p = 0; p < w * h; ++p)
+    for (int c = 0; c < 3; ++c) {
+      truth[3 * p + c] = 0.1f + 0.8f * static_cast<float>((p * 7 + c * 3) % 11) / 10.0f;
+      render[3 * p + c] = (truth[3 * p + c] - 0.05f * c) / (1.5f + 0.2f * c);  // truth = gain * render + offset
+    }
+  EXPECT_LT(Psnr(render, truth), 20.0);
+  EXPECT_GT(HalfFittedPsnr(render, truth, w, h), 90.0);  // float round-off only
+  std::vector<float> left_wrong = render;
+  for (int y = 0; y < h; ++y) left_wrong[3 * (y * w + 1)] += 0.3f;  // outliers in the fitting half
+  EXPECT_LT(HalfFittedPsnr(left_wrong, truth, w, h), 90.0);         // they bend the fit a little
+  std::vector<float> truth_off = truth;
+  for (int y = 0; y < h; ++y)
+    for (int x = w / 2; x < w; ++x) truth_off[3 * (y * w + x)] += 0.1f;  // red 0.1 off on the right half
+  // MSE over the scored half: 0.01 on one channel of three.
+  EXPECT_NEAR(HalfFittedPsnr(render, truth_off, w, h), -10.0 * std::log10(0.01 / 3), 1e-3);
+  std::vector<std::uint8_t> valid(w * h, 1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w / 2; ++x) valid[y * w + x] = 0;
+  EXPECT_TRUE(std::isnan(HalfFittedPsnr(render, truth, w, h, valid)));
+  EXPECT_THROW(HalfFittedPsnr(render, truth, w + 1, h), Error);
+}
+
 }  // namespace
 }  // namespace skyfall

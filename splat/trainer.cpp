@@ -143,6 +143,17 @@ void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, co
   for (std::size_t k = 0; k < p.size(); ++k) AdamUpdate(p[k].data, m[k].data, v[k].data, g[k].data, p[k].size, p[k].lr, scale);
 }
 
+// Zeroes the geometry gradients (centre, scales, rotation, opacity) of the
+// first `count` Gaussians; their colours still train. With zero gradients
+// from the first step on, Adam's moments stay zero and so do the updates.
+void HoldGeometry(std::size_t count, GaussianCloud* g) {
+  count = std::min(count, g->size());
+  std::fill_n(g->means.begin(), count, Eigen::Vector3f::Zero());
+  std::fill_n(g->log_scales.begin(), count, Eigen::Vector3f::Zero());
+  std::fill_n(g->rotations.begin(), count, Eigen::Vector4f::Zero());
+  std::fill_n(g->opacity_logits.begin(), count, 0.0f);
+}
+
 void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
   ++adam.step;
   const AdamStepScale scale = ScaleAtStep(adam.step);
@@ -183,6 +194,13 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
   source->clear();
   const float split_scale = static_cast<float>(o.percent_dense * extent_m);
   for (std::size_t i = 0; i < c.size(); ++i) {
+    if (i < o.fixed_geometry_count) {  // held: its opacity and shape do not change, so neither does its fate
+      out.Append(c, i);
+      m.Append(adam.m, i);
+      v.Append(adam.v, i);
+      source->push_back(i);
+      continue;
+    }
     const float opacity = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
     const float max_scale = std::exp(c.log_scales[i].maxCoeff());
     if (opacity < o.min_opacity || max_scale > o.max_scale_m) continue;
@@ -385,8 +403,6 @@ double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions&
   return Psnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb);
 }
 
-// Held-out views have no embedding of their own: with the appearance model
-// they are rendered with the mean training embedding.
 // Adds the geometry and opacity gradients of an extra view (a pseudo or
 // nadir view, which supervises no colour) to the step's gradients.
 // Only the Gaussians the extra view rendered (`seen`) have a gradient from
@@ -463,8 +479,12 @@ double ViewDepthLoss(const RenderOutput<float>& r, const TrainView& view, double
   return loss;
 }
 
-double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
-                   const AppearanceState& appearance, const std::vector<int>& train_ids) {
+// Held-out views have no embedding of their own: with the appearance model
+// they are rendered with the mean training embedding, and scored by
+// `score(render, view)`: the mean over the held-out views (NaN: none).
+template <typename Score>
+double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                        const AppearanceState& appearance, const std::vector<int>& train_ids, const Score& score) {
   Eigen::VectorXf mean;
   if (appearance.enabled) {
     mean = Eigen::VectorXf::Zero(appearance.model.image_dim());
@@ -476,10 +496,27 @@ double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, 
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
-    sum += ViewPsnr(c, v, raster, appearance, affine);
+    const RenderOutput<float> r = RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr);
+    sum += score(r.rgb, v);
     ++n;
   }
   return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
+}
+
+double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                   const AppearanceState& appearance, const std::vector<int>& train_ids) {
+  return MeanHeldOutScore(c, views, raster, appearance, train_ids,
+                          [](const std::vector<float>& rgb, const TrainView& v) { return Psnr(rgb, v.rgb); });
+}
+
+// The same views scored with each one's colours fitted on its left half
+// (HalfFittedPsnr): what is left once the held-out date's radiometry, which
+// no model trained on other dates can know, is taken out.
+double HeldOutFittedPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                         const AppearanceState& appearance, const std::vector<int>& train_ids) {
+  return MeanHeldOutScore(c, views, raster, appearance, train_ids, [](const std::vector<float>& rgb, const TrainView& v) {
+    return HalfFittedPsnr(rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
+  });
 }
 
 double SceneExtent(const GaussianCloud& c) {
@@ -857,6 +894,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     const double t = static_cast<double>(it) / o.iterations;
     const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
+    if (o.fixed_geometry_count > 0) HoldGeometry(o.fixed_geometry_count, &g.d);
     AdamStep(cloud, adam, g.d, o, lr_mean);
     if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
     phase.Lap(kOptimizer);
@@ -901,6 +939,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   if (export_view >= 0) result.appearance_image = views[export_view].name;
   result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
   if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
+  result.report.metrics["psnr_test_fitted_db"] = HeldOutFittedPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.seconds = clock.Seconds();
   return result;
