@@ -333,6 +333,7 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   double mse = 0;
   for (size_t k = 0; k < x.size(); ++k) mse += (static_cast<double>(x[k]) - target[k]) * (static_cast<double>(x[k]) - target[k]);
   mse /= std::max<size_t>(1, x.size());
+  if (std::isnan(mse)) return mse;                    // a non-finite image has no PSNR (not 100 dB)
   return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
 }
 

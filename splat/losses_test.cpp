@@ -236,6 +236,9 @@ TEST(Losses, SurfaceAnchorDepthWeightsScaleOnlyTheDepthTerm) {
 TEST(Losses, PsnrOfKnownError) {
   const std::vector<float> a(100, 0.5f), b(100, 0.6f);
   EXPECT_NEAR(Psnr(a, b), 20.0, 1e-4);  // MSE 0.01
+  std::vector<float> c = a;
+  c[3] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_TRUE(std::isnan(Psnr(c, b)));  // not the 100 dB of identical images
 }
 
 // A render that is the truth seen through a per-channel gain and offset (a

@@ -15,6 +15,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -717,6 +718,31 @@ static_assert(kPhaseCount == StepProfile::kCount, "StepProfile::kPhases and Phas
 
 }  // namespace
 
+std::size_t DropNonFiniteGradients(GaussianGradients<float>* gradients) {
+  GaussianCloud* g = &gradients->d;
+  std::vector<ColourAffine<float>>& affine = gradients->d_colour_affine;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, g->size(), 4096), std::size_t{0},
+      [g, &affine](const tbb::blocked_range<std::size_t>& range, std::size_t dropped) {
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          const bool finite = g->means[i].allFinite() && g->log_scales[i].allFinite() && g->rotations[i].allFinite() &&
+                              std::isfinite(g->opacity_logits[i]) &&
+                              std::all_of(g->sh[i].begin(), g->sh[i].end(), [](float v) { return std::isfinite(v); }) &&
+                              (affine.empty() || affine[i].allFinite());
+          if (finite) continue;
+          g->means[i].setZero();
+          g->log_scales[i].setZero();
+          g->rotations[i].setZero();
+          g->opacity_logits[i] = 0.0f;
+          g->sh[i].fill(0.0f);
+          if (!affine.empty()) affine[i].setZero();
+          ++dropped;
+        }
+        return dropped;
+      },
+      std::plus<>());
+}
+
 TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
                            const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior,
                            const SurfaceDepthPrior* surface) {
@@ -809,8 +835,22 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     });
   }
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
+  std::size_t nonfinite_gaussians = 0, nonfinite_steps = 0;  // DropNonFiniteGradients, this run
+  int last_nonfinite_step = 0;
+  int it = start;
+  auto drop_nonfinite = [&](GaussianGradients<float>* g) {
+    const std::size_t dropped = DropNonFiniteGradients(g);
+    if (dropped == 0) return;
+    if (nonfinite_gaussians == 0) {
+      progress.Warn("splat train: step " + std::to_string(it) + ": " + std::to_string(dropped) +
+                    " Gaussian(s) with a non-finite gradient; their update is skipped (counted in the train report)");
+    }
+    nonfinite_gaussians += dropped;
+    if (last_nonfinite_step != it) ++nonfinite_steps;
+    last_nonfinite_step = it;
+  };
   PhaseClock phase(&result.profile);
-  for (int it = start + 1; it <= o.iterations; ++it) {
+  for (it = start + 1; it <= o.iterations; ++it) {
     ++result.profile.steps;
     phase.Lap(kBookkeeping);  // the end of the previous step
     const int view_id = PickView(train_ids, synthetic_ids, o.synthetic_fraction, rng);
@@ -844,6 +884,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     phase.Lap(kLoss);
     GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
+    drop_nonfinite(&g);  // before the appearance model's gradient is built from them
     phase.Lap(kRasterBwd);
     AppearanceModel appearance_grad;
     if (appearance.enabled) {
@@ -894,6 +935,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     const double t = static_cast<double>(it) / o.iterations;
     const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
+    drop_nonfinite(&g);  // and from the regularizer views
     if (o.fixed_geometry_count > 0) HoldGeometry(o.fixed_geometry_count, &g.d);
     AdamStep(cloud, adam, g.d, o, lr_mean);
     if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
@@ -939,6 +981,8 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   if (export_view >= 0) result.appearance_image = views[export_view].name;
   result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
   if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
+  result.report.metrics["nonfinite_gradient_steps"] = static_cast<double>(nonfinite_steps);
+  result.report.metrics["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians);
   result.report.metrics["psnr_test_fitted_db"] = HeldOutFittedPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.seconds = clock.Seconds();

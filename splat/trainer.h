@@ -181,6 +181,15 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
                                    double max_scale_m = std::numeric_limits<double>::infinity(),
                                    int max_pieces_per_point = 1);
 
+// Zeroes all gradients of every Gaussian that has a non-finite one (NaN or
+// infinite, any field) and returns how many Gaussians that was. One such
+// gradient would make the Gaussian's parameters NaN for good (Adam carries
+// it into its moments) and, through the renders, the loss of later steps;
+// the step goes on for the others, and the train report counts them.
+// Also zeroes their colour-transform gradients (`g->d_colour_affine`, when
+// there are any), which the appearance model's gradient is built from.
+std::size_t DropNonFiniteGradients(GaussianGradients<float>* g);
+
 // Trains `cloud` on the views. With a non-empty `checkpoint_dir`, state is
 // saved there every checkpoint_interval iterations and a matching checkpoint
 // is resumed from.

@@ -157,6 +157,42 @@ TEST(Trainer, FixedGeometryCountHoldsTheFirstGaussians) {
   EXPECT_GT(geometry_moved, (f.init.size() - o.fixed_geometry_count) / 2);
 }
 
+// A Gaussian with one NaN or infinite gradient component (any field, its
+// colour transform's included) loses its whole update; the others keep theirs.
+TEST(Trainer, DropNonFiniteGradientsZeroesOnlyTheAffectedGaussians) {
+  GaussianGradients<float> gradients;
+  gradients.d = InitializeFromPoints({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}},
+                                     std::vector<Eigen::Vector3f>(5, Eigen::Vector3f(0.5f, 0.5f, 0.5f)));
+  gradients.d_colour_affine.assign(5, ColourAffine<float>::Constant(0.4f));
+  gradients.d_colour_affine[2](1) = std::numeric_limits<float>::quiet_NaN();
+  GaussianCloud& g = gradients.d;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    g.means[i].setConstant(0.1f);
+    g.sh[i].fill(0.2f);
+    g.opacity_logits[i] = 0.3f;
+  }
+  g.means[1].y() = std::numeric_limits<float>::quiet_NaN();
+  g.sh[3][5] = std::numeric_limits<float>::infinity();
+  g.opacity_logits[4] = -std::numeric_limits<float>::infinity();
+  EXPECT_EQ(DropNonFiniteGradients(&gradients), 4u);
+  for (std::size_t i : {1, 2, 3, 4}) {
+    EXPECT_TRUE(gradients.d_colour_affine[i].isZero()) << i;
+    EXPECT_TRUE(g.means[i].isZero() && g.log_scales[i].isZero() && g.rotations[i].isZero()) << i;
+    EXPECT_EQ(g.opacity_logits[i], 0.0f) << i;
+    EXPECT_EQ(g.sh[i][5], 0.0f) << i;
+  }
+  for (std::size_t i : {0}) {
+    EXPECT_EQ(gradients.d_colour_affine[i], ColourAffine<float>::Constant(0.4f));
+    EXPECT_EQ(g.means[i], Eigen::Vector3f::Constant(0.1f)) << i;
+    EXPECT_EQ(g.sh[i][5], 0.2f) << i;
+    EXPECT_EQ(g.opacity_logits[i], 0.3f) << i;
+  }
+  EXPECT_EQ(DropNonFiniteGradients(&gradients), 0u);
+  gradients.d_colour_affine.clear();  // rendered without a colour transform
+  g.rotations[0].x() = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(DropNonFiniteGradients(&gradients), 1u);
+}
+
 TEST(Trainer, KilledRunResumesBitIdentically) {
   const Fixture f = MakeFixture(4);
   NullProgress progress;
