@@ -401,25 +401,17 @@ std::vector<TrainView> MatchSceneAppearance(const GaussianCloud& scene, std::vec
   for (TrainView& v : views) {
     const RenderOutput<float> r = RenderGaussians(scene, v.camera, raster);
     const std::size_t n = r.alpha.size();
-    std::size_t used = 0;
-    double s[3] = {}, t[3] = {}, ss[3] = {}, st[3] = {};
+    LineFit fit[3];  // view colour -> render colour, per channel
     for (std::size_t p = 0; p < n; ++p) {
       if (r.alpha[p] < 0.5f || (!v.valid.empty() && !v.valid[p])) continue;
-      ++used;
-      for (int c = 0; c < 3; ++c) {
-        const double a = v.rgb[3 * p + c], b = r.rgb[3 * p + c];
-        s[c] += a;
-        t[c] += b;
-        ss[c] += a * a;
-        st[c] += a * b;
-      }
+      for (int c = 0; c < 3; ++c) fit[c].Add(v.rgb[3 * p + c], r.rgb[3 * p + c]);
     }
+    const std::size_t used = static_cast<std::size_t>(fit[0].n);
     if (used < n / 10 || used < 2) continue;
     for (int c = 0; c < 3; ++c) {
-      const double m = static_cast<double>(used), var = ss[c] / m - (s[c] / m) * (s[c] / m);
       constexpr double kMinVariance = 1e-6;  // a flat channel: no gain to fit
-      if (var < kMinVariance) continue;
-      const double gain = (st[c] / m - (s[c] / m) * (t[c] / m)) / var, offset = t[c] / m - gain * s[c] / m;
+      if (fit[c].VarianceA() < kMinVariance) continue;
+      const double gain = fit[c].Gain(), offset = fit[c].Offset(gain);
       for (std::size_t p = 0; p < n; ++p)
         v.rgb[3 * p + c] = std::clamp(static_cast<float>(gain * v.rgb[3 * p + c] + offset), 0.0f, 1.0f);
     }

@@ -346,27 +346,19 @@ double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>
   const int half = width_px / 2;
   auto used = [&](std::size_t p) { return valid.empty() || valid[p]; };
   // Least-squares gain and offset per channel on the left half.
-  double n = 0, s[3] = {}, t[3] = {}, ss[3] = {}, st[3] = {};
+  LineFit fit[3];
   for (int y = 0; y < height_px; ++y)
     for (int x = 0; x < half; ++x) {
       const std::size_t p = static_cast<std::size_t>(y) * width_px + x;
       if (!used(p)) continue;
-      ++n;
-      for (int c = 0; c < 3; ++c) {
-        const double a = render[3 * p + c], b = target[3 * p + c];
-        s[c] += a;
-        t[c] += b;
-        ss[c] += a * a;
-        st[c] += a * b;
-      }
+      for (int c = 0; c < 3; ++c) fit[c].Add(render[3 * p + c], target[3 * p + c]);
     }
-  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+  if (fit[0].n == 0) return std::numeric_limits<double>::quiet_NaN();
   double gain[3], offset[3];
   for (int c = 0; c < 3; ++c) {
-    const double var = ss[c] / n - (s[c] / n) * (s[c] / n);
     constexpr double kMinVariance = 1e-8;  // a flat channel: only its offset is fitted
-    gain[c] = var > kMinVariance ? (st[c] / n - (s[c] / n) * (t[c] / n)) / var : 1.0;
-    offset[c] = t[c] / n - gain[c] * s[c] / n;
+    gain[c] = fit[c].VarianceA() > kMinVariance ? fit[c].Gain() : 1.0;
+    offset[c] = fit[c].Offset(gain[c]);
   }
   double mse = 0, scored = 0;
   for (int y = 0; y < height_px; ++y)

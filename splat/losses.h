@@ -93,6 +93,22 @@ double SurfaceHeightLoss(const std::vector<float>& z_m, const std::vector<float>
 template <typename T>
 double Psnr(const std::vector<T>& x, const std::vector<T>& target);
 
+// Least-squares line b = gain * a + offset through pairs (a, b): one colour
+// channel of an image mapped onto another's.
+struct LineFit {
+  double n = 0, sum_a = 0, sum_b = 0, sum_aa = 0, sum_ab = 0;
+  void Add(double a, double b) {
+    ++n;
+    sum_a += a;
+    sum_b += b;
+    sum_aa += a * a;
+    sum_ab += a * b;
+  }
+  double VarianceA() const { return sum_aa / n - (sum_a / n) * (sum_a / n); }
+  double Gain() const { return (sum_ab / n - (sum_a / n) * (sum_b / n)) / VarianceA(); }
+  double Offset(double gain) const { return sum_b / n - gain * sum_a / n; }
+};
+
 // PSNR [dB] of the right half of an RGB `render` against `target` (3 floats
 // per pixel in [0, 1], row-major) after each channel of the render is mapped
 // by the gain and offset that best fit (least squares) the left half. A

@@ -836,21 +836,8 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   }
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
   std::size_t nonfinite_gaussians = 0, nonfinite_steps = 0;  // DropNonFiniteGradients, this run
-  int last_nonfinite_step = 0;
-  int it = start;
-  auto drop_nonfinite = [&](GaussianGradients<float>* g) {
-    const std::size_t dropped = DropNonFiniteGradients(g);
-    if (dropped == 0) return;
-    if (nonfinite_gaussians == 0) {
-      progress.Warn("splat train: step " + std::to_string(it) + ": " + std::to_string(dropped) +
-                    " Gaussian(s) with a non-finite gradient; their update is skipped (counted in the train report)");
-    }
-    nonfinite_gaussians += dropped;
-    if (last_nonfinite_step != it) ++nonfinite_steps;
-    last_nonfinite_step = it;
-  };
   PhaseClock phase(&result.profile);
-  for (it = start + 1; it <= o.iterations; ++it) {
+  for (int it = start + 1; it <= o.iterations; ++it) {
     ++result.profile.steps;
     phase.Lap(kBookkeeping);  // the end of the previous step
     const int view_id = PickView(train_ids, synthetic_ids, o.synthetic_fraction, rng);
@@ -884,7 +871,8 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     phase.Lap(kLoss);
     GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
-    drop_nonfinite(&g);  // before the appearance model's gradient is built from them
+    // Before the appearance model's gradient is built from them.
+    std::size_t dropped = DropNonFiniteGradients(&g);
     phase.Lap(kRasterBwd);
     AppearanceModel appearance_grad;
     if (appearance.enabled) {
@@ -935,7 +923,15 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     const double t = static_cast<double>(it) / o.iterations;
     const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
-    drop_nonfinite(&g);  // and from the regularizer views
+    dropped += DropNonFiniteGradients(&g);  // and those the regularizer views added
+    if (dropped > 0) {
+      if (nonfinite_steps == 0) {
+        progress.Warn("splat train: step " + std::to_string(it) + ": " + std::to_string(dropped) +
+                      " Gaussian(s) with a non-finite gradient; their update is skipped (counted in the train report)");
+      }
+      nonfinite_gaussians += dropped;
+      ++nonfinite_steps;
+    }
     if (o.fixed_geometry_count > 0) HoldGeometry(o.fixed_geometry_count, &g.d);
     AdamStep(cloud, adam, g.d, o, lr_mean);
     if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
