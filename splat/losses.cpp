@@ -196,16 +196,12 @@ double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*
       for (size_t p = row0; p < row0 + w; ++p) {
         const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
         const T cov = e_ab[p] - mu_a[p] * mu_b[p];
-        const T l_num = 2 * mu_a[p] * mu_b[p] + c1, l_den = mu_a[p] * mu_a[p] + mu_b[p] * mu_b[p] + c1;
-        const T c_num = 2 * cov + c2, c_den = va + vb + c2;
-        const T ssim = (l_num * c_num) / (l_den * c_den);
-        row_ssim[p - row0] = ssim;
+        const SsimTerms<T> t = SsimAtPixel(mu_a[p], mu_b[p], va, vb, cov, c1, c2);
+        row_ssim[p - row0] = t.ssim;
         if (!g) continue;
-        // dS/dmu_a, dS/dvar_a, dS/dcov (var and cov as independent
-        // statistics), then var_a = E[a^2] - mu_a^2, cov = E[ab] - mu_a mu_b
-        // chained to mu_a.
-        const T dmu = inv * ssim * (2 * mu_b[p] / l_num - 2 * mu_a[p] / l_den);
-        const T dvar = inv * (-ssim / c_den), dcov = inv * (2 * ssim / c_num);
+        // var_a = E[a^2] - mu_a^2 and cov = E[ab] - mu_a mu_b chained to mu_a.
+        const T dvar = inv * t.d_var_a, dcov = inv * t.d_cov;
+        const T dmu = inv * t.d_mu_a;
         g[kDVar * n + p] += dvar;
         g[(2 + s) * n + p] = dcov;
         g[kGMu * n + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;

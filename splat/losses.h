@@ -24,6 +24,26 @@ template <typename T>
 double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int width, int height,
                 int channels, std::vector<T>* grad);
 
+// One pixel's SSIM from its windowed statistics (means, variances and
+// covariance of render a and target b), and its partial derivatives with the
+// variance and covariance taken as independent statistics (SsimMean chains
+// them to the pixels). The derivatives are written without dividing by the
+// numerators 2 mu_a mu_b + c1 and 2 cov + c2: either is exactly 0 in float
+// where render and target are anti-correlated just so, and ssim / numerator
+// would be 0 / 0 there.
+template <typename T>
+struct SsimTerms {
+  T ssim, d_mu_a, d_var_a, d_cov;
+};
+template <typename T>
+inline SsimTerms<T> SsimAtPixel(T mu_a, T mu_b, T var_a, T var_b, T cov, T c1, T c2) {
+  const T l_num = 2 * mu_a * mu_b + c1, l_den = mu_a * mu_a + mu_b * mu_b + c1;
+  const T c_num = 2 * cov + c2, c_den = var_a + var_b + c2;
+  const T den = l_den * c_den;
+  const T ssim = (l_num * c_num) / den;
+  return {ssim, 2 * mu_b * c_num / den - ssim * 2 * mu_a / l_den, -ssim / c_den, 2 * l_num / den};
+}
+
 // The reconstruction loss of 3DGS / Skyfall-GS: (1 - lambda) L1 + lambda (1 - SSIM).
 struct PhotometricLossOptions {
   double lambda_dssim = 0.2;

@@ -47,6 +47,38 @@ TEST(Losses, SsimGradientMatchesFiniteDifferences) {
   }
 }
 
+// A pixel's SSIM terms against central differences, at random statistics
+// and where a numerator is exactly 0: a training tile met 2 cov + c2 == 0 in
+// float (cov = -0.00045), where ssim / (2 cov + c2) was 0 / 0 and poisoned
+// two Gaussians.
+TEST(Losses, SsimAtPixelDerivativesAreFiniteWhereANumeratorIsZero) {
+  constexpr float kC1 = 0.01f * 0.01f, kC2 = 0.03f * 0.03f;
+  constexpr double kStep = 1e-7, kTol = 1e-6;
+  auto check = [&](double mu_a, double mu_b, double va, double vb, double cov) {
+    const SsimTerms<double> t = SsimAtPixel<double>(mu_a, mu_b, va, vb, cov, kC1, kC2);
+    auto ssim = [&](double m, double v, double c) { return SsimAtPixel<double>(m, mu_b, v, vb, c, kC1, kC2).ssim; };
+    const double fd_mu = (ssim(mu_a + kStep, va, cov) - ssim(mu_a - kStep, va, cov)) / (2 * kStep);
+    const double fd_var = (ssim(mu_a, va + kStep, cov) - ssim(mu_a, va - kStep, cov)) / (2 * kStep);
+    const double fd_cov = (ssim(mu_a, va, cov + kStep) - ssim(mu_a, va, cov - kStep)) / (2 * kStep);
+    EXPECT_NEAR(t.d_mu_a, fd_mu, kTol * (1 + std::abs(fd_mu)));
+    EXPECT_NEAR(t.d_var_a, fd_var, kTol * (1 + std::abs(fd_var)));
+    EXPECT_NEAR(t.d_cov, fd_cov, kTol * (1 + std::abs(fd_cov)));
+  };
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> mu(0.0, 1.0), var(0.0, 0.05), cov(-0.02, 0.02);
+  for (int k = 0; k < 50; ++k) check(mu(rng), mu(rng), var(rng), var(rng), cov(rng));
+  check(0.3, 0.6, 0.000329, 0.0073, -0.5 * kC2);  // 2 cov + c2 == 0
+  check(0.01, -0.5 * kC1 / 0.01, 0.001, 0.002, 0.0005);  // 2 mu_a mu_b + c1 == 0
+
+  // In float, as training runs, exactly at the zero: finite and right.
+  const SsimTerms<float> f = SsimAtPixel<float>(0.3f, 0.6f, 0.000329173f, 0.00730032f, -0.5f * kC2, kC1, kC2);
+  EXPECT_EQ(f.ssim, 0.0f);
+  EXPECT_TRUE(std::isfinite(f.d_mu_a) && std::isfinite(f.d_var_a) && std::isfinite(f.d_cov));
+  const SsimTerms<double> d = SsimAtPixel<double>(0.3, 0.6, 0.000329173, 0.00730032, -0.5 * kC2, kC1, kC2);
+  EXPECT_NEAR(f.d_cov, d.d_cov, 1e-5 * std::abs(d.d_cov));
+  EXPECT_NEAR(f.d_mu_a, d.d_mu_a, 1e-5 * (1 + std::abs(d.d_mu_a)));
+}
+
 // Training evaluates SSIM in float. Against double on the same image:
 // values to 1e-5 and gradients to 1e-3 of the largest gradient (float keeps
 // about 7 digits; the variances E[a^2] - mu^2 lose about 3 of them where the

@@ -358,6 +358,50 @@ TEST(Rasterizer, EmptyCloudRendersTheBackground) {
   EXPECT_EQ(r.alpha[0], 0.0f);
 }
 
+// A non-finite loss gradient at one pixel reaches only the Gaussians that
+// blend that pixel. The vector paths process a row in lanes; a Gaussian whose
+// footprint shares a lane group with the pixel, but not the pixel, must not
+// pick it up (0 * NaN is NaN). Gaussian 1 is 5 px right of the pixel, inside
+// one lane group of every path wider than one lane.
+TEST(Rasterizer, ANonFiniteLossGradientStaysWithTheGaussiansThatBlendItsPixel) {
+  PinholeCamera cam = LookDownCamera(40.0, 16, 16, 40.0);
+  cam.cam_from_world_rotation << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * Eigen::Vector3d(0, 0, 40);
+  cam.cx = cam.cy = 7.5;  // 1 m on the ground = 1 px; u = 7.5 + east, v = 7.5 - north
+  Cloud c;
+  c.resize(2);
+  c.means[0] = Eigen::Vector3d(-5.5, 0, 0);  // u = 2
+  c.means[1] = Eigen::Vector3d(-1.5, 0, 0);  // u = 6: footprint from u = 3
+  for (int i = 0; i < 2; ++i) {
+    c.log_scales[i] = Eigen::Vector3d::Constant(std::log(0.4));
+    c.rotations[i] = Eigen::Vector4d(1, 0, 0, 0);
+    c.opacity_logits[i] = 2.0;
+    c.sh[i].fill(0.1);
+  }
+  const GaussianCloudT<float> cloud = testing::ToFloat(c);
+  const std::size_t n = 16 * 16, bad = 8 * 16 + 1;  // pixel (1, 8)
+  std::vector<float> d_rgb(3 * n, 0.5f), d_alpha(n, 0.2f), d_depth(n, 0.1f);
+  for (SimdPath path : SupportedSimdPaths()) {
+    SCOPED_TRACE(SimdPathName(path));
+    ScopedSimdPath scoped(path);
+    const RenderOutput<float> r = RenderGaussians(cloud, cam, RasterOptions{});
+    ASSERT_GT(r.alpha[bad], 0.1f);  // Gaussian 0 blends it
+    const GaussianGradients<float> clean = BackwardGaussians(cloud, cam, RasterOptions{}, r, d_rgb, d_alpha, d_depth);
+    std::vector<float> nan_rgb = d_rgb, nan_alpha = d_alpha, nan_depth = d_depth;
+    for (int ch = 0; ch < 3; ++ch) nan_rgb[3 * bad + ch] = std::numeric_limits<float>::quiet_NaN();
+    nan_alpha[bad] = nan_depth[bad] = std::numeric_limits<float>::quiet_NaN();
+    const GaussianGradients<float> g = BackwardGaussians(cloud, cam, RasterOptions{}, r, nan_rgb, nan_alpha, nan_depth);
+    EXPECT_FALSE(std::isfinite(g.d.means[0].sum()));  // it blends the pixel: its gradient is lost
+    EXPECT_GT(clean.d.means[1].norm(), 0.0f);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(g.d.means[1][k], clean.d.means[1][k]) << k;
+      EXPECT_EQ(g.d.log_scales[1][k], clean.d.log_scales[1][k]) << k;
+    }
+    for (int k = 0; k < 12; ++k) EXPECT_EQ(g.d.sh[1][k], clean.d.sh[1][k]) << k;
+    EXPECT_EQ(g.d.opacity_logits[1], clean.d.opacity_logits[1]);
+  }
+}
+
 TEST(Rasterizer, OpaqueGaussianCoversItsPixelAndGivesItsDepth) {
   // One flat, wide, opaque Gaussian at height 5 m seen from 40 m: expected
   // depth 35 m in the middle, alpha ~ its opacity.
