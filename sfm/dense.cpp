@@ -1,5 +1,6 @@
 #include "sfm/dense.h"
 
+#include <fmt/format.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -208,13 +209,14 @@ struct Sweep {
   const DenseOptions& o;
   const HeightGrid& grid;  // geometry only
   double z_lo = 0;
+  double step_m = 0;  // height_step_m, or coarser where the range needs more than max_heights
   int nh = 0;
   const std::vector<DensePair>& pairs;
   const std::vector<int>& slot;  // view index -> index into grey / projection
   const std::vector<GreyImage>& grey;
   const std::vector<Projection>& projection;
   std::size_t Cells() const { return static_cast<std::size_t>(grid.nx) * grid.ny; }
-  double Height(int d) const { return z_lo + d * o.height_step_m; }
+  double Height(int d) const { return z_lo + d * step_m; }
 };
 
 // Rows of the grid swept together: every view's warp and window statistics
@@ -370,7 +372,7 @@ CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress
       const double curvature = t[best - 1] - 2.0 * t[best] + t[best + 1];
       if (curvature > 0) offset = std::clamp(0.5 * (t[best - 1] - t[best + 1]) / curvature, -0.5, 0.5);
     }
-    out.height_m[k] = static_cast<float>(s.z_lo + (best + offset) * o.height_step_m);
+    out.height_m[k] = static_cast<float>(s.z_lo + (best + offset) * s.step_m);
   }
   std::vector<float> filtered = out.height_m;
   for (int j = 0; j < g.ny; ++j)
@@ -511,10 +513,18 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   centre /= static_cast<double>(points.size());
   const double z_lo = Quantile(z, o.height_percentile) - o.height_margin_m;
   const double z_hi = Quantile(z, 1.0 - o.height_percentile) + o.height_margin_m;
-  const int nh = static_cast<int>(std::ceil((z_hi - z_lo) / o.height_step_m)) + 1;
-  if (nh > o.max_heights)
-    throw Error("dense", "height range", "tie points span " + std::to_string(z_hi - z_lo) + " m: " + std::to_string(nh) +
-                                             " heights exceed max_heights " + std::to_string(o.max_heights));
+  // A range longer than max_heights steps (towers, hills) is swept with a
+  // coarser step rather than refused: the volume's memory stays bounded and
+  // the parabola fit between steps keeps sub-step heights.
+  double step_m = o.height_step_m;
+  int nh = static_cast<int>(std::ceil((z_hi - z_lo) / step_m)) + 1;
+  if (nh > o.max_heights) {
+    step_m = (z_hi - z_lo) / (o.max_heights - 1);
+    nh = std::min(o.max_heights, static_cast<int>(std::ceil((z_hi - z_lo) / step_m)) + 1);
+    result.report.message = fmt::format(
+        "tie points span {:.1f} m, more than max_heights {} steps of {:.2f} m: swept in steps of {:.3f} m", z_hi - z_lo,
+        o.max_heights, o.height_step_m, step_m);
+  }
   HeightGrid& g = result.grid;
   g.cell_m = o.cell_m;
   g.x0_m = lo.x();
@@ -557,7 +567,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
     return FillHoles(heights, g.nx, g.ny, fill, model, &occluded);
   };
-  const Sweep sweep{o, g, z_lo, nh, result.pairs_used, slot, grey, projection};
+  const Sweep sweep{o, g, z_lo, step_m, nh, result.pairs_used, slot, grey, projection};
   std::vector<float> cost = CostVolume(sweep, nullptr, "dense: sweeping heights", progress);
   CellHeights first = PickHeights(sweep, cost, progress);
   std::size_t visibility_changed = 0;
@@ -618,6 +628,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   StageReport& r = result.report;
   r.metrics["cells"] = static_cast<double>(cells);
   r.metrics["heights"] = nh;
+  r.metrics["height_step_m"] = step_m;
   r.metrics["height_min_m"] = z_lo;
   r.metrics["height_max_m"] = z_hi;
   r.metrics["pairs"] = static_cast<double>(result.pairs_used.size());

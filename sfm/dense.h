@@ -28,7 +28,7 @@ struct DenseOptions {
   double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
   double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
   double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
-  int max_heights = 600;            // refuse sweeps longer than this (memory: cells x heights x 4 bytes)
+  int max_heights = 600;            // longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)
   int window_cells = 5;             // NCC window side [cells], odd
   int max_pairs = 200;              // pairs kept, most verified tie points first
   int min_pair_matches = 50;        // verified tie points for a pair to be considered

@@ -232,6 +232,38 @@ TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {
   EXPECT_NE(tiny.report.message.find("inside the tile extent"), std::string::npos) << tiny.report.message;
 }
 
+// A height range longer than max_heights steps (towers, hills) is swept in
+// coarser steps, not refused; the report says so. The scene's plateau and
+// ground are still found within the coarser step.
+TEST(Dense, ARangeBeyondMaxHeightsIsSweptInCoarserSteps) {
+  NullProgress progress;
+  const std::vector<DenseView> views = {TexturedView("v0", LookingDown(0, 0), 6.0, 8.0), TexturedView("v1", LookingDown(15, 90), 6.0, 8.0),
+                                        TexturedView("v2", LookingDown(20, 200), 6.0, 8.0)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-20, -20, 0}, {20, -20, 0}, {-20, 20, 0}, {20, 20, 6}, {0, 0, 6}};
+  DenseOptions o;
+  const DenseResult fine = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(fine.report.status, StageStatus::kOk) << fine.report.message;
+  EXPECT_EQ(fine.report.metrics.at("height_step_m"), o.height_step_m);
+  const int fine_heights = static_cast<int>(fine.report.metrics.at("heights"));
+  o.max_heights = fine_heights / 3;
+  const DenseResult coarse = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(coarse.report.status, StageStatus::kOk) << coarse.report.message;
+  const double step_m = coarse.report.metrics.at("height_step_m");
+  EXPECT_GT(step_m, 2.5 * o.height_step_m);
+  EXPECT_LE(coarse.report.metrics.at("heights"), o.max_heights);
+  EXPECT_NE(coarse.report.message.find("swept in steps of"), std::string::npos) << coarse.report.message;
+  const HeightGrid& g = coarse.grid;
+  auto height_at = [&](double x, double y) {
+    return g.height_m[g.Index(static_cast<int>(std::lround((x - g.x0_m) / g.cell_m)),
+                              static_cast<int>(std::lround((y - g.y0_m) / g.cell_m)))];
+  };
+  EXPECT_NEAR(height_at(0, 0), 6.0f, step_m);
+  EXPECT_NEAR(height_at(-3, 4), 6.0f, step_m);
+  EXPECT_NEAR(height_at(14, -12), 0.0f, step_m);
+  EXPECT_NEAR(height_at(-13, 15), 0.0f, step_m);
+}
+
 TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
   // The sweep's kernels run the same float operations per cell at every
   // width and reorder no sum (window sums run in the same order; the only
