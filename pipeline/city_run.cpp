@@ -9,6 +9,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 
 #include "core/atomic_file.h"
 #include "core/crash_point.h"
@@ -26,6 +27,7 @@
 #include "pipeline/stage_jobs.h"
 #include "pipeline/tile_run.h"
 #include "catalogs/aoi_catalog.h"
+#include "catalogs/tile_catalog.h"
 #include "splat/ply.h"
 #include "tiler/dfc2019.h"
 #include "tiler/geo.h"
@@ -91,7 +93,10 @@ json TileEntry(const TileOutcome& o) {
 // half a cell wide, flat), so they go through the same DSM export as the
 // trained scene and the two can be compared side by side: all cells, and the
 // matched ones alone (the filled ones left out). Tiles share the city frame;
-// in their overlaps both copies are kept (the export takes the surface).
+// each cell is taken from the tile whose core owns it, as the merge does with
+// Gaussians: with both copies in an overlap, the export took the higher of
+// two estimates, one of them from a tile's outer margin, which the views
+// constrain least.
 struct DenseClouds {
   GaussianCloud all, measured;
   std::size_t cells = 0, filled = 0;
@@ -104,7 +109,12 @@ DenseClouds DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs) {
     if (!fs::exists(ply)) continue;
     const DenseCells cells = ReadDenseCells(ply.string());
     const float half_cell = static_cast<float>(std::log(0.5 * cells.cell_m));
+    const fs::path spec_path = fs::path(dir) / "tile.json";
+    const std::optional<TileSpec> spec =
+        fs::exists(spec_path) ? std::optional<TileSpec>(ReadTileSpec(spec_path.string())) : std::nullopt;
     for (std::size_t k = 0; k < cells.points.size(); ++k) {
+      if (spec && spec->grid.Owner(cells.points[k].x(), cells.points[k].y()) != Eigen::Vector2i(spec->col, spec->row))
+        continue;
       ++out.cells;
       out.filled += cells.filled[k];
       std::array<float, 3 * kShCoeffsPerChannel> sh{};
@@ -172,6 +182,7 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
                                                     options.dsm.compare, &unused, options.dsm.export_options);
       entry["dense"] = ComparisonJson(d);
       entry["dense"]["filled_cell_fraction"] = cells ? static_cast<double>(filled) / cells : 0.0;
+      entry["dense"]["cells"] = static_cast<double>(cells);
       entry["dense_measured_only"] = ComparisonJson(m);
       progress.Info(fmt::format("[{}] dense heights alone: MAE {:.2f} m, completeness {:.1f}% ({:.1f}% of cells "
                                 "filled; matched cells alone: MAE {:.2f} m, completeness {:.1f}%)",

@@ -124,6 +124,12 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_TRUE(std::isfinite(d["dense"]["mae_m"].get<double>())) << d.dump();
     EXPECT_GE(d["dense"]["filled_cell_fraction"].get<double>(), 0.0);
     EXPECT_LT(d["dense"]["filled_cell_fraction"].get<double>(), 1.0);
+    // Each cell once, from the tile whose core owns it: at most the city's
+    // 192 m x 96 m in 0.5 m cells (plus the grid's rounding at the city's
+    // edge), where the tiles' extents with their 12 m margins hold twice that.
+    constexpr double kCityCells = 192.0 * 96.0 / (0.5 * 0.5), kEdgeRounding = 1.05;
+    EXPECT_GT(d["dense"]["cells"].get<double>(), 0.5 * kCityCells);
+    EXPECT_LE(d["dense"]["cells"].get<double>(), kEdgeRounding * kCityCells);
     // The matched cells alone cover no more than all cells do.
     EXPECT_LE(d["dense_measured_only"]["completeness"].get<double>(), d["dense"]["completeness"].get<double>() + 1e-9);
   }
