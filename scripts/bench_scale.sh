@@ -11,6 +11,7 @@
 #   SKYFALL_SCALE_CASES       tiles per city, default "1 2 4 8"
 #   SKYFALL_SCALE_SIZE_M      AOI (and tile core) side [m], default 256
 #   SKYFALL_SCALE_ITERATIONS  training steps per tile, default 300
+#   SKYFALL_SCALE_OVERLAP_M   tile overlap margin [m], default 16 (the product default)
 #   SKYFALL_BIN, SKYFALL_RUN_ARGS as for the other benchmarks (bench_env.sh)
 # Reruns reuse finished cities (delete OUT/runN to measure again).
 set -euo pipefail
@@ -18,6 +19,7 @@ cd "$(dirname "$0")/.."
 OUT=${1:-out/bench_scale}
 ITER=${SKYFALL_SCALE_ITERATIONS:-300}
 SIZE=${SKYFALL_SCALE_SIZE_M:-256}
+OVERLAP=${SKYFALL_SCALE_OVERLAP_M:-16}
 source scripts/bench_env.sh
 mkdir -p "$OUT"
 for n in ${SKYFALL_SCALE_CASES:-1 2 4 8}; do
@@ -37,14 +39,15 @@ for n in ${SKYFALL_SCALE_CASES:-1 2 4 8}; do
   fi
   echo "bench_scale: $n tile(s) ..." >&2
   start=$(date +%s.%N)
-  "$B" -q run "$root" --out "$OUT/run$n" --tile-m "$SIZE" --overlap-m 32 --iterations "$ITER" --resolution 2 \
+  "$B" -q run "$root" --out "$OUT/run$n" --tile-m "$SIZE" --overlap-m "$OVERLAP" --iterations "$ITER" --resolution 2 \
     "${RUN_ARGS[@]}" 2> "$OUT/run$n.log"
   awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' > "$OUT/run$n/wall_seconds"
 done
 
-python3 - "$OUT" "$SIZE" "$ITER" "${SKYFALL_SCALE_CASES:-1 2 4 8}" <<'PY'
+python3 - "$OUT" "$SIZE" "$ITER" "${SKYFALL_SCALE_CASES:-1 2 4 8}" "$OVERLAP" <<'PY'
 import glob, json, os, sys
 out, size_m, iters, cases = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
+overlap_m = float(sys.argv[5])
 rows = []
 for n in cases:
     run = os.path.join(out, "run" + n)
@@ -77,9 +80,9 @@ for r in rows:
           f'max={r["tile_s_max"]:.1f} peak_tile_rss_mb={r["peak_tile_rss_mb"]:.0f}'
           + (f' area_ratio={r["area_ratio"]:.2f} time_ratio={r["time_ratio"]:.2f}' if base else ""))
 # 4x the area: 1 -> 4 tiles (the 1-tile city has no tile overlap to process;
-# every tile of the 4-tile one has 32 m of it on two sides) and 2 -> 8 tiles
+# every tile of the 4-tile one has the overlap margin on two sides) and 2 -> 8 tiles
 # (overlap on both).
-summary = {"size_m": size_m, "iterations": iters, "cores": os.cpu_count(), "cities": rows,
+summary = {"size_m": size_m, "overlap_m": overlap_m, "iterations": iters, "cores": os.cpu_count(), "cities": rows,
            "target_4x_area_max_ratio": 4.4, "time_ratio_4x_area": {}}
 by_tiles = {r["tiles"]: r for r in rows}
 for small, large in ((1, 4), (2, 8)):
