@@ -102,6 +102,8 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("max_cost", o.max_cost);
   io("max_median_deviation_m", o.max_median_deviation_m);
   io("fill_holes", o.fill_holes);
+  io("coarse_factor", o.coarse_factor);
+  io("coarse_window_cells", o.coarse_window_cells);
   io("fill_radius_m", o.fill_radius_m);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);

@@ -4,6 +4,8 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -54,8 +56,11 @@ void DenseOptions::Check() const {
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
+  if (coarse_factor < 1) throw Error("dense", "coarse_factor", "must be >= 1 (1 = off), got " + std::to_string(coarse_factor));
   if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
   if (window_cells < 3 || window_cells % 2 == 0) throw Error("dense", "window_cells", "must be odd and >= 3");
+  if (coarse_window_cells < 3 || coarse_window_cells % 2 == 0)
+    throw Error("dense", "coarse_window_cells", "must be odd and >= 3");
   if (max_pairs < 1) throw Error("dense", "max_pairs", "must be >= 1");
   if (!(min_pair_angle_deg >= 0 && max_pair_angle_deg > min_pair_angle_deg))
     throw Error("dense", "max_pair_angle_deg", "must exceed min_pair_angle_deg >= 0");
@@ -388,6 +393,102 @@ CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress
   return out;
 }
 
+// `image` blurred with a Gaussian of `sigma_px`, as a normalized
+// convolution: pixels without data (NaN) neither darken nor brighten their
+// neighbours, and a pixel whose blur is mostly no data stays NaN.
+GreyImage Blurred(const GreyImage& image, double sigma_px) {
+  cv::Mat values(image.height, image.width, CV_32F), weight(image.height, image.width, CV_32F);
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x) {
+      const float v = image.values[static_cast<std::size_t>(y) * image.width + x];
+      const bool ok = std::isfinite(v);
+      values.at<float>(y, x) = ok ? v : 0.0f;
+      weight.at<float>(y, x) = ok ? 1.0f : 0.0f;
+    }
+  cv::GaussianBlur(values, values, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(weight, weight, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  GreyImage out = image;
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x) {
+      const float w = weight.at<float>(y, x);
+      out.values[static_cast<std::size_t>(y) * image.width + x] = w > 0.5f ? values.at<float>(y, x) / w : kNan;
+    }
+  return out;
+}
+
+// Image pixels per metre of ground at `centre_enu_m` (the mean over east
+// and north): what a ground distance spans in the view.
+double PixelsPerMetre(const Projection& P, const Eigen::Vector3d& centre_enu_m) {
+  auto pixel = [&](const Eigen::Vector3d& w) {
+    const Eigen::Vector3d h = P * w.homogeneous();
+    return Eigen::Vector2d(h.head<2>() / h.z());
+  };
+  const Eigen::Vector2d c = pixel(centre_enu_m);
+  return 0.5 * ((pixel(centre_enu_m + Eigen::Vector3d::UnitX()) - c).norm() +
+                (pixel(centre_enu_m + Eigen::Vector3d::UnitY()) - c).norm());
+}
+
+// Heights for the cells of the fine sweep's grid from a sweep at
+// coarse_factor times its cell (DenseOptions::coarse_factor), on the views
+// blurred to that cell (a Gaussian of half a coarse cell, against
+// aliasing), interpolated bilinearly between coarse cells (the nearest
+// where a neighbour has no height); NaN where the coarse sweep has none.
+std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress) {
+  const HeightGrid& g = fine.grid;
+  const int f = fine.o.coarse_factor;
+  std::vector<float> out(fine.Cells(), kNan);
+  HeightGrid c;
+  c.cell_m = g.cell_m * f;
+  c.x0_m = g.x0_m + 0.5 * (f - 1) * g.cell_m;  // a coarse cell is centred on its f x f fine cells
+  c.y0_m = g.y0_m + 0.5 * (f - 1) * g.cell_m;
+  c.nx = g.nx / f;
+  c.ny = g.ny / f;
+  DenseOptions coarse_options = fine.o;
+  coarse_options.window_cells = fine.o.coarse_window_cells;
+  if (c.nx <= coarse_options.window_cells || c.ny <= coarse_options.window_cells) return out;
+  std::vector<GreyImage> blurred(fine.grey.size());
+  tbb::parallel_for(0, static_cast<int>(fine.grey.size()), [&](int v) {
+    blurred[v] = Blurred(fine.grey[v], 0.5 * c.cell_m * PixelsPerMetre(fine.projection[v], centre_enu_m));
+  });
+  const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, blurred, fine.projection};
+  const std::vector<float> cost = CostVolume(coarse, nullptr, "dense: sweeping holes at a coarser scale", progress);
+  const std::vector<float> picked = PickHeights(coarse, cost, progress).height_m;
+  // Wide windows fatten what they straddle: at a roof's edge the roof's
+  // texture wins, and a band of ground takes the roof's height. Only coarse
+  // cells whose neighbours within kSmoothReach cells are measured and lie
+  // within kSmoothSlope of them keep a height: inside a roof, gabled or
+  // flat, or on open ground, not near a step.
+  constexpr int kSmoothReach = 2;
+  constexpr float kSmoothSlope = 1.0f;  // [m per coarse cell]; a roof of 30 deg rises 0.9 m per 1.5 m cell
+  std::vector<float> h(picked.size(), kNan);
+  for (int b = 0; b < c.ny; ++b)
+    for (int a = 0; a < c.nx; ++a) {
+      const float centre = picked[c.Index(a, b)];
+      bool smooth = std::isfinite(centre);
+      for (int db = -kSmoothReach; db <= kSmoothReach && smooth; ++db)
+        for (int da = -kSmoothReach; da <= kSmoothReach && smooth; ++da) {
+          const int x = a + da, y = b + db;
+          if (x < 0 || y < 0 || x >= c.nx || y >= c.ny) continue;
+          const float n = picked[c.Index(x, y)];
+          smooth = std::isfinite(n) && std::abs(n - centre) <= kSmoothSlope * std::max(std::abs(da), std::abs(db));
+        }
+      if (smooth) h[c.Index(a, b)] = centre;
+    }
+  auto at = [&](int a, int b) { return h[c.Index(std::clamp(a, 0, c.nx - 1), std::clamp(b, 0, c.ny - 1))]; };
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const double u = (i - 0.5 * (f - 1)) / f, v = (j - 0.5 * (f - 1)) / f;  // coarse cell coordinates
+      const int a = static_cast<int>(std::floor(u)), b = static_cast<int>(std::floor(v));
+      const float tu = static_cast<float>(u - a), tv = static_cast<float>(v - b);
+      const float h00 = at(a, b), h10 = at(a + 1, b), h01 = at(a, b + 1), h11 = at(a + 1, b + 1);
+      float value = (1 - tv) * ((1 - tu) * h00 + tu * h10) + tv * ((1 - tu) * h01 + tu * h11);
+      if (!std::isfinite(value))
+        value = at(static_cast<int>(std::lround(u)), static_cast<int>(std::lround(v)));
+      out[g.Index(i, j)] = value;
+    }
+  return out;
+}
+
 }  // namespace
 
 std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
@@ -597,7 +698,27 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
   occluded_cells = 0;
-  g.filled = o.fill_holes ? fill_holes(g.height_m) : std::vector<std::uint8_t>(cells, 0);
+  std::size_t coarse_cells = 0;
+  g.filled.assign(cells, 0);
+  if (o.fill_holes) {
+    const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
+    const std::vector<std::uint8_t> occluded =
+        OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
+    occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
+    std::vector<std::uint8_t> from_coarse(cells, 0);
+    if (o.coarse_factor > 1) {
+      const std::vector<float> coarse = CoarseSweepHeights(sweep, centre, progress);
+      for (std::size_t k = 0; k < cells; ++k)
+        if (!std::isfinite(g.height_m[k]) && !occluded[k] && std::isfinite(coarse[k])) {
+          g.height_m[k] = coarse[k];
+          from_coarse[k] = 1;
+          ++coarse_cells;
+        }
+    }
+    g.filled = FillHoles(g.height_m, g.nx, g.ny, fill, model, &occluded);
+    // Coarse heights count as filled: not measured at the grid's own scale.
+    for (std::size_t k = 0; k < cells; ++k) g.filled[k] |= from_coarse[k];
+  }
 
   // Colour from the most nadir view that sees the cell.
   std::vector<int> by_elevation(views.size());
@@ -637,6 +758,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["filled_fraction"] = static_cast<double>(valid - measured) / static_cast<double>(cells);
   r.metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(low_cost) / static_cast<double>(cells);
   r.metrics["rejected_speckle_fraction"] = static_cast<double>(speckles) / static_cast<double>(cells);
+  r.metrics["coarse_fraction"] = static_cast<double>(coarse_cells) / static_cast<double>(cells);
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.seconds = clock.Seconds();

@@ -45,6 +45,14 @@ struct DenseOptions {
   // terrain plus the lowest height above it within fill_radius_m (doubled
   // until something is in reach). Filled cells are flagged.
   bool fill_holes = true;
+  // Before filling, holes get a second chance at a coarser scale: a sweep
+  // on a grid of coarse_factor x cell_m, with windows as many cells wide, on
+  // images blurred to that cell. A weakly textured surface (a tiled roof
+  // whose courses alias, a plain slab) that no 5-cell window correlates
+  // often does over a window this much wider. Ground no pair sees
+  // (OccludedAtGround) is not taken from it. 1 = off.
+  int coarse_factor = 3;
+  int coarse_window_cells = 5;      // the coarse sweep's NCC window side [coarse cells], odd
   double fill_radius_m = 5.0;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it

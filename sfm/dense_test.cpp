@@ -264,6 +264,74 @@ TEST(Dense, ARangeBeyondMaxHeightsIsSweptInCoarserSteps) {
   EXPECT_NEAR(height_at(-13, 15), 0.0f, step_m);
 }
 
+// A tiled roof: courses of dark tiles every 0.6 m, finer than the views'
+// 0.5 m pixels (point-sampled: each view aliases them into its own
+// pattern), over the ground's value noise stretched to a 2 m lattice and
+// at +-20 grey levels (the ground's: +-75). Over a 5-cell window the aliased courses
+// differ from view to view; blurred to 1.5 m cells they are gone and the
+// 2 m noise remains.
+float TiledRoofTexture(double x_m, double y_m) {
+  const float courses = std::fmod(std::abs(y_m), 0.6) < 0.12 ? -40.0f : 0.0f;
+  return 140.0f + courses + (20.0f / 75.0f) * (testing::GroundTexture(x_m / 2.0, y_m / 2.0) - 125.0f);
+}
+
+TEST(Dense, ATiledRoofNoFineWindowMatchesIsMeasuredAtTheCoarseScale) {
+  NullProgress progress;
+  constexpr double kRoofM = 6.0, kHalfM = 15.0;
+  constexpr int kSizePx = 160;  // 80 m of ground at 0.5 m
+  const std::vector<DenseView> views = {
+      TexturedView("v0", LookingDown(0, 0, kSizePx), kRoofM, kHalfM, TiledRoofTexture),
+      TexturedView("v1", LookingDown(15, 90, kSizePx), kRoofM, kHalfM, TiledRoofTexture),
+      TexturedView("v2", LookingDown(20, 200, kSizePx), kRoofM, kHalfM, TiledRoofTexture)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-30, -30, 0}, {30, -30, 0}, {-30, 30, 0}, {30, 30, 0}, {0, 0, kRoofM}};
+  DenseOptions o;
+  o.coarse_factor = 1;
+  const DenseResult fine_only = RunDenseHeights(o, views, pairs, points, progress);
+  o.coarse_factor = 3;
+  const DenseResult with_coarse = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(with_coarse.report.status, StageStatus::kOk) << with_coarse.report.message;
+  // Share of the cells in a region (of those the fine sweep did not measure,
+  // with only_filled) within tol_m of the true height.
+  auto share_within = [](const HeightGrid& g, auto&& in_region, double truth_m, double tol_m, bool only_filled) {
+    int n = 0, good = 0;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+        const std::size_t k = g.Index(i, j);
+        if (!in_region(x, y) || (only_filled && !g.filled[k])) continue;
+        ++n;
+        good += std::abs(g.height_m[k] - truth_m) <= tol_m;
+      }
+    return n > 0 ? static_cast<double>(good) / n : 0.0;
+  };
+  // The roof more than 4 m inside its edges, its middle 10 m, and the
+  // ground 4-12 m outside it.
+  auto inner_roof = [&](double x, double y) { return std::max(std::abs(x), std::abs(y)) <= kHalfM - 4; };
+  auto roof_middle = [&](double x, double y) { return std::max(std::abs(x), std::abs(y)) <= 5; };
+  auto ground_ring = [&](double x, double y) {
+    const double d = std::max(std::abs(x), std::abs(y));
+    return d >= kHalfM + 4 && d <= kHalfM + 12;
+  };
+  constexpr double kTolM = 0.5;  // two sweep steps
+  // The fine sweep alone leaves the roof to the filling, which takes the
+  // ground around it.
+  EXPECT_LT(share_within(fine_only.grid, inner_roof, kRoofM, kTolM, false), 0.05);
+  EXPECT_LT(share_within(fine_only.grid, roof_middle, kRoofM, kTolM, true), 0.05);
+  // With the coarse sweep the roof's middle is measured: the cells the fine
+  // sweep left empty take the roof's height. (A band of about 6 m inside
+  // the roof's edges stays to the filling: the ground's texture fattens
+  // over the roof's at the wide windows, and cells within two coarse cells
+  // of a step keep no coarse height. The cells the fine sweep matched
+  // wrongly, a third of the roof here, keep their heights.)
+  EXPECT_GT(share_within(with_coarse.grid, roof_middle, kRoofM, kTolM, true), 0.9);
+  EXPECT_GT(share_within(with_coarse.grid, inner_roof, kRoofM, kTolM, false), 0.3);
+  EXPECT_GT(with_coarse.report.metrics.at("coarse_fraction"), 0.05);
+  // The wide windows do not carry the roof onto the ground around it.
+  EXPECT_GE(share_within(with_coarse.grid, ground_ring, 0.0, kTolM, false),
+            share_within(fine_only.grid, ground_ring, 0.0, kTolM, false) - 0.01);
+}
+
 TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
   // The sweep's kernels run the same float operations per cell at every
   // width and reorder no sum (window sums run in the same order; the only

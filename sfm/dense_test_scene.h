@@ -66,9 +66,10 @@ inline DenseView UniformView(const std::string& name, const PinholeCamera& camer
 
 // A one-band view of textured ground at 0 m with a square plateau of
 // half-side `plateau_half_m` at `plateau_m` (its walls are not drawn: what
-// matters is texture at two heights).
+// matters is texture at two heights), the plateau's texture
+// `plateau_texture` (the ground's by default).
 inline DenseView TexturedView(const std::string& name, const PinholeCamera& camera, double plateau_m,
-                              double plateau_half_m) {
+                              double plateau_half_m, float (*plateau_texture)(double, double) = GroundTexture) {
   DenseView v = UniformView(name, camera, 0.0f);
   const Eigen::Vector3d centre = camera.Centre();
   const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
@@ -76,10 +77,11 @@ inline DenseView TexturedView(const std::string& name, const PinholeCamera& came
     for (int col = 0; col < v.width_px; ++col) {
       const Eigen::Vector3d ray =
           world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
-      Eigen::Vector3d hit = centre + ray * ((plateau_m - centre.z()) / ray.z());
-      if (std::abs(hit.x()) > plateau_half_m || std::abs(hit.y()) > plateau_half_m)
-        hit = centre + ray * (-centre.z() / ray.z());
-      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = GroundTexture(hit.x(), hit.y());
+      const Eigen::Vector3d top = centre + ray * ((plateau_m - centre.z()) / ray.z());
+      const bool on_plateau = std::abs(top.x()) <= plateau_half_m && std::abs(top.y()) <= plateau_half_m;
+      const Eigen::Vector3d hit = on_plateau ? top : Eigen::Vector3d(centre + ray * (-centre.z() / ray.z()));
+      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] =
+          on_plateau ? plateau_texture(hit.x(), hit.y()) : GroundTexture(hit.x(), hit.y());
     }
   return v;
 }
