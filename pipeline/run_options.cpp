@@ -104,6 +104,13 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_holes", o.fill_holes);
   io("coarse_factor", o.coarse_factor);
   io("coarse_window_cells", o.coarse_window_cells);
+  io("visibility_fill_seen_holes", o.visibility_fill_seen_holes);
+  io("refine_steps", o.refine_steps);
+  io("step_min_m", o.step_min_m);
+  io("step_reach_cells", o.step_reach_cells);
+  io("support_radius_cells", o.support_radius_cells);
+  io("support_grey_sigma", o.support_grey_sigma);
+  io("step_cost_margin", o.step_cost_margin);
   io("fill_radius_m", o.fill_radius_m);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);

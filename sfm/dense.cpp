@@ -56,6 +56,12 @@ void DenseOptions::Check() const {
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
+  positive(step_min_m, "step_min_m");
+  positive(support_grey_sigma, "support_grey_sigma");
+  if (!(step_cost_margin >= 0)) throw Error("dense", "step_cost_margin", "must be >= 0, got " + std::to_string(step_cost_margin));
+  if (step_reach_cells < 1) throw Error("dense", "step_reach_cells", "must be >= 1, got " + std::to_string(step_reach_cells));
+  if (support_radius_cells < 1)
+    throw Error("dense", "support_radius_cells", "must be >= 1, got " + std::to_string(support_radius_cells));
   if (coarse_factor < 1) throw Error("dense", "coarse_factor", "must be >= 1 (1 = off), got " + std::to_string(coarse_factor));
   if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
   if (window_cells < 3 || window_cells % 2 == 0) throw Error("dense", "window_cells", "must be odd and >= 3");
@@ -489,6 +495,184 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
   return out;
 }
 
+// One candidate height of one cell scored with adaptive support weights:
+// every view that sees the point (all views without `seen_above`) is
+// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
+// cell weighs exp(-|grey - centre grey| / sigma - distance / R) in the first
+// view of `nadir_first` that sees it with the whole window inside the
+// image; each pair scores 1 - weighted NCC (truncated, the truncation where
+// a window is too plain), averaged as the masked sweep does. NaN when no
+// view can serve as the reference.
+struct SupportScratch {
+  std::vector<float> samples, weights, weighted, mean, inv_std;
+  std::vector<std::uint8_t> usable;
+};
+
+float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
+                          const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
+  const HeightGrid& g = s.grid;
+  const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
+  const std::size_t views = s.grey.size();
+  const std::size_t centre_cell = g.Index(i, j);
+  t.samples.resize(views * n);
+  t.weights.resize(n);
+  t.usable.assign(views, 0);
+  for (std::size_t v = 0; v < views; ++v) {
+    if (seen_above && height_m < (*seen_above)[v][centre_cell]) continue;
+    const GreyImage& image = s.grey[v];
+    float* out = t.samples.data() + v * n;
+    bool inside = true;
+    for (int b = -r; b <= r && inside; ++b)
+      for (int a = -r; a <= r && inside; ++a) {
+        const Eigen::Vector3d h = s.projection[v] * Eigen::Vector4d(g.x0_m + (i + a) * g.cell_m,
+                                                                    g.y0_m + (j + b) * g.cell_m, height_m, 1.0);
+        const double x = h.x() / h.z(), y = h.y() / h.z();
+        const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+        if (!(h.z() > 0) || x0 < 0 || y0 < 0 || x0 + 1 >= image.width || y0 + 1 >= image.height) {
+          inside = false;
+          break;
+        }
+        const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+        const float* p = image.values.data() + static_cast<std::size_t>(y0) * image.width + x0;
+        const float top = p[0] + fx * (p[1] - p[0]);
+        const float bottom = p[image.width] + fx * (p[image.width + 1] - p[image.width]);
+        const float value = top + fy * (bottom - top);
+        inside = std::isfinite(value);
+        out[(b + r) * w + (a + r)] = value;
+      }
+    t.usable[v] = inside ? 1 : 0;
+  }
+  const auto reference = std::find_if(nadir_first.begin(), nadir_first.end(), [&](int v) { return t.usable[v]; });
+  if (reference == nadir_first.end()) return kNan;
+  const float* ref = t.samples.data() + static_cast<std::size_t>(*reference) * n;
+  const float centre = ref[r * w + r];
+  const float inv_sigma = static_cast<float>(1.0 / s.o.support_grey_sigma);
+  for (int b = -r; b <= r; ++b)
+    for (int a = -r; a <= r; ++a) {
+      const int q = (b + r) * w + (a + r);
+      const float distance = std::sqrt(static_cast<float>(a * a + b * b)) / static_cast<float>(r);
+      t.weights[q] = std::exp(-std::abs(ref[q] - centre) * inv_sigma - distance);
+    }
+  float weight_sum = 0;
+  for (int q = 0; q < n; ++q) weight_sum += t.weights[q];
+  const float inv_weight = 1.0f / weight_sum;
+  const float trunc = static_cast<float>(s.o.cost_truncation);
+  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  // Per view: its weighted samples (w x) and weighted mean and variance;
+  // per pair only the weighted product remains.
+  t.weighted.resize(views * n);
+  t.mean.assign(views, 0.0f);
+  t.inv_std.assign(views, 0.0f);  // 0: too plain to correlate
+  for (std::size_t v = 0; v < views; ++v) {
+    if (!t.usable[v]) continue;
+    const float* x = t.samples.data() + v * n;
+    float* wx = t.weighted.data() + v * n;
+    float sx = 0, sxx = 0;
+    for (int q = 0; q < n; ++q) {
+      wx[q] = t.weights[q] * x[q];
+      sx += wx[q];
+      sxx += wx[q] * x[q];
+    }
+    const float mean = sx * inv_weight, var = sxx * inv_weight - mean * mean;
+    t.mean[v] = mean;
+    if (var > min_var) t.inv_std[v] = 1.0f / std::sqrt(var);
+  }
+  float sum = 0, count = 0;
+  for (const DensePair& p : s.pairs) {
+    const int va = s.slot[p.a], vb = s.slot[p.b];
+    if (!t.usable[va] || !t.usable[vb]) continue;
+    count += 1;
+    if (t.inv_std[va] == 0 || t.inv_std[vb] == 0) {
+      sum += trunc;
+      continue;
+    }
+    const float* wx = t.weighted.data() + static_cast<std::size_t>(va) * n;
+    const float* y = t.samples.data() + static_cast<std::size_t>(vb) * n;
+    float sxy = 0;
+    for (int q = 0; q < n; ++q) sxy += wx[q] * y[q];
+    const float covariance = sxy * inv_weight - t.mean[va] * t.mean[vb];
+    sum += std::min(trunc, 1.0f - covariance * t.inv_std[va] * t.inv_std[vb]);
+  }
+  const float prior = seen_above ? static_cast<float>(s.o.visibility_prior_pairs) : 0.0f;
+  return count + prior > 0 ? (sum + prior * trunc) / (count + prior) : trunc;
+}
+
+// DenseOptions::refine_steps: each measured cell within step_reach_cells of
+// a step takes whichever of the lowest and highest measured heights within
+// that reach scores the lower support-weighted cost (SupportWeightedCost),
+// where that cost is at most max_cost and step_cost_margin below the other
+// side's; the other cells keep their height. With `to_cameras` (per view slot), a side counts only the views
+// that see it past the surface less the cells being decided: with the
+// fattened band in it, the ground beside a roof is under the roof and no
+// view would see it. Returns how many cells changed side.
+std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_cameras,
+                        const std::vector<int>& nadir_first, std::vector<float>& height_m, Progress& progress) {
+  const HeightGrid& g = s.grid;
+  const int reach = s.o.step_reach_cells;
+  const float step_min = static_cast<float>(s.o.step_min_m);
+  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
+  const std::vector<float> before = height_m;
+  // Each cell's step: the lowest and highest measured height within reach;
+  // NaN where there is no step.
+  std::vector<float> lo(before.size(), kNan), hi(before.size(), kNan);
+  tbb::parallel_for(0, g.ny, [&](int j) {
+    for (int i = 0; i < g.nx; ++i) {
+      const float own = before[g.Index(i, j)];
+      if (!std::isfinite(own)) continue;
+      float low = own, high = own;
+      for (int b = std::max(0, j - reach); b <= std::min(g.ny - 1, j + reach); ++b)
+        for (int a = std::max(0, i - reach); a <= std::min(g.nx - 1, i + reach); ++a) {
+          const float h = before[g.Index(a, b)];
+          if (!std::isfinite(h)) continue;
+          low = std::min(low, h);
+          high = std::max(high, h);
+        }
+      if (high - low <= step_min) continue;
+      lo[g.Index(i, j)] = low;
+      hi[g.Index(i, j)] = high;
+    }
+  });
+  std::vector<std::vector<float>> seen_above;
+  if (to_cameras) {
+    std::vector<float> surface = before;
+    for (std::size_t k = 0; k < surface.size(); ++k)
+      if (std::isfinite(lo[k])) surface[k] = kNan;
+    seen_above.resize(to_cameras->size());
+    tbb::parallel_for(0, static_cast<int>(to_cameras->size()), [&](int v) {
+      seen_above[v] = VisibleAbove(g, surface, (*to_cameras)[v], s.z_lo);
+      for (float& h : seen_above[v]) h -= static_cast<float>(s.o.visibility_tolerance_m);
+    });
+  }
+  progress.Begin("dense: deciding cells beside steps", g.ny);
+  std::atomic<int> rows_done{0};
+  std::atomic<std::size_t> changed{0};
+  tbb::enumerable_thread_specific<SupportScratch> scratch;
+  tbb::parallel_for(0, g.ny, [&](int j) {
+    SupportScratch& t = scratch.local();
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!std::isfinite(lo[k])) continue;
+      const auto* seen = to_cameras ? &seen_above : nullptr;
+      const float cost_lo = SupportWeightedCost(s, seen, nadir_first, i, j, lo[k], t);
+      const float cost_hi = SupportWeightedCost(s, seen, nadir_first, i, j, hi[k], t);
+      if (!std::isfinite(cost_lo) || !std::isfinite(cost_hi)) continue;
+      // Only a clear match moves a cell: both sides poorly matched (a plain
+      // or changing surface) or nearly tied decide nothing.
+      const float best = std::min(cost_lo, cost_hi);
+      if (best > max_cost || std::abs(cost_lo - cost_hi) < margin) continue;
+      const float side = cost_lo < cost_hi ? lo[k] : hi[k];
+      // A cell already on that side (within the step's threshold) keeps its
+      // own, finer height.
+      if (std::abs(side - before[k]) <= 0.5f * step_min) continue;
+      height_m[k] = side;
+      ++changed;
+    }
+    progress.Advance(++rows_done, "");
+  });
+  progress.End();
+  return changed;
+}
+
 }  // namespace
 
 std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
@@ -661,12 +845,12 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   std::vector<Eigen::Vector3d> to_cameras;
   for (int v : used_views) to_cameras.push_back(views[v].camera.Centre() - centre);
   std::size_t occluded_cells = 0;
+  std::vector<std::uint8_t> fill_occluded;  // of the last fill_holes
   auto fill_holes = [&](std::vector<float>& heights) {
     const GroundModel model = GroundModelOf(heights, g.nx, g.ny, fill);
-    const std::vector<std::uint8_t> occluded =
-        OccludedAtGround(g, heights, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
-    occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
-    return FillHoles(heights, g.nx, g.ny, fill, model, &occluded);
+    fill_occluded = OccludedAtGround(g, heights, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
+    occluded_cells = static_cast<std::size_t>(std::count(fill_occluded.begin(), fill_occluded.end(), 1));
+    return FillHoles(heights, g.nx, g.ny, fill, model, &fill_occluded);
   };
   const Sweep sweep{o, g, z_lo, step_m, nh, result.pairs_used, slot, grey, projection};
   std::vector<float> cost = CostVolume(sweep, nullptr, "dense: sweeping heights", progress);
@@ -677,7 +861,10 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     // point is hidden from; the second sweep scores each height only with
     // the pairs that see it there.
     std::vector<float> surface = first.height_m;
-    fill_holes(surface);
+    const std::vector<std::uint8_t> filled = fill_holes(surface);
+    if (!o.visibility_fill_seen_holes)
+      for (std::size_t k = 0; k < cells; ++k)
+        if (filled[k] && !fill_occluded[k]) surface[k] = kNan;
     std::vector<std::vector<float>> seen_above(grey.size());
     tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int k) {
       const Eigen::Vector3d to_camera = views[used_views[k]].camera.Centre() - centre;
@@ -691,6 +878,14 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
           std::abs(second.height_m[k] - first.height_m[k]) > 1.0f)
         ++visibility_changed;
     first = std::move(second);
+  }
+  std::size_t step_changed = 0;
+  if (o.refine_steps) {
+    std::vector<int> nadir_first(grey.size());
+    std::iota(nadir_first.begin(), nadir_first.end(), 0);
+    auto up = [&](int k) { return (views[used_views[k]].camera.Centre() - centre).normalized().z(); };
+    std::stable_sort(nadir_first.begin(), nadir_first.end(), [&](int a, int b) { return up(a) > up(b); });
+    step_changed = RefineSteps(sweep, o.visibility_pass ? &to_cameras : nullptr, nadir_first, first.height_m, progress);
   }
   g.height_m = std::move(first.height_m);
   g.cost = std::move(first.cost);
@@ -761,6 +956,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["coarse_fraction"] = static_cast<double>(coarse_cells) / static_cast<double>(cells);
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
+  r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);
   r.seconds = clock.Seconds();
   return result;
 }

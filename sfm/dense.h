@@ -53,6 +53,24 @@ struct DenseOptions {
   // (OccludedAtGround) is not taken from it. 1 = off.
   int coarse_factor = 3;
   int coarse_window_cells = 5;      // the coarse sweep's NCC window side [coarse cells], odd
+  // Windows fatten what they straddle: beside a roof's edge the roof's
+  // texture fills most of a ground cell's window, and a band of ground
+  // about a window radius wide takes the roof's height. Cells within
+  // step_reach_cells of a step (measured heights differing by more than
+  // step_min_m) are decided again between the step's low and high side,
+  // each scored with adaptive support weights (Yoon and Kweon's): a window
+  // of support_radius_cells whose cells weigh by how like the centre they
+  // look in the most nadir view that sees it (support_grey_sigma, on grey
+  // scaled so its 99th percentile is 1) and by distance, so the centre's
+  // own surface decides, not the wall's other side.
+  // Off by default: it narrows the band on every synthetic scene but costs
+  // JAX_068 2.5% of dense MAE (docs/benchmarks.md, "Cells beside steps").
+  bool refine_steps = false;
+  double step_min_m = 2.0;          // [m] a rise beyond this within step_reach_cells is a step
+  int step_reach_cells = 3;         // [cells] the band re-decided: window radius (2) + 1
+  int support_radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
+  double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
+  double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
   double fill_radius_m = 5.0;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
@@ -73,6 +91,13 @@ struct DenseOptions {
   // A point counts as seen when the first surface rises at most this much
   // above the ray toward the camera [m]: the first surface's own error.
   double visibility_tolerance_m = 1.0;
+  // Whether holes the views see, filled from their surroundings, hide what
+  // is behind them in the visibility pass. Off: only the measured surface
+  // and the occluded ground (filled with the terrain) do. A street between
+  // two roofs that the first sweep missed is filled at the roofs' height
+  // (the nearest measured surface); with that fill hiding it, no view sees
+  // the street's own heights in the second sweep, and it stays a roof.
+  bool visibility_fill_seen_holes = false;
   // Heights seen by few pairs get a noisy mean whose chance minima would
   // win: the mean is taken as if this many more pairs had added the
   // truncation cost.

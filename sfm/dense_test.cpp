@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "core/error.h"
@@ -87,6 +88,26 @@ TEST(Dense, OptionsNameTheBadField) {
   o = DenseOptions{};
   o.sgm_p2 = 0.01;
   EXPECT_THROW(o.Check(), Error);
+  auto message = [](const DenseOptions& bad) -> std::string {
+    try {
+      bad.Check();
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  o = DenseOptions{};
+  o.support_grey_sigma = 0;
+  EXPECT_NE(message(o).find("support_grey_sigma"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.step_reach_cells = 0;
+  EXPECT_NE(message(o).find("step_reach_cells"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.support_radius_cells = -1;
+  EXPECT_NE(message(o).find("support_radius_cells"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.step_min_m = std::nan("");
+  EXPECT_NE(message(o).find("step_min_m"), std::string::npos) << message(o);
 }
 
 DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
@@ -330,6 +351,160 @@ TEST(Dense, ATiledRoofNoFineWindowMatchesIsMeasuredAtTheCoarseScale) {
   // The wide windows do not carry the roof onto the ground around it.
   EXPECT_GE(share_within(with_coarse.grid, ground_ring, 0.0, kTolM, false),
             share_within(fine_only.grid, ground_ring, 0.0, kTolM, false) - 0.01);
+}
+
+// A bright roof over darker ground, both textured: windows that straddle
+// the roof's edge match the roof's texture, so without the step decision a
+// band of ground about a window radius wide takes the roof's height (2 cells
+// on every side here; measured: 280-320 of the 327 cells 0.25-1.25 m outside
+// the edge on the roof's side, 49 with the decision).
+float BrightRoofTexture(double x_m, double y_m) {
+  return 205.0f + 0.25f * (testing::GroundTexture(x_m * 0.8 + 31.0, y_m * 0.8 - 17.0) - 125.0f);
+}
+
+TEST(Dense, CellsBesideAStepTakeTheirOwnSide) {
+  NullProgress progress;
+  constexpr double kRoofM = 12.0, kHalfM = 10.0;
+  constexpr int kSizePx = 128;
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 15, 20, 25}, azimuth_deg[] = {0, 90, 200, 320};
+  for (int v = 0; v < 4; ++v) {
+    views.push_back(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], kSizePx), kRoofM,
+                                 kHalfM, BrightRoofTexture));
+    // The ground darker than the roof (the plateau keeps its own texture).
+    DenseView& view = views.back();
+    const DenseView flat = TexturedView("g", view.camera, -1000.0, 0.0);  // ground everywhere
+    for (std::size_t k = 0; k < view.pixels.size(); ++k)
+      if (view.pixels[k] == flat.pixels[k]) view.pixels[k] = 0.6f * flat.pixels[k];
+  }
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {0, 3, 100}, {1, 2, 100}, {1, 3, 100}, {2, 3, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {0, 0, kRoofM}};
+  DenseOptions o;
+  o.fill_holes = false;  // only what the sweep measured
+  o.refine_steps = false;
+  const DenseResult plain = RunDenseHeights(o, views, pairs, points, progress);
+  o.refine_steps = true;
+  const DenseResult refined = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(refined.report.status, StageStatus::kOk) << refined.report.message;
+  EXPECT_GT(refined.report.metrics.at("step_changed_fraction"), 0.0);
+  // Measured cells in a band of distances from the roof's edge (positive
+  // outside) that are on the wrong side of the step (nearer the other
+  // height), and how many were measured.
+  struct Band {
+    int wrong = 0, measured = 0;
+  };
+  auto band = [&](const HeightGrid& g, double from_m, double to_m) {
+    Band b;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double d = std::max(std::abs(g.x0_m + i * g.cell_m), std::abs(g.y0_m + j * g.cell_m)) - kHalfM;
+        const float h = g.height_m[g.Index(i, j)];
+        if (d < from_m || d >= to_m || !std::isfinite(h)) continue;
+        ++b.measured;
+        b.wrong += (d > 0) != (h < 0.5 * kRoofM);
+      }
+    return b;
+  };
+  // Ground 0.25-2 m outside the edge: the fattened band.
+  const Band ground_plain = band(plain.grid, 0.25, 2.0), ground_refined = band(refined.grid, 0.25, 2.0);
+  ASSERT_GT(ground_plain.measured, 100);
+  ASSERT_GT(ground_plain.wrong, ground_plain.measured / 4) << "the scene no longer fattens the roof";
+  EXPECT_LT(ground_refined.wrong, ground_plain.wrong / 4);
+  // The roof's own rim (within 2 m inside the edge) stays roof.
+  const Band rim_plain = band(plain.grid, -2.0, -0.25), rim_refined = band(refined.grid, -2.0, -0.25);
+  EXPECT_LE(rim_refined.wrong, rim_plain.wrong + rim_plain.measured / 50);
+  // Away from the step nothing changes.
+  const Band far_plain = band(plain.grid, 4.0, 100.0), far_refined = band(refined.grid, 4.0, 100.0);
+  EXPECT_EQ(far_refined.wrong, far_plain.wrong);
+  EXPECT_EQ(far_refined.measured, far_plain.measured);
+}
+
+// One band view of two buildings (boxes with textured roofs and walls)
+// either side of a narrow street running north-south, on textured ground:
+// rays stop at the first roof, wall or ground they meet.
+DenseView TwoBuildingsView(const std::string& name, const PinholeCamera& camera, double street_half_m,
+                           double building_m) {
+  DenseView v = testing::UniformView(name, camera, 0.0f);
+  const Eigen::Vector3d centre = camera.Centre();
+  const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
+  const double boxes[2][4] = {{-street_half_m - 12, -12, -street_half_m, 12}, {street_half_m, -12, street_half_m + 12, 12}};
+  for (int row = 0; row < v.height_px; ++row)
+    for (int col = 0; col < v.width_px; ++col) {
+      const Eigen::Vector3d ray =
+          world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
+      double t_hit = -centre.z() / ray.z();  // the ground
+      int face = 0;                          // 0 ground, 1 roof, 2 wall
+      for (const auto& b : boxes) {
+        // Slab intersection with the box [b0, b2] x [b1, b3] x [0, building_m].
+        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+        int entry_axis = -1;
+        const double lo[3] = {b[0], b[1], 0.0}, hi[3] = {b[2], b[3], building_m};
+        bool miss = false;
+        for (int a = 0; a < 3 && !miss; ++a) {
+          double ta = (lo[a] - centre[a]) / ray[a], tb = (hi[a] - centre[a]) / ray[a];
+          if (ta > tb) std::swap(ta, tb);
+          if (ta > t0) {
+            t0 = ta;
+            entry_axis = a;
+          }
+          t1 = std::min(t1, tb);
+          miss = t0 > t1;
+        }
+        if (!miss && t0 < t_hit) {
+          t_hit = t0;
+          face = entry_axis == 2 ? 1 : 2;
+        }
+      }
+      const Eigen::Vector3d p = centre + t_hit * ray;
+      float grey = testing::GroundTexture(p.x(), p.y());
+      if (face == 1) grey = 0.8f * testing::GroundTexture(p.x() + 50.0, p.y() - 40.0) + 40.0f;
+      if (face == 2) grey = 0.5f * testing::GroundTexture(p.x() + p.y(), p.z()) + 20.0f;
+      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = grey;
+    }
+  return v;
+}
+
+// A 4 m street between two 20 m buildings: only the views along it see its
+// floor, so the first sweep (all pairs) leaves much of it to the filling,
+// which takes the roofs. If that filling hides the street in the visibility
+// pass, no view sees the street's floor there and it stays a roof.
+TEST(Dense, AStreetBetweenRoofsIsNotHiddenByItsOwnFilling) {
+  NullProgress progress;
+  constexpr double kStreetHalfM = 2.0, kBuildingM = 20.0;
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 12, 18, 22, 15, 10}, azimuth_deg[] = {0, 90, 270, 0, 180, 180};
+  for (int v = 0; v < 6; ++v)
+    views.push_back(TwoBuildingsView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
+                                     kStreetHalfM, kBuildingM));
+  std::vector<DensePair> pairs;
+  for (int a = 0; a < 6; ++a)
+    for (int b = a + 1; b < 6; ++b) pairs.push_back({a, b, 100});
+  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
+  auto street_share = [&](bool fill_seen_holes, double* roof_share) {
+    DenseOptions o;
+    o.visibility_fill_seen_holes = fill_seen_holes;
+    const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
+    EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+    const HeightGrid& g = r.grid;
+    int n = 0, ground = 0, roof = 0;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+        if (std::abs(x) > kStreetHalfM - 0.5 || std::abs(y) > 8) continue;  // the street's middle, between the roofs
+        ++n;
+        ground += std::abs(g.height_m[g.Index(i, j)]) <= 1.0f;
+        roof += g.height_m[g.Index(i, j)] > 0.5f * kBuildingM;
+      }
+    *roof_share = static_cast<double>(roof) / n;
+    return static_cast<double>(ground) / n;
+  };
+  double roof_hidden = 0, roof_open = 0;
+  const double hidden = street_share(true, &roof_hidden), open = street_share(false, &roof_open);
+  // Measured: with the filled holes hiding, 74.9% of the street's middle at
+  // the ground and 25.1% at the roofs; without, 84.4% and 15.6%.
+  ASSERT_GT(roof_hidden, 0.15) << "the scene no longer fills its street at the roofs' height";
+  EXPECT_GE(open, hidden + 0.05);
+  EXPECT_LE(roof_open, roof_hidden - 0.05);
 }
 
 TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
