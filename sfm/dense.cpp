@@ -495,6 +495,20 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
   return out;
 }
 
+// Per view (ENU directions toward the cameras), the height above which each
+// cell of `surface_m` is seen (VisibleAbove), less `tolerance_m`: what the
+// visibility pass and the step decision count as seen.
+std::vector<std::vector<float>> SeenAbove(const HeightGrid& g, const std::vector<float>& surface_m,
+                                          const std::vector<Eigen::Vector3d>& to_cameras, double floor_m,
+                                          double tolerance_m) {
+  std::vector<std::vector<float>> seen_above(to_cameras.size());
+  tbb::parallel_for(0, static_cast<int>(to_cameras.size()), [&](int v) {
+    seen_above[v] = VisibleAbove(g, surface_m, to_cameras[v], floor_m);
+    for (float& h : seen_above[v]) h -= static_cast<float>(tolerance_m);
+  });
+  return seen_above;
+}
+
 // One candidate height of one cell scored with adaptive support weights:
 // every view that sees the point (all views without `seen_above`) is
 // sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
@@ -601,10 +615,11 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
 // a step takes whichever of the lowest and highest measured heights within
 // that reach scores the lower support-weighted cost (SupportWeightedCost),
 // where that cost is at most max_cost and step_cost_margin below the other
-// side's; the other cells keep their height. With `to_cameras` (per view slot), a side counts only the views
-// that see it past the surface less the cells being decided: with the
-// fattened band in it, the ground beside a roof is under the roof and no
-// view would see it. Returns how many cells changed side.
+// side's; the other cells keep their height. With `to_cameras` (per view
+// slot), a side counts only the views that see it past the surface less
+// the cells being decided: with the fattened band in it, the ground beside
+// a roof is under the roof and no view would see it. Returns how many cells
+// changed side.
 std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_cameras,
                         const std::vector<int>& nadir_first, std::vector<float>& height_m, Progress& progress) {
   const HeightGrid& g = s.grid;
@@ -637,11 +652,7 @@ std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_c
     std::vector<float> surface = before;
     for (std::size_t k = 0; k < surface.size(); ++k)
       if (std::isfinite(lo[k])) surface[k] = kNan;
-    seen_above.resize(to_cameras->size());
-    tbb::parallel_for(0, static_cast<int>(to_cameras->size()), [&](int v) {
-      seen_above[v] = VisibleAbove(g, surface, (*to_cameras)[v], s.z_lo);
-      for (float& h : seen_above[v]) h -= static_cast<float>(s.o.visibility_tolerance_m);
-    });
+    seen_above = SeenAbove(g, surface, *to_cameras, s.z_lo, s.o.visibility_tolerance_m);
   }
   progress.Begin("dense: deciding cells beside steps", g.ny);
   std::atomic<int> rows_done{0};
@@ -865,12 +876,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     if (!o.visibility_fill_seen_holes)
       for (std::size_t k = 0; k < cells; ++k)
         if (filled[k] && !fill_occluded[k]) surface[k] = kNan;
-    std::vector<std::vector<float>> seen_above(grey.size());
-    tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int k) {
-      const Eigen::Vector3d to_camera = views[used_views[k]].camera.Centre() - centre;
-      seen_above[k] = VisibleAbove(g, surface, to_camera, z_lo);
-      for (float& h : seen_above[k]) h -= static_cast<float>(o.visibility_tolerance_m);
-    });
+    const std::vector<std::vector<float>> seen_above = SeenAbove(g, surface, to_cameras, z_lo, o.visibility_tolerance_m);
     cost = CostVolume(sweep, &seen_above, "dense: sweeping heights the views see", progress);
     CellHeights second = PickHeights(sweep, cost, progress);
     for (std::size_t k = 0; k < cells; ++k)
