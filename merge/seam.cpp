@@ -16,7 +16,8 @@ Eigen::Vector2d EnuOfUtm(const EnuFrame& frame, const UtmZone& zone, double e, d
 
 }  // namespace
 
-SeamMetric MeasureSeams(const DsmGrid& dsm, const TileGrid& grid, const GeodeticPoint& enu_origin) {
+SeamMetric MeasureSeams(const DsmGrid& dsm, const TileOwnership& ownership, const GeodeticPoint& enu_origin) {
+  const TileGrid& grid = ownership.grid();
   if (dsm.width_px < 2 || dsm.height_px < 2) throw Error("merge", "seam metric", "DSM smaller than 2x2 pixels");
   const EnuFrame frame(enu_origin);
   const UtmZone zone = UtmZoneFromEpsg(dsm.epsg);
@@ -30,7 +31,7 @@ SeamMetric MeasureSeams(const DsmGrid& dsm, const TileGrid& grid, const Geodetic
   for (int r = 0; r < dsm.height_px; ++r) {
     for (int c = 0; c < dsm.width_px; ++c) {
       const Eigen::Vector2d p = p00 + c * dcol + r * drow;
-      const Eigen::Vector2i t = grid.Owner(p.x(), p.y());
+      const Eigen::Vector2i t = ownership.Owner(p.x(), p.y());
       owner[static_cast<std::size_t>(r) * dsm.width_px + c] = t.y() * grid.cols + t.x();
     }
   }

@@ -6,6 +6,7 @@
 
 #include "core/tile.h"
 #include "merge/dsm.h"
+#include "merge/ownership.h"
 
 namespace skyfall {
 
@@ -18,8 +19,10 @@ struct SeamMetric {
 };
 
 // Adjacent pixel pairs (4-neighbourhood) valid in both; a pixel's tile is
-// the owner of its centre in the ENU frame at `enu_origin`.
-SeamMetric MeasureSeams(const DsmGrid& dsm, const TileGrid& grid, const GeodeticPoint& enu_origin);
+// the owner of its centre in the ENU frame at `enu_origin` (`ownership`:
+// the core boundaries as bent by the merge's seam lines, so a step where
+// the merge switched tiles counts as a boundary step wherever it lies).
+SeamMetric MeasureSeams(const DsmGrid& dsm, const TileOwnership& ownership, const GeodeticPoint& enu_origin);
 
 // A north-up UTM grid (zone of `epsg`) covering `box` of the ENU frame at
 // `enu_origin`, with square pixels of `gsd_m`, without data.

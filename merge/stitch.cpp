@@ -25,8 +25,9 @@ openvdb::MaskGrid::Ptr NewMask(double voxel_m) {
   return grid;
 }
 
-openvdb::Coord VoxelOf(const openvdb::MaskGrid& grid, const Eigen::Vector3f& p) {
-  return grid.transform().worldToIndexCellCentered(openvdb::Vec3d(p.x(), p.y(), p.z()));
+// The occupancy cell of a point: its voxel, or its ground column (z = 0).
+openvdb::Coord VoxelOf(const openvdb::MaskGrid& grid, const Eigen::Vector3f& p, bool columns) {
+  return grid.transform().worldToIndexCellCentered(openvdb::Vec3d(p.x(), p.y(), columns ? 0.0 : p.z()));
 }
 
 bool AnyActiveNear(const openvdb::MaskGrid::ConstAccessor& acc, const openvdb::Coord& c, int radius) {
@@ -47,6 +48,7 @@ void StitchOptions::Check() const {
   if (match_radius_voxels < 0 || match_radius_voxels > 8) {
     throw Error("merge", "match_radius_voxels", "must be in [0, 8], got " + std::to_string(match_radius_voxels));
   }
+  seam_lines.Check();
 }
 
 Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPoint& to_origin) {
@@ -93,7 +95,7 @@ GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d
 }
 
 StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
-                         const std::vector<TileCloud>& tiles) {
+                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership) {
   options.Check();
   InitOpenVdb();
   Stopwatch clock;
@@ -108,7 +110,20 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     }
   }
 
-  // 1. Every cloud in the city frame; core and overlap Gaussians apart.
+  // 1. Who owns what: core boundaries bent to where neighbours agree. Every
+  //    cloud in the city frame; owned and overlap Gaussians apart.
+  if (ownership) {
+    result.ownership = *ownership;
+  } else {
+    constexpr double kSurfaceOpacity = 0.5;
+    std::vector<TileSpec> specs;
+    std::vector<SurfaceHeight> surfaces;
+    for (const TileCloud& t : tiles) {
+      specs.push_back(t.tile);
+      surfaces.push_back(SurfaceOfCentres(t.cloud, options.seam_lines.cell_m, kSurfaceOpacity));
+    }
+    result.ownership = PlanSeamLines(options.seam_lines, specs, surfaces);
+  }
   struct Split {
     GaussianCloud cloud;
     std::vector<std::size_t> core, overlap;
@@ -121,7 +136,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     split[k].cloud = TransformCloud(tiles[k].cloud, to_city);
     for (std::size_t i = 0; i < tiles[k].cloud.size(); ++i) {
       const Eigen::Vector3f& p = tiles[k].cloud.means[i];
-      const Eigen::Vector2i owner = grid.Owner(p.x(), p.y());
+      const Eigen::Vector2i owner = result.ownership.Owner(p.x(), p.y());
       if (owner.x() == spec.col && owner.y() == spec.row) {
         split[k].core.push_back(i);
       } else if (!spec.extent.Contains(p.x(), p.y())) {
@@ -141,7 +156,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     auto acc = mine->getAccessor();
     for (std::size_t i : split[k].core) {
       if (Sigmoid(split[k].cloud.opacity_logits[i]) >= options.min_opacity) {
-        acc.setValueOn(VoxelOf(*mine, split[k].cloud.means[i]));
+        acc.setValueOn(VoxelOf(*mine, split[k].cloud.means[i], options.occupancy_columns));
       }
       result.cloud.Append(split[k].cloud, i);
       result.source_tile.push_back(static_cast<int>(k));
@@ -160,7 +175,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     const auto filled_acc = filled->getConstAccessor();
     std::vector<std::size_t> fills;
     for (std::size_t i : split[k].overlap) {
-      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud.means[i]);
+      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud.means[i], options.occupancy_columns);
       if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
           AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
         ++result.duplicates_removed;
@@ -170,7 +185,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     }
     auto fill_acc = filled->getAccessor();
     for (std::size_t i : fills) {
-      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud.means[i]));
+      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud.means[i], options.occupancy_columns));
       result.cloud.Append(split[k].cloud, i);
       result.source_tile.push_back(static_cast<int>(k));
     }
@@ -183,7 +198,9 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
                            {"holes_filled", static_cast<double>(result.holes_filled)},
                            {"outside_extent_dropped", static_cast<double>(result.outside_extent)},
                            {"transparent_overlap_dropped", static_cast<double>(result.transparent_dropped)},
-                           {"occupied_voxels_union", static_cast<double>(result.occupied_voxels_union)}};
+                           {"occupied_voxels_union", static_cast<double>(result.occupied_voxels_union)},
+                           {"seam_lines", static_cast<double>(result.ownership.lines())},
+                           {"seam_line_mean_offset_m", result.ownership.MeanDeviationM()}};
   result.report.seconds = clock.Seconds();
   return result;
 }

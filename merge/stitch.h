@@ -1,8 +1,10 @@
 // Stitching independently reconstructed tiles into one scene: every
-// Gaussian is brought into the city frame, the tile whose core owns its
-// ground position keeps it, and OpenVDB occupancy grids decide in the
-// overlap bands whether a neighbour's Gaussian duplicates geometry the owner
-// already has (removed) or fills a hole the owner left (kept).
+// Gaussian is brought into the city frame, the tile that owns its ground
+// position keeps it (its core, up to the seam line that runs through the
+// overlap band where neighbours agree, merge/ownership.h), and OpenVDB
+// occupancy grids decide in the overlap bands whether a neighbour's
+// Gaussian duplicates geometry the owner already has (removed) or fills a
+// hole the owner left (kept).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -11,13 +13,9 @@
 #include "core/gaussians.h"
 #include "core/stage.h"
 #include "core/tile.h"
+#include "merge/ownership.h"
 
 namespace skyfall {
-
-struct TileCloud {
-  TileSpec tile;        // grid, core, extent and the frame the cloud is in
-  GaussianCloud cloud;  // in the ENU frame at tile.enu_origin
-};
 
 struct StitchOptions {
   double voxel_m = 1.0;         // [m] occupancy voxel edge
@@ -28,18 +26,26 @@ struct StitchOptions {
   // has an active voxel within this distance (tolerates the sub-metre
   // disagreement of two independent reconstructions of one surface).
   int match_radius_voxels = 1;
+  // Occupancy by ground column (true) or by voxel (false). By column, a
+  // neighbour's Gaussian over ground the owner covers at any height is a
+  // duplicate: where two tiles disagree on a roof's height by more than the
+  // match radius, a voxel test keeps both roofs, and the higher one shows
+  // in the DSM and renders as a step along the boundary.
+  bool occupancy_columns = true;
+  SeamLineOptions seam_lines;
   void Check() const;  // throws Error("merge", field, ...)
 };
 
 struct StitchResult {
   GaussianCloud cloud;              // in the city frame
   std::vector<int> source_tile;     // per kept Gaussian: index into the input tiles
-  std::size_t kept_in_core = 0;     // owned by the tile they came from
+  TileOwnership ownership;          // who kept what where (the seam metric judges steps across it)
+  std::size_t kept_in_core = 0;     // owned by the tile they came from (core up to the seam lines)
   std::size_t duplicates_removed = 0;
   std::size_t holes_filled = 0;     // kept from a neighbour where the owner had no geometry
   std::size_t outside_extent = 0;   // beyond the producing tile's extent (unsupported): dropped
   std::size_t transparent_dropped = 0;  // overlap Gaussians below min_opacity: dropped
-  std::vector<std::size_t> occupied_voxels_per_tile;
+  std::vector<std::size_t> occupied_voxels_per_tile;  // voxels, or columns (occupancy_columns)
   std::size_t occupied_voxels_union = 0;
   StageReport report;
 };
@@ -51,7 +57,10 @@ Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPo
 GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d& to_from);
 
 // All tiles must come from one tiling (same grid). Output frame: `city_origin`.
+// `ownership`: seam lines planned on the tiles' rendered surfaces; without
+// it they are planned on the opaque Gaussian centres (SurfaceOfCentres),
+// which suits clouds as dense as the line's cells only.
 StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
-                         const std::vector<TileCloud>& tiles);
+                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership = nullptr);
 
 }  // namespace skyfall

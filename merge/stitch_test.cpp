@@ -116,7 +116,11 @@ TEST(Stitch, ExactCopiesInTheOverlapAreKeptOnce) {
 
 TEST(Stitch, IndependentReconstructionsLeaveNoDuplicates) {
   const GaussianCloud truth = SurfaceCloud();
-  const StitchResult r = StitchTiles(StitchOptions{}, kCityOrigin, Reconstruct(truth, 0.15));
+  // Straight core boundaries: the seam lines would follow the jitter, and
+  // this test is about duplicates near a known boundary.
+  StitchOptions straight;
+  straight.seam_lines.enabled = false;
+  const StitchResult r = StitchTiles(straight, kCityOrigin, Reconstruct(truth, 0.15));
   // Jittered copies (sigma 0.15 m, within the 1-voxel match radius) in the
   // overlaps are recognised as duplicates: no truth Gaussian is kept twice.
   std::vector<int> copies(truth.size(), 0);
@@ -233,7 +237,7 @@ TEST(SeamMetric, FlagsAStepBetweenTilesAndNotAConsistentMerge) {
     const StitchResult r = StitchTiles(StitchOptions{}, kCityOrigin, t);
     DsmGrid dsm = GridCovering(bounds, kCityOrigin, 32617, 0.5);
     RasterizeDsm(r.cloud, kCityOrigin, DsmExportOptions{}, &dsm);
-    return MeasureSeams(dsm, TestGrid(), kCityOrigin);
+    return MeasureSeams(dsm, r.ownership, kCityOrigin);
   };
   const SeamMetric clean = seam_of(tiles);
   EXPECT_GT(clean.boundary_pairs, 400u);  // two boundary lines of 240 px
@@ -248,6 +252,115 @@ TEST(SeamMetric, FlagsAStepBetweenTilesAndNotAConsistentMerge) {
   // above 3 on an expected-depth DSM.
   EXPECT_GT(stepped.ratio, 2.0);
   EXPECT_NEAR(stepped.interior_mean_step_m, clean.interior_mean_step_m, 0.02);
+}
+
+TileOwnership PlanOnCentres(const std::vector<TileCloud>& tiles) {
+  std::vector<TileSpec> specs;
+  std::vector<SurfaceHeight> surfaces;
+  for (const TileCloud& t : tiles) {
+    specs.push_back(t.tile);
+    surfaces.push_back(SurfaceOfCentres(t.cloud, SeamLineOptions{}.cell_m, 0.5));
+  }
+  return PlanSeamLines(SeamLineOptions{}, specs, surfaces);
+}
+
+// Tile (1, 0) raised a patch 4 m that straddles its boundary with (0, 0)
+// (x in [-3, 2), y in [-40, -20)): a roof edge it placed too far out.
+std::vector<TileCloud> WithAWrongPatch(const GaussianCloud& truth) {
+  std::vector<TileCloud> tiles = Reconstruct(truth, 0.0);
+  for (Eigen::Vector3f& p : tiles[1].cloud.means)
+    if (p.x() >= -3 && p.x() < 2 && p.y() >= -40 && p.y() < -20) p.z() += 4.0f;
+  return tiles;
+}
+
+std::size_t WrongByMoreThan(const GaussianCloud& merged, double tolerance_m) {
+  std::size_t wrong = 0;
+  for (const Eigen::Vector3f& p : merged.means) wrong += std::abs(p.z() - Surface(p.x(), p.y())) > tolerance_m;
+  return wrong;
+}
+
+TEST(SeamLines, StayOnTheCoreBoundariesWhereTilesAgree) {
+  const StitchResult r = StitchTiles(StitchOptions{}, kCityOrigin, Reconstruct(SurfaceCloud(), 0.0));
+  EXPECT_EQ(r.ownership.lines(), 4u);  // two boundaries, each split in two by the other
+  EXPECT_EQ(r.ownership.MeanDeviationM(), 0.0);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> coord(-64, 64);
+  for (int k = 0; k < 20000; ++k) {
+    const double x = coord(rng), y = coord(rng);
+    ASSERT_EQ(r.ownership.Owner(x, y), TestGrid().Owner(x, y)) << x << " " << y;
+  }
+}
+
+TEST(SeamLines, GoAroundWhereOneTileIsWrong) {
+  const GaussianCloud truth = SurfaceCloud();
+  StitchOptions straight;
+  straight.seam_lines.enabled = false;
+  const StitchResult cut = StitchTiles(straight, kCityOrigin, WithAWrongPatch(truth));
+  // Straight: the wrong tile keeps x in [0, 2) of the patch, 4 x 40
+  // Gaussians of the 0.5 m lattice (the rest of it is the neighbour's
+  // ground, which the owner covers: duplicates by column).
+  EXPECT_EQ(WrongByMoreThan(cut.cloud, 1.0), 160u);
+  // By voxel, the wrong tile's raised ground in x in [-3, -1.5) (its
+  // overlap) is no duplicate of the owner's ground 4 m below: kept too, 3 x
+  // 40 more (nearer x = 0 it lies within the match radius of its own raised
+  // core, and goes).
+  StitchOptions voxels = straight;
+  voxels.occupancy_columns = false;
+  EXPECT_EQ(WrongByMoreThan(StitchTiles(voxels, kCityOrigin, WithAWrongPatch(truth)).cloud, 1.0), 160u + 120u);
+  const StitchResult bent = StitchTiles(StitchOptions{}, kCityOrigin, WithAWrongPatch(truth));
+  // The line leaves the patch to the tile that got it right: cut at x >= 2
+  // along it (the band reaches 4 m, half the 8 m margin).
+  EXPECT_EQ(WrongByMoreThan(bent.cloud, 1.0), 0u);
+  for (double y = -39.75; y < -20; y += 0.5) EXPECT_EQ(bent.ownership.Owner(1.75, y), Eigen::Vector2i(0, 0)) << y;
+  EXPECT_EQ(bent.ownership.Owner(1.75, 10.0), Eigen::Vector2i(1, 1));  // elsewhere still straight
+  EXPECT_EQ(bent.ownership.Owner(-0.25, -60.0), Eigen::Vector2i(0, 0));
+  EXPECT_EQ(bent.ownership.Owner(0.25, -60.0), Eigen::Vector2i(1, 0));
+  EXPECT_GT(bent.ownership.MeanDeviationM(), 0.0);
+}
+
+TEST(SeamLines, EveryPointHasOneOwnerThatReconstructedIt) {
+  // Noisy tiles (0.5 m) make the lines wander all over their bands.
+  const std::vector<TileCloud> tiles = Reconstruct(SurfaceCloud(), 0.5);
+  const TileOwnership own = PlanOnCentres(tiles);
+  EXPECT_GT(own.MeanDeviationM(), 0.2);
+  const std::vector<TileSpec> specs = TestTiles();
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> coord(-64, 64);
+  for (int k = 0; k < 50000; ++k) {
+    const double x = coord(rng), y = coord(rng);
+    const Eigen::Vector2i o = own.Owner(x, y);
+    ASSERT_TRUE(o.x() >= 0 && o.x() < 2 && o.y() >= 0 && o.y() < 2);
+    const TileSpec& t = specs[static_cast<std::size_t>(o.y()) * 2 + o.x()];
+    ASSERT_TRUE(t.extent.Contains(x, y)) << x << " " << y << " given to " << t.id;
+    // Within half the margin (the band) of its core.
+    ASSERT_LE(std::max({t.core.min_m.x() - x, x - t.core.max_m.x(), t.core.min_m.y() - y, y - t.core.max_m.y()}),
+              0.5 * kOverlapM + 1e-9);
+  }
+}
+
+TEST(SeamLines, ABoundaryWithAMissingTileStaysStraight) {
+  std::vector<TileCloud> tiles = WithAWrongPatch(SurfaceCloud());
+  tiles.erase(tiles.begin());  // tile (0, 0) did not finish
+  const TileOwnership own = PlanOnCentres(tiles);
+  EXPECT_EQ(own.lines(), 2u);  // (1, 0)-(1, 1) and (0, 1)-(1, 1)
+  EXPECT_EQ(own.Owner(1.75, -30.0), Eigen::Vector2i(1, 0));
+}
+
+TEST(SeamLines, OptionsNameTheBadField) {
+  auto field_of = [](auto mutate) {
+    StitchOptions o;
+    mutate(o.seam_lines);
+    try {
+      o.Check();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(field_of([](SeamLineOptions& s) { s.band_fraction = 1.5; }).find("seam_lines.band_fraction"), std::string::npos);
+  EXPECT_NE(field_of([](SeamLineOptions& s) { s.cell_m = 0; }).find("seam_lines.cell_m"), std::string::npos);
+  EXPECT_NE(field_of([](SeamLineOptions& s) { s.centre_pull_m = 0; }).find("seam_lines.centre_pull_m"), std::string::npos);
+  EXPECT_EQ(field_of([](SeamLineOptions&) {}), "no error");
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/aoi_catalog.h"
@@ -13,11 +14,52 @@
 #include "merge/stitch.h"
 #include "pipeline/stage_jobs.h"
 #include "splat/ply.h"
+#include "tiler/geo.h"
 
 namespace skyfall {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+
+namespace {
+
+// A tile's DSM rendered as the merge's own DSM is (median depth from a
+// nadir camera) on a UTM grid over its extent, read back at ENU points.
+SurfaceHeight RenderedSurface(const TileCloud& tile, int epsg, double gsd_m, const DsmExportOptions& dsm_options) {
+  auto dsm = std::make_shared<DsmGrid>(GridCovering(tile.tile.extent, tile.tile.enu_origin, epsg, gsd_m));
+  RasterizeDsm(tile.cloud, tile.tile.enu_origin, dsm_options, dsm.get());
+  const EnuFrame frame(tile.tile.enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(epsg);
+  return [dsm, frame, zone](double east_m, double north_m) {
+    const GeodeticPoint g = frame.GeodeticFromEnu({east_m, north_m, 0.0});
+    const Eigen::Vector2d utm = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
+    const double col = std::floor((utm.x() - dsm->upper_left_easting_m) / dsm->gsd_m);
+    const double row = std::floor((dsm->upper_left_northing_m - utm.y()) / dsm->gsd_m);
+    if (col < 0 || row < 0 || col >= dsm->width_px || row >= dsm->height_px) return std::nanf("");
+    return dsm->At(static_cast<int>(col), static_cast<int>(row));
+  };
+}
+
+// Seam lines on the tiles' rendered surfaces (on their Gaussian centres
+// when no CRS is known).
+TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions& dsm_options,
+                            const std::vector<TileCloud>& clouds, int epsg, Progress& progress) {
+  std::vector<TileSpec> specs;
+  std::vector<SurfaceHeight> surfaces;
+  const bool rendered = options.stitch.seam_lines.enabled && epsg != 0;
+  if (rendered) progress.Begin("merge: rendering tile surfaces for the seam lines", clouds.size());
+  for (std::size_t k = 0; k < clouds.size(); ++k) {
+    specs.push_back(clouds[k].tile);
+    constexpr double kCentreOpacity = 0.5;
+    surfaces.push_back(rendered ? RenderedSurface(clouds[k], epsg, options.stitch.seam_lines.cell_m, dsm_options)
+                                : SurfaceOfCentres(clouds[k].cloud, options.stitch.seam_lines.cell_m, kCentreOpacity));
+    if (rendered) progress.Advance(k + 1, clouds[k].tile.id);
+  }
+  if (rendered) progress.End();
+  return PlanSeamLines(options.stitch.seam_lines, specs, surfaces);
+}
+
+}  // namespace
 
 MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
                         const DsmExportOptions& dsm_options, Progress& progress) {
@@ -60,7 +102,8 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   const json& o = index.at("enu_origin");
   summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
 
-  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, clouds);
+  const TileOwnership ownership = PlanOwnership(options, dsm_options, clouds, summary.epsg, progress);
+  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, clouds, &ownership);
   fs::create_directories(out_dir);
   summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
   WriteGaussiansPly(summary.scene_path, stitched.cloud);
@@ -72,7 +115,7 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   DsmGrid city = GridCovering(bounds, summary.enu_origin, summary.epsg, options.seam_gsd_m);
   RasterizeDsm(stitched.cloud, summary.enu_origin, dsm_options, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
-  summary.seam = MeasureSeams(city, clouds[0].tile.grid, summary.enu_origin);
+  summary.seam = MeasureSeams(city, stitched.ownership, summary.enu_origin);
   summary.tiles_merged = clouds.size();
   summary.tiles_missing = missing.size();
   summary.lod_levels = static_cast<int>(lod.size());

@@ -264,10 +264,20 @@ template <class IO> void Visit(IO& io, IduStageOptions& o) {
   io("reproject", o.reproject);
   io("auto", o.auto_decision);
 }
+template <class IO> void Visit(IO& io, SeamLineOptions& o) {
+  io("enabled", o.enabled);
+  io("cell_m", o.cell_m);
+  io("band_fraction", o.band_fraction);
+  io("max_step_m", o.max_step_m);
+  io("bend_m", o.bend_m);
+  io("centre_pull_m", o.centre_pull_m);
+}
 template <class IO> void Visit(IO& io, StitchOptions& o) {
   io("voxel_m", o.voxel_m);
   io("min_opacity", o.min_opacity);
   io("match_radius_voxels", o.match_radius_voxels);
+  io("occupancy_columns", o.occupancy_columns);
+  io("seam_lines", o.seam_lines);
 }
 template <class IO> void Visit(IO& io, LodOptions& o) {
   io("max_levels", o.max_levels);
