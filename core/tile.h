@@ -31,7 +31,7 @@ struct GroundBox {
 struct TileGrid {
   Eigen::Vector2d origin_m = Eigen::Vector2d::Zero();  // lower-left corner of core (0, 0)
   double tile_m = 256.0;
-  double overlap_m = 16.0;
+  double overlap_m = 8.0;
   int cols = 0;  // along east
   int rows = 0;  // along north
 

@@ -46,9 +46,17 @@ CutLine DecideLine(const SeamLineOptions& o, const Band& band, const std::vector
                            : static_cast<float>(o.max_step_m);
   }
   const int middle = na / 2;  // the core boundary
+  // A cut between cells k - 1 (first tile) and k (second) costs the tiles'
+  // disagreement on both cells plus the step it leaves in the merged
+  // surface: where they agree on a wall, cutting along it would still put
+  // the whole wall on the line.
+  const float cap = static_cast<float>(o.max_step_m);
   auto cost = [&](int l, int k) {
-    const float* row = &disagreement[static_cast<std::size_t>(l) * na];
-    return std::max(row[k - 1], row[k]) + o.centre_pull_m * std::abs(k - middle);
+    const std::size_t at = static_cast<std::size_t>(l) * na;
+    const float* row = &disagreement[at];
+    const float step = std::abs(first[at + k - 1] - second[at + k]);
+    return std::max(row[k - 1], row[k]) + (std::isfinite(step) ? std::min(step, cap) : cap) +
+           o.centre_pull_m * std::abs(k - middle);
   };
   std::vector<double> total(positions), next(positions);
   std::vector<std::int8_t> came_from(static_cast<std::size_t>(nl) * positions, 0);

@@ -11,7 +11,7 @@
 #   SKYFALL_SCALE_CASES       tiles per city, default "1 2 4 8"
 #   SKYFALL_SCALE_SIZE_M      AOI (and tile core) side [m], default 256
 #   SKYFALL_SCALE_ITERATIONS  training steps per tile, default 300
-#   SKYFALL_SCALE_OVERLAP_M   tile overlap margin [m], default 16 (the product default)
+#   SKYFALL_SCALE_OVERLAP_M   tile overlap margin [m], default 8 (the product default)
 #   SKYFALL_SCALE_REPEATS     runs per city, default 3: whole runs on 2 cores
 #                             spread by about 10%, so one run per city moves
 #                             a time ratio by +-0.4; the ratios use each
@@ -26,7 +26,7 @@ OUT=${1:-out/bench_scale}
 ITER=${SKYFALL_SCALE_ITERATIONS:-300}
 REPEATS=${SKYFALL_SCALE_REPEATS:-3}
 SIZE=${SKYFALL_SCALE_SIZE_M:-256}
-OVERLAP=${SKYFALL_SCALE_OVERLAP_M:-16}
+OVERLAP=${SKYFALL_SCALE_OVERLAP_M:-8}
 source scripts/bench_env.sh
 mkdir -p "$OUT"
 CASES=${SKYFALL_SCALE_CASES:-1 2 4 8}

@@ -13,14 +13,13 @@ namespace skyfall {
 
 struct TilingOptions {
   double tile_m = 256.0;      // [m] side of a tile core
-  // [m] margin reconstructed around each core. 16 m: on four synthetic
-  // cities (buildings to 180 m, views to 40 deg off nadir, 100 m of relief)
-  // no AOI's DSM was worse than with 32 m, and an inner tile reconstructs
-  // 1.27x its core instead of 1.56x. With 8 m (1.13x) the AOIs' DSM MAE was
-  // within 1%, but the tiles disagree more where they meet: the merged
-  // DSM's mean height step across tile boundaries was 1.17 -> 1.91 m on an
-  // 8-tile city (docs/benchmarks.md, "Scaling with area").
-  double overlap_m = 16.0;
+  // [m] margin reconstructed around each core. 8 m: an inner tile
+  // reconstructs 1.13x its core (1.27x at 16 m). With the merge's seam lines
+  // (merge/ownership.h), the merged DSM's mean height step where tiles meet
+  // was at most 0.51 m on four cities (1.17 m at the 16 m default before
+  // them), and the AOIs' DSM MAE within 1% of 16 m's; completeness 0.2-0.6
+  // points lower (docs/benchmarks.md, "Seam lines").
+  double overlap_m = 8.0;
   // An image is used for a tile when at least this fraction of the tile's
   // projected 3D box (extent x height range) falls inside the image.
   double min_coverage = 0.5;
