@@ -112,9 +112,12 @@ Eigen::Vector2i TileOwnership::Owner(double east_m, double north_m) const {
     return index >= 0 && index < static_cast<int>(lines.size()) && !lines[index].cut_m.empty() ? &lines[index] : nullptr;
   };
   // Across the column boundaries of the core's row, then across the row
-  // boundaries of the core's column: a function of the point alone, so
-  // every point has exactly one owner.
-  const int col = core.x(), row = core.y();
+  // boundaries of the column so chosen: a function of the point alone, so
+  // every point has exactly one owner, and near a corner the row is decided
+  // by the line planned between the two tiles it chooses from (never
+  // toward a tile that is missing: lines beside one are straight).
+  const int row = core.y();
+  int col = core.x();
   if (const CutLine* l = col + 1 < grid_.cols ? line(vertical_, row * (grid_.cols - 1) + col) : nullptr;
       l && east_m >= l->CutAt(north_m)) {
     out.x() = col + 1;
@@ -122,6 +125,7 @@ Eigen::Vector2i TileOwnership::Owner(double east_m, double north_m) const {
              l && east_m < l->CutAt(north_m)) {
     out.x() = col - 1;
   }
+  col = out.x();
   if (const CutLine* l = row + 1 < grid_.rows ? line(horizontal_, col * (grid_.rows - 1) + row) : nullptr;
       l && north_m >= l->CutAt(east_m)) {
     out.y() = row + 1;
@@ -159,10 +163,11 @@ double TileOwnership::MeanDeviationM() const {
 
 SurfaceHeight SurfaceOfCentres(const GaussianCloud& cloud, double cell_m, double min_opacity) {
   auto key = [cell_m](double e, double n) {
-    return (static_cast<std::int64_t>(std::floor(e / cell_m)) << 32) ^
-           (static_cast<std::int64_t>(std::floor(n / cell_m)) & 0xffffffff);
+    const auto i = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(e / cell_m)));
+    const auto j = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(n / cell_m)));
+    return (i << 32) ^ (j & 0xffffffffu);
   };
-  auto top = std::make_shared<std::unordered_map<std::int64_t, float>>();
+  auto top = std::make_shared<std::unordered_map<std::uint64_t, float>>();
   const float min_logit = static_cast<float>(std::log(min_opacity / (1.0 - min_opacity)));
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (cloud.opacity_logits[i] < min_logit) continue;

@@ -4,9 +4,10 @@
 // and the merged surface steps along the boundary. Orthomosaics route their
 // seam lines along streets rather than through buildings; here each tile
 // boundary gets a cut line inside the overlap band that follows where the
-// two tiles' surfaces agree: the least total disagreement over the line,
-// found by dynamic programming along it, moving at most one cell sideways
-// per cell along.
+// two tiles' surfaces agree: the least total cost over the line (the tiles'
+// disagreement beside the cut plus the height step the cut leaves), found
+// by dynamic programming along it, moving at most one cell sideways per
+// cell along.
 #pragma once
 
 #include <Eigen/Core>
@@ -37,8 +38,10 @@ struct SeamLineOptions {
   // [m] disagreements are capped here, and a cell only one tile has costs
   // this much: one wrong building does not outweigh a whole street.
   double max_step_m = 5.0;
-  // [m] added per cell the line moves sideways: where the tiles agree
-  // everywhere the line stays straight on the core boundary.
+  // [m] added per cell the line moves sideways: where the tiles agree on a
+  // flat surface the line stays straight on the core boundary (beside a
+  // wall it may step off it, since a cut along a wall leaves the wall's
+  // height as the step).
   double bend_m = 0.02;
   // [m] added per cell along for each cell the line is off the boundary:
   // a detour ends where the disagreement does.

@@ -114,6 +114,8 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
   //    cloud in the city frame; owned and overlap Gaussians apart.
   if (ownership) {
     result.ownership = *ownership;
+  } else if (!options.seam_lines.enabled) {
+    result.ownership = TileOwnership(grid);
   } else {
     constexpr double kSurfaceOpacity = 0.5;
     std::vector<TileSpec> specs;

@@ -13,33 +13,33 @@
 namespace skyfall {
 namespace {
 
-// A 2 x 2 tiling of a 128 m square city centred on the frame origin.
+// A tiling of 64 m tiles (2 x 2 by default: a 128 m square city centred on
+// the frame origin), its lower-left corner at (-64, -64).
 constexpr double kTileM = 64.0, kOverlapM = 8.0;
 const GeodeticPoint kCityOrigin{-81.6637, 30.3488, 10.0};
 
-TileGrid TestGrid() {
+TileGrid TestGrid(int cols = 2, int rows = 2) {
   TileGrid g;
   g.origin_m = {-64.0, -64.0};
   g.tile_m = kTileM;
   g.overlap_m = kOverlapM;
-  g.cols = g.rows = 2;
+  g.cols = cols;
+  g.rows = rows;
   return g;
 }
 
-std::vector<TileSpec> TestTiles() {
-  const TileGrid g = TestGrid();
-  GroundBox bounds;
-  bounds.min_m = {-64, -64};
-  bounds.max_m = {64, 64};
+std::vector<TileSpec> TestTiles(int cols = 2, int rows = 2) {
+  const TileGrid g = TestGrid(cols, rows);
+  const Eigen::Array2d lo(-64, -64), hi(-64 + cols * kTileM, -64 + rows * kTileM);
   std::vector<TileSpec> tiles;
-  for (int row = 0; row < 2; ++row) {
-    for (int col = 0; col < 2; ++col) {
+  for (int row = 0; row < rows; ++row) {
+    for (int col = 0; col < cols; ++col) {
       TileSpec t;
       t.id = "T_c" + std::to_string(col) + "_r" + std::to_string(row);
       t.col = col, t.row = row, t.grid = g;
       t.core = g.Core(col, row);
-      t.extent.min_m = (t.core.min_m.array() - kOverlapM).max(-64.0);
-      t.extent.max_m = (t.core.max_m.array() + kOverlapM).min(64.0);
+      t.extent.min_m = (t.core.min_m.array() - kOverlapM).max(lo);
+      t.extent.max_m = (t.core.max_m.array() + kOverlapM).min(hi);
       t.enu_origin = kCityOrigin;
       tiles.push_back(t);
     }
@@ -50,10 +50,10 @@ std::vector<TileSpec> TestTiles() {
 double Surface(double x, double y) { return 3.0 * std::sin(x / 10.0) * std::cos(y / 13.0); }
 
 // Opaque Gaussians on a 0.5 m lattice of a hilly surface.
-GaussianCloud SurfaceCloud() {
+GaussianCloud SurfaceCloud(int cols = 2, int rows = 2) {
   GaussianCloud c;
-  for (double y = -63.75; y < 64; y += 0.5) {
-    for (double x = -63.75; x < 64; x += 0.5) {
+  for (double y = -63.75; y < -64 + rows * kTileM; y += 0.5) {
+    for (double x = -63.75; x < -64 + cols * kTileM; x += 0.5) {
       c.means.emplace_back(x, y, Surface(x, y));
       c.log_scales.emplace_back(Eigen::Vector3f::Constant(std::log(0.35f)));
       c.rotations.emplace_back(1, 0, 0, 0);
@@ -81,10 +81,10 @@ GaussianCloud TileView(const GaussianCloud& truth, const TileSpec& t, double jit
   return out;
 }
 
-std::vector<TileCloud> Reconstruct(const GaussianCloud& truth, double jitter_m) {
+std::vector<TileCloud> Reconstruct(const GaussianCloud& truth, double jitter_m, int cols = 2, int rows = 2) {
   std::vector<TileCloud> tiles;
   std::uint64_t seed = 1;
-  for (const TileSpec& t : TestTiles()) tiles.push_back({t, TileView(truth, t, jitter_m, seed++)});
+  for (const TileSpec& t : TestTiles(cols, rows)) tiles.push_back({t, TileView(truth, t, jitter_m, seed++)});
   return tiles;
 }
 
@@ -308,8 +308,11 @@ TEST(SeamLines, GoAroundWhereOneTileIsWrong) {
   voxels.occupancy_columns = false;
   EXPECT_EQ(WrongByMoreThan(StitchTiles(voxels, kCityOrigin, WithAWrongPatch(truth)).cloud, 1.0), 160u + 120u);
   const StitchResult bent = StitchTiles(StitchOptions{}, kCityOrigin, WithAWrongPatch(truth));
-  // The line leaves the patch to the tile that got it right: cut at x >= 2
-  // along it (the band reaches 4 m, half the 8 m margin).
+  // The line goes round the patch on its nearer side: 2 m into the wrong
+  // tile's core rather than 3 m into the other's (the band reaches 4 m,
+  // half the 8 m margin). Here that leaves the patch to the tile that got
+  // it right; which tile is right the merge cannot know, and the nearer
+  // side keeps each tile closest to its own core.
   EXPECT_EQ(WrongByMoreThan(bent.cloud, 1.0), 0u);
   for (double y = -39.75; y < -20; y += 0.5) EXPECT_EQ(bent.ownership.Owner(1.75, y), Eigen::Vector2i(0, 0)) << y;
   EXPECT_EQ(bent.ownership.Owner(1.75, 10.0), Eigen::Vector2i(1, 1));  // elsewhere still straight
@@ -344,6 +347,56 @@ TEST(SeamLines, ABoundaryWithAMissingTileStaysStraight) {
   const TileOwnership own = PlanOnCentres(tiles);
   EXPECT_EQ(own.lines(), 2u);  // (1, 0)-(1, 1) and (0, 1)-(1, 1)
   EXPECT_EQ(own.Owner(1.75, -30.0), Eigen::Vector2i(1, 0));
+}
+
+TEST(SeamLines, EachLineServesItsOwnBoundaryOnA3x3Grid) {
+  // Tile (1, 1) raised two patches over its core's edges: one across its
+  // boundary with (0, 1) (x = 0), one across that with (1, 0) (y = 0). On
+  // a 3 x 3 grid these two lines' indices differ from those of the other
+  // convention (row-major for columns, column-major for rows).
+  const GaussianCloud truth = SurfaceCloud(3, 3);
+  std::vector<TileCloud> tiles = Reconstruct(truth, 0.0, 3, 3);
+  for (Eigen::Vector3f& p : tiles[4].cloud.means) {
+    const bool across_x = p.x() >= -3 && p.x() < 2 && p.y() >= 20 && p.y() < 40;
+    const bool across_y = p.y() >= -3 && p.y() < 2 && p.x() >= 20 && p.x() < 40;
+    if (across_x || across_y) p.z() += 4.0f;
+  }
+  const StitchResult r = StitchTiles(StitchOptions{}, kCityOrigin, tiles);
+  EXPECT_EQ(r.ownership.lines(), 12u);
+  EXPECT_EQ(WrongByMoreThan(r.cloud, 1.0), 0u);
+  EXPECT_EQ(r.ownership.Owner(1.75, 30.0), Eigen::Vector2i(0, 1));  // the lines went round the patches
+  EXPECT_EQ(r.ownership.Owner(30.0, 1.75), Eigen::Vector2i(1, 0));
+  // The other boundaries' lines stay straight.
+  EXPECT_EQ(r.ownership.Owner(1.75, -30.0), Eigen::Vector2i(1, 0));
+  EXPECT_EQ(r.ownership.Owner(1.75, 94.0), Eigen::Vector2i(1, 2));
+  EXPECT_EQ(r.ownership.Owner(94.0, 1.75), Eigen::Vector2i(2, 1));
+  EXPECT_EQ(r.ownership.Owner(-30.0, 1.75), Eigen::Vector2i(0, 1));
+  EXPECT_EQ(r.ownership.Owner(65.75, 30.0), Eigen::Vector2i(2, 1));
+}
+
+TEST(SeamLines, NothingGoesToAMissingTileNearACorner) {
+  // Tile (1, 1) did not finish. Tiles (1, 0) and (0, 1) raised patches by
+  // the corner that reach 1 m into (0, 0)'s core, so both lines beside
+  // (0, 0) bend into its core there (to x, y = -1.5). A point at (-0.5,
+  // -0.5) then crosses both lines; its row must come from the line of the
+  // column it went to ((1, 0) | (1, 1): straight), not toward (1, 1).
+  std::vector<TileCloud> tiles = Reconstruct(SurfaceCloud(), 0.0);
+  tiles.pop_back();
+  for (Eigen::Vector3f& p : tiles[1].cloud.means)
+    if (p.x() >= -1 && p.x() < 3.5 && p.y() >= -4 && p.y() < 0) p.z() += 4.0f;
+  for (Eigen::Vector3f& p : tiles[2].cloud.means)
+    if (p.y() >= -1 && p.y() < 3.5 && p.x() >= -4 && p.x() < 0) p.z() += 4.0f;
+  const TileOwnership own = PlanOnCentres(tiles);
+  EXPECT_EQ(own.lines(), 2u);
+  EXPECT_EQ(own.Owner(-0.75, -2.0), Eigen::Vector2i(1, 0));  // the vertical line bent into (0, 0)
+  EXPECT_EQ(own.Owner(-2.0, -0.75), Eigen::Vector2i(0, 1));  // and the horizontal one
+  EXPECT_EQ(own.Owner(-0.5, -0.5), Eigen::Vector2i(1, 0));
+  for (double y = -6; y < 6; y += 0.1) {
+    for (double x = -6; x < 6; x += 0.1) {
+      if (TestGrid().Owner(x, y) == Eigen::Vector2i(1, 1)) continue;
+      ASSERT_NE(own.Owner(x, y), Eigen::Vector2i(1, 1)) << x << " " << y;
+    }
+  }
 }
 
 TEST(SeamLines, OptionsNameTheBadField) {

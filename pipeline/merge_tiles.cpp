@@ -44,9 +44,10 @@ SurfaceHeight RenderedSurface(const TileCloud& tile, int epsg, double gsd_m, con
 // when no CRS is known).
 TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions& dsm_options,
                             const std::vector<TileCloud>& clouds, int epsg, Progress& progress) {
+  if (!options.stitch.seam_lines.enabled) return TileOwnership(clouds[0].tile.grid);
   std::vector<TileSpec> specs;
   std::vector<SurfaceHeight> surfaces;
-  const bool rendered = options.stitch.seam_lines.enabled && epsg != 0;
+  const bool rendered = epsg != 0;
   if (rendered) progress.Begin("merge: rendering tile surfaces for the seam lines", clouds.size());
   for (std::size_t k = 0; k < clouds.size(); ++k) {
     specs.push_back(clouds[k].tile);
