@@ -84,6 +84,36 @@ CutLine DecideLine(const SeamLineOptions& o, const Band& band, const std::vector
   return line;
 }
 
+// The highest opaque Gaussian centre per cell of `cell_m`; NaN where none.
+SurfaceHeight SurfaceOfCentres(const GaussianCloud& cloud, double cell_m, double min_opacity) {
+  auto key = [cell_m](double e, double n) {
+    const auto i = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(e / cell_m)));
+    const auto j = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(n / cell_m)));
+    return (i << 32) ^ (j & 0xffffffffu);
+  };
+  auto top = std::make_shared<std::unordered_map<std::uint64_t, float>>();
+  const float min_logit = static_cast<float>(std::log(min_opacity / (1.0 - min_opacity)));
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud.opacity_logits[i] < min_logit) continue;
+    const Eigen::Vector3f& p = cloud.means[i];
+    auto [it, added] = top->emplace(key(p.x(), p.y()), p.z());
+    if (!added) it->second = std::max(it->second, p.z());
+  }
+  return [top, key](double e, double n) {
+    const auto it = top->find(key(e, n));
+    return it == top->end() ? std::numeric_limits<float>::quiet_NaN() : it->second;
+  };
+}
+
+// -1, 0 or +1: whether a point (across, along) lies past the line to the
+// next cell, before the line to the previous one, or between them (a null
+// line: straight, nothing crosses it).
+int Crossing(const CutLine* to_next, const CutLine* to_previous, double across_m, double along_m) {
+  if (to_next && across_m >= to_next->CutAt(along_m)) return 1;
+  if (to_previous && across_m < to_previous->CutAt(along_m)) return -1;
+  return 0;
+}
+
 }  // namespace
 
 void SeamLineOptions::Check() const {
@@ -117,22 +147,11 @@ Eigen::Vector2i TileOwnership::Owner(double east_m, double north_m) const {
   // by the line planned between the two tiles it chooses from (never
   // toward a tile that is missing: lines beside one are straight).
   const int row = core.y();
-  int col = core.x();
-  if (const CutLine* l = col + 1 < grid_.cols ? line(vertical_, row * (grid_.cols - 1) + col) : nullptr;
-      l && east_m >= l->CutAt(north_m)) {
-    out.x() = col + 1;
-  } else if (const CutLine* l = col > 0 ? line(vertical_, row * (grid_.cols - 1) + col - 1) : nullptr;
-             l && east_m < l->CutAt(north_m)) {
-    out.x() = col - 1;
-  }
-  col = out.x();
-  if (const CutLine* l = row + 1 < grid_.rows ? line(horizontal_, col * (grid_.rows - 1) + row) : nullptr;
-      l && north_m >= l->CutAt(east_m)) {
-    out.y() = row + 1;
-  } else if (const CutLine* l = row > 0 ? line(horizontal_, col * (grid_.rows - 1) + row - 1) : nullptr;
-             l && north_m < l->CutAt(east_m)) {
-    out.y() = row - 1;
-  }
+  out.x() += Crossing(core.x() + 1 < grid_.cols ? line(vertical_, row * (grid_.cols - 1) + core.x()) : nullptr,
+                      core.x() > 0 ? line(vertical_, row * (grid_.cols - 1) + core.x() - 1) : nullptr, east_m, north_m);
+  const int col = out.x();
+  out.y() += Crossing(row + 1 < grid_.rows ? line(horizontal_, col * (grid_.rows - 1) + row) : nullptr,
+                      row > 0 ? line(horizontal_, col * (grid_.rows - 1) + row - 1) : nullptr, north_m, east_m);
   return out;
 }
 
@@ -159,26 +178,6 @@ double TileOwnership::MeanDeviationM() const {
   add(vertical_, true);
   add(horizontal_, false);
   return cells ? sum / cells : 0.0;
-}
-
-SurfaceHeight SurfaceOfCentres(const GaussianCloud& cloud, double cell_m, double min_opacity) {
-  auto key = [cell_m](double e, double n) {
-    const auto i = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(e / cell_m)));
-    const auto j = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(n / cell_m)));
-    return (i << 32) ^ (j & 0xffffffffu);
-  };
-  auto top = std::make_shared<std::unordered_map<std::uint64_t, float>>();
-  const float min_logit = static_cast<float>(std::log(min_opacity / (1.0 - min_opacity)));
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    if (cloud.opacity_logits[i] < min_logit) continue;
-    const Eigen::Vector3f& p = cloud.means[i];
-    auto [it, added] = top->emplace(key(p.x(), p.y()), p.z());
-    if (!added) it->second = std::max(it->second, p.z());
-  }
-  return [top, key](double e, double n) {
-    const auto it = top->find(key(e, n));
-    return it == top->end() ? std::numeric_limits<float>::quiet_NaN() : it->second;
-  };
 }
 
 TileOwnership PlanSeamLines(const SeamLineOptions& options, const std::vector<TileSpec>& tiles,
@@ -233,6 +232,19 @@ TileOwnership PlanSeamLines(const SeamLineOptions& options, const std::vector<Ti
         out.horizontal_[static_cast<std::size_t>(col) * (g.rows - 1) + row] = plan(index(col, row), index(col, row + 1), false);
   }
   return out;
+}
+
+TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const std::vector<TileCloud>& tiles) {
+  if (tiles.empty()) return TileOwnership();
+  if (!options.enabled) return TileOwnership(tiles[0].tile.grid);
+  constexpr double kSurfaceOpacity = 0.5;
+  std::vector<TileSpec> specs;
+  std::vector<SurfaceHeight> surfaces;
+  for (const TileCloud& t : tiles) {
+    specs.push_back(t.tile);
+    surfaces.push_back(SurfaceOfCentres(t.cloud, options.cell_m, kSurfaceOpacity));
+  }
+  return PlanSeamLines(options, specs, surfaces);
 }
 
 }  // namespace skyfall

@@ -83,16 +83,18 @@ class TileOwnership {
   std::vector<CutLine> horizontal_;
 };
 
-// The highest opaque (>= min_opacity) Gaussian centre per cell of `cell_m`:
-// a surface for clouds as dense as their cells (tests, dense heights). A
-// trained scene has about one Gaussian per square metre, most of them
-// translucent: render its DSM instead (pipeline/merge_tiles.cpp).
-SurfaceHeight SurfaceOfCentres(const GaussianCloud& cloud, double cell_m, double min_opacity);
-
 // Cut lines for every boundary between two tiles both present in `tiles`,
 // from their surfaces (same order); a boundary with a tile missing stays
 // straight. All tiles must share one grid.
 TileOwnership PlanSeamLines(const SeamLineOptions& options, const std::vector<TileSpec>& tiles,
                             const std::vector<SurfaceHeight>& surfaces);
+
+// The same with each tile's surface taken from its clouds' opaque (>= 0.5)
+// Gaussian centres, the highest per cell: for clouds as dense as the
+// line's cells (tests, dense heights). A trained scene has about one
+// Gaussian per square metre, most of them translucent: render its DSM
+// instead (pipeline/merge_tiles.cpp). Nothing is computed when the lines
+// are disabled.
+TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const std::vector<TileCloud>& tiles);
 
 }  // namespace skyfall

@@ -112,20 +112,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
 
   // 1. Who owns what: core boundaries bent to where neighbours agree. Every
   //    cloud in the city frame; owned and overlap Gaussians apart.
-  if (ownership) {
-    result.ownership = *ownership;
-  } else if (!options.seam_lines.enabled) {
-    result.ownership = TileOwnership(grid);
-  } else {
-    constexpr double kSurfaceOpacity = 0.5;
-    std::vector<TileSpec> specs;
-    std::vector<SurfaceHeight> surfaces;
-    for (const TileCloud& t : tiles) {
-      specs.push_back(t.tile);
-      surfaces.push_back(SurfaceOfCentres(t.cloud, options.seam_lines.cell_m, kSurfaceOpacity));
-    }
-    result.ownership = PlanSeamLines(options.seam_lines, specs, surfaces);
-  }
+  result.ownership = ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, tiles);
   struct Split {
     GaussianCloud cloud;
     std::vector<std::size_t> core, overlap;

@@ -58,7 +58,7 @@ GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d
 
 // All tiles must come from one tiling (same grid). Output frame: `city_origin`.
 // `ownership`: seam lines planned on the tiles' rendered surfaces; without
-// it they are planned on the opaque Gaussian centres (SurfaceOfCentres),
+// it they are planned on the opaque Gaussian centres (PlanSeamLinesOnCentres),
 // which suits clouds as dense as the line's cells only.
 StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
                          const std::vector<TileCloud>& tiles, const TileOwnership* ownership = nullptr);

@@ -254,16 +254,6 @@ TEST(SeamMetric, FlagsAStepBetweenTilesAndNotAConsistentMerge) {
   EXPECT_NEAR(stepped.interior_mean_step_m, clean.interior_mean_step_m, 0.02);
 }
 
-TileOwnership PlanOnCentres(const std::vector<TileCloud>& tiles) {
-  std::vector<TileSpec> specs;
-  std::vector<SurfaceHeight> surfaces;
-  for (const TileCloud& t : tiles) {
-    specs.push_back(t.tile);
-    surfaces.push_back(SurfaceOfCentres(t.cloud, SeamLineOptions{}.cell_m, 0.5));
-  }
-  return PlanSeamLines(SeamLineOptions{}, specs, surfaces);
-}
-
 // Tile (1, 0) raised a patch 4 m that straddles its boundary with (0, 0)
 // (x in [-3, 2), y in [-40, -20)): a roof edge it placed too far out.
 std::vector<TileCloud> WithAWrongPatch(const GaussianCloud& truth) {
@@ -324,7 +314,7 @@ TEST(SeamLines, GoAroundWhereOneTileIsWrong) {
 TEST(SeamLines, EveryPointHasOneOwnerThatReconstructedIt) {
   // Noisy tiles (0.5 m) make the lines wander all over their bands.
   const std::vector<TileCloud> tiles = Reconstruct(SurfaceCloud(), 0.5);
-  const TileOwnership own = PlanOnCentres(tiles);
+  const TileOwnership own = PlanSeamLinesOnCentres(SeamLineOptions{}, tiles);
   EXPECT_GT(own.MeanDeviationM(), 0.2);
   const std::vector<TileSpec> specs = TestTiles();
   std::mt19937_64 rng(3);
@@ -344,7 +334,7 @@ TEST(SeamLines, EveryPointHasOneOwnerThatReconstructedIt) {
 TEST(SeamLines, ABoundaryWithAMissingTileStaysStraight) {
   std::vector<TileCloud> tiles = WithAWrongPatch(SurfaceCloud());
   tiles.erase(tiles.begin());  // tile (0, 0) did not finish
-  const TileOwnership own = PlanOnCentres(tiles);
+  const TileOwnership own = PlanSeamLinesOnCentres(SeamLineOptions{}, tiles);
   EXPECT_EQ(own.lines(), 2u);  // (1, 0)-(1, 1) and (0, 1)-(1, 1)
   EXPECT_EQ(own.Owner(1.75, -30.0), Eigen::Vector2i(1, 0));
 }
@@ -386,7 +376,7 @@ TEST(SeamLines, NothingGoesToAMissingTileNearACorner) {
     if (p.x() >= -1 && p.x() < 3.5 && p.y() >= -4 && p.y() < 0) p.z() += 4.0f;
   for (Eigen::Vector3f& p : tiles[2].cloud.means)
     if (p.y() >= -1 && p.y() < 3.5 && p.x() >= -4 && p.x() < 0) p.z() += 4.0f;
-  const TileOwnership own = PlanOnCentres(tiles);
+  const TileOwnership own = PlanSeamLinesOnCentres(SeamLineOptions{}, tiles);
   EXPECT_EQ(own.lines(), 2u);
   EXPECT_EQ(own.Owner(-0.75, -2.0), Eigen::Vector2i(1, 0));  // the vertical line bent into (0, 0)
   EXPECT_EQ(own.Owner(-2.0, -0.75), Eigen::Vector2i(0, 1));  // and the horizontal one

@@ -44,20 +44,18 @@ SurfaceHeight RenderedSurface(const TileCloud& tile, int epsg, double gsd_m, con
 // when no CRS is known).
 TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions& dsm_options,
                             const std::vector<TileCloud>& clouds, int epsg, Progress& progress) {
-  if (!options.stitch.seam_lines.enabled) return TileOwnership(clouds[0].tile.grid);
+  const SeamLineOptions& o = options.stitch.seam_lines;
+  if (!o.enabled || epsg == 0) return PlanSeamLinesOnCentres(o, clouds);
   std::vector<TileSpec> specs;
   std::vector<SurfaceHeight> surfaces;
-  const bool rendered = epsg != 0;
-  if (rendered) progress.Begin("merge: rendering tile surfaces for the seam lines", clouds.size());
+  progress.Begin("merge: rendering tile surfaces for the seam lines", clouds.size());
   for (std::size_t k = 0; k < clouds.size(); ++k) {
     specs.push_back(clouds[k].tile);
-    constexpr double kCentreOpacity = 0.5;
-    surfaces.push_back(rendered ? RenderedSurface(clouds[k], epsg, options.stitch.seam_lines.cell_m, dsm_options)
-                                : SurfaceOfCentres(clouds[k].cloud, options.stitch.seam_lines.cell_m, kCentreOpacity));
-    if (rendered) progress.Advance(k + 1, clouds[k].tile.id);
+    surfaces.push_back(RenderedSurface(clouds[k], epsg, o.cell_m, dsm_options));
+    progress.Advance(k + 1, clouds[k].tile.id);
   }
-  if (rendered) progress.End();
-  return PlanSeamLines(options.stitch.seam_lines, specs, surfaces);
+  progress.End();
+  return PlanSeamLines(o, specs, surfaces);
 }
 
 }  // namespace
