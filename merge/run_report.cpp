@@ -132,21 +132,71 @@ void WriteRunReport(const std::vector<RunPoint>& pts, const std::string& out_dir
   WriteBytePng((dir / "error_vs_time.png").string(), rgb.cols, rgb.rows, 3, rgb.ptr<std::uint8_t>());
 }
 
+std::vector<PixelBox> PlaceLabels(const std::vector<std::array<int, 2>>& anchors,
+                                  const std::vector<std::array<int, 2>>& sizes, const std::vector<PixelBox>& obstacles,
+                                  const PixelBox& bounds, int gap_px) {
+  if (anchors.size() != sizes.size()) throw Error("report", "labels", "one size per anchor is needed");
+  std::vector<PixelBox> placed;
+  placed.reserve(anchors.size());
+  auto free = [&](const PixelBox& b) {
+    if (!b.Inside(bounds)) return false;
+    for (const PixelBox& o : obstacles)
+      if (b.Overlaps(o)) return false;
+    for (const PixelBox& o : placed)
+      if (b.Overlaps(o)) return false;
+    return true;
+  };
+  // Vertical steps of a label height, nearest first, far enough for a
+  // crowd of every label at one point.
+  const int max_steps = static_cast<int>(anchors.size());
+  for (std::size_t k = 0; k < anchors.size(); ++k) {
+    const auto [x, y] = anchors[k];
+    const auto [w, h] = sizes[k];
+    const PixelBox level_right{x + gap_px, y - h / 2, w, h};
+    PixelBox chosen = level_right;
+    bool found = false;
+    for (int step = 0; step <= max_steps && !found; ++step)
+      for (int sign : {1, -1}) {
+        if (step == 0 && sign < 0) continue;
+        const int dy = sign * step * h;
+        for (const int bx : {x + gap_px, x - gap_px - w}) {
+          const PixelBox b{bx, y - h / 2 + dy, w, h};
+          if (free(b)) {
+            chosen = b;
+            found = true;
+            break;
+          }
+        }
+        if (found) break;
+      }
+    placed.push_back(chosen);
+  }
+  return placed;
+}
+
 void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path) {
   constexpr int kW = 900, kH = 520;
   const cv::Rect box(70, 40, kW - 110, kH - 100);
   cv::Mat img(kH, kW, CV_8UC3, cv::Scalar(255, 255, 255));
   cv::rectangle(img, box, cv::Scalar(0, 0, 0));
-  double x_max = 1, y_max = 0.5;
+  double x_min = std::numeric_limits<double>::infinity(), x_max = 1, y_max = 0.5;
   for (const ScenePoint& s : scenes) {
-    if (std::isfinite(s.seconds)) x_max = std::max(x_max, s.seconds);
+    if (std::isfinite(s.seconds)) {
+      x_min = std::min(x_min, s.seconds);
+      x_max = std::max(x_max, s.seconds);
+    }
     if (std::isfinite(s.mae_m)) y_max = std::max(y_max, s.mae_m);
     if (std::isfinite(s.dense_mae_m)) y_max = std::max(y_max, s.dense_mae_m);
   }
   x_max *= 1.1;
+  // The time axis starts at 0 unless every run took more than half the
+  // longest: then at a round number below the shortest, so runs of similar
+  // length do not crowd into one corner.
+  double x_lo = 0;
+  if (std::isfinite(x_min) && x_min > 0.5 * x_max) x_lo = std::floor(0.8 * x_min / 10.0) * 10.0;
   y_max = std::ceil(y_max * 1.15 * 2) / 2;
   auto at = [&](double seconds, double mae) {
-    return cv::Point(box.x + static_cast<int>(seconds / x_max * box.width),
+    return cv::Point(box.x + static_cast<int>((seconds - x_lo) / (x_max - x_lo) * box.width),
                      box.y + box.height - static_cast<int>(mae / y_max * box.height));
   };
   const cv::Scalar black(0, 0, 0), held_out(200, 90, 30), tuned(150, 150, 150), target(60, 160, 60);
@@ -160,22 +210,46 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
     cv::line(img, {box.x, y}, {box.x + box.width, y}, target, 1, cv::LINE_AA);
     text(line == 1.0 ? "1.0 m" : "1.5 m", {box.x + box.width - 45, y - 4}, target);
   }
+  constexpr int kMarkerPx = 6;
+  std::vector<PixelBox> markers;
+  std::vector<std::array<int, 2>> anchors, sizes;
+  std::vector<int> glyph_heights;  // above the text's baseline [px]
+  std::vector<const ScenePoint*> labelled;
   for (const ScenePoint& s : scenes) {
     const cv::Scalar colour = s.tuned_on ? tuned : held_out;
+    auto marker = [&](cv::Point p) { markers.push_back({p.x - kMarkerPx, p.y - kMarkerPx, 2 * kMarkerPx, 2 * kMarkerPx}); };
     if (std::isfinite(s.dense_mae_m) && std::isfinite(s.seconds)) {
-      cv::circle(img, at(s.seconds, s.dense_mae_m), 6, colour, 1, cv::LINE_AA);
+      cv::circle(img, at(s.seconds, s.dense_mae_m), kMarkerPx, colour, 1, cv::LINE_AA);
+      marker(at(s.seconds, s.dense_mae_m));
       if (std::isfinite(s.mae_m)) cv::line(img, at(s.seconds, s.dense_mae_m), at(s.seconds, s.mae_m), colour, 1);
     }
     if (std::isfinite(s.mae_m) && std::isfinite(s.seconds)) {
       const cv::Point p = at(s.seconds, s.mae_m);
-      cv::circle(img, p, 6, colour, cv::FILLED, cv::LINE_AA);
-      text(s.scene, {p.x + 9, p.y + 4}, colour);
+      cv::circle(img, p, kMarkerPx, colour, cv::FILLED, cv::LINE_AA);
+      marker(p);
+      int baseline = 0;
+      const cv::Size size = cv::getTextSize(s.scene, cv::FONT_HERSHEY_SIMPLEX, 0.42, 1, &baseline);
+      anchors.push_back({p.x, p.y});
+      sizes.push_back({size.width, size.height + baseline + 2});
+      glyph_heights.push_back(size.height);
+      labelled.push_back(&s);
     }
+  }
+  const std::vector<PixelBox> labels =
+      PlaceLabels(anchors, sizes, markers, {box.x, box.y, box.width, box.height}, kMarkerPx + 3);
+  for (std::size_t k = 0; k < labels.size(); ++k) {
+    const PixelBox& b = labels[k];
+    const cv::Scalar colour = labelled[k]->tuned_on ? tuned : held_out;
+    // A leader line where the label had to move off its point's level.
+    if (std::abs(b.y + b.height / 2 - anchors[k][1]) > b.height / 2)
+      cv::line(img, {anchors[k][0], anchors[k][1]}, {b.x < anchors[k][0] ? b.x + b.width : b.x, b.y + b.height / 2},
+               colour, 1, cv::LINE_AA);
+    text(labelled[k]->scene, {b.x, b.y + 1 + glyph_heights[k]}, colour);
   }
   for (int k = 0; k <= 4; ++k) {
     char a[32], t[32];
     std::snprintf(a, sizeof(a), "%.1f", y_max * k / 4);
-    std::snprintf(t, sizeof(t), "%.0f", x_max * k / 4);
+    std::snprintf(t, sizeof(t), "%.0f", x_lo + (x_max - x_lo) * k / 4);
     text(a, {box.x - 40, box.y + box.height - k * box.height / 4 + 4}, black);
     text(t, {box.x + k * box.width / 4 - 10, box.y + box.height + 18}, black);
   }

@@ -3,6 +3,7 @@
 // seconds.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,29 @@ struct ScenePoint {
   double dense_mae_m = 0; // dense heights alone (NaN when unknown)
   bool tuned_on = false;  // a setting was chosen on this scene
 };
+
+// An axis-aligned box in an image [px]: top-left corner, y down.
+struct PixelBox {
+  int x = 0, y = 0, width = 0, height = 0;
+  bool Overlaps(const PixelBox& o) const {
+    return x < o.x + o.width && o.x < x + width && y < o.y + o.height && o.y < y + height;
+  }
+  bool Inside(const PixelBox& o) const {
+    return x >= o.x && y >= o.y && x + width <= o.x + o.width && y + height <= o.y + o.height;
+  }
+};
+
+// Boxes for labels of `sizes` (width, height) beside their `anchors` (the
+// points they name, centre (x, y)), so that labels of scenes with nearly
+// the same error and time stay readable: each label takes the first spot,
+// right of its point and then left of it, level with it and then one label
+// height at a time above and below, that overlaps no earlier label and no
+// `obstacles` (the markers) and lies inside `bounds`; when none is free,
+// the spot right of and level with its point. `gap_px` separates a label
+// from its point.
+std::vector<PixelBox> PlaceLabels(const std::vector<std::array<int, 2>>& anchors,
+                                  const std::vector<std::array<int, 2>>& sizes, const std::vector<PixelBox>& obstacles,
+                                  const PixelBox& bounds, int gap_px);
 
 // A scatter of DSM MAE against run time, one labelled point per scene
 // (trained: filled; dense alone: open; tuned-on scenes in grey), as a PNG.
