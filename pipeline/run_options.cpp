@@ -112,6 +112,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("support_grey_sigma", o.support_grey_sigma);
   io("step_cost_margin", o.step_cost_margin);
   io("fill_radius_m", o.fill_radius_m);
+  io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);
   io("fill_ground_tolerance_m", o.fill_ground_tolerance_m);

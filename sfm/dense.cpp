@@ -49,6 +49,8 @@ void DenseOptions::Check() const {
   positive(max_cost, "max_cost");
   positive(max_median_deviation_m, "max_median_deviation_m");
   positive(fill_radius_m, "fill_radius_m");
+  if (!(fill_roof_rim_fraction >= 0 && fill_roof_rim_fraction <= 1))
+    throw Error("dense", "fill_roof_rim_fraction", "must be in [0, 1] (0 = off), got " + std::to_string(fill_roof_rim_fraction));
   if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
   positive(fill_ground_radius_m, "fill_ground_radius_m");
   if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
@@ -851,6 +853,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   HoleFillOptions fill;
   fill.radius_cells = cells_of(o.fill_radius_m);
   fill.max_reach_cells = cells_of(o.max_fill_reach_m);
+  fill.roof_rim_fraction = static_cast<float>(o.fill_roof_rim_fraction);
   fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
   std::vector<Eigen::Vector3d> to_cameras;

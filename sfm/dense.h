@@ -72,6 +72,10 @@ struct DenseOptions {
   double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
   double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
   double fill_radius_m = 5.0;
+  // A seen hole whose rim of measured cells is at least this share roof
+  // (more than 2 m above the ground) takes the roof, though ground is
+  // within fill_radius_m (HoleFillOptions::roof_rim_fraction). 0 = off.
+  double fill_roof_rim_fraction = 0.9;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.

@@ -278,6 +278,8 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
   if (o.max_reach_cells < o.radius_cells)
     throw Error("dense", "fill reach", std::to_string(o.max_reach_cells) + " cells must be >= the fill radius");
+  if (!(o.roof_rim_fraction >= 0 && o.roof_rim_fraction <= 1))
+    throw Error("dense", "fill_roof_rim_fraction", std::to_string(o.roof_rim_fraction) + " must be in [0, 1] (0 = off)");
   if (model.terrain_m.size() != h.size() || model.seen_hole_base_m.size() != h.size())
     throw Error("dense", "ground model", "size differs from the height grid's");
   if (occluded && occluded->size() != h.size()) throw Error("dense", "occluded", "size differs from the height grid's");
@@ -295,14 +297,62 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
     in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
   }
+  // Seen holes whose rim is mostly raised are a roof's holes: filled from
+  // the raised cells only. Each piece of 4-connected seen-hole cells is
+  // walked once, counting its rim's measured cells once each.
+  std::vector<std::uint8_t> roof_hole(h.size(), 0);
+  std::vector<float> above_raised;
+  if (o.roof_rim_fraction > 0) {
+    above_raised.assign(h.size(), kNan);
+    for (std::size_t k = 0; k < h.size(); ++k)
+      if (above[k] > o.roof_rim_min_m) above_raised[k] = above[k];
+    std::vector<int> label(h.size(), -1);
+    std::vector<std::size_t> stack, members;
+    std::vector<int> rim_seen(h.size(), -1);
+    for (std::size_t seed = 0; seed < h.size(); ++seed) {
+      if (std::isfinite(h[seed]) || label[seed] >= 0 || (occluded && (*occluded)[seed])) continue;
+      const int id = static_cast<int>(seed);
+      label[seed] = id;
+      stack.assign(1, seed);
+      members.clear();
+      int rim = 0, raised = 0;
+      while (!stack.empty()) {
+        const std::size_t k = stack.back();
+        stack.pop_back();
+        members.push_back(k);
+        const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
+        const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
+        for (int d = 0; d < 4; ++d) {
+          const int a = i + di[d], b = j + dj[d];
+          if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+          const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+          if (std::isfinite(h[n])) {
+            if (rim_seen[n] != id) {
+              rim_seen[n] = id;
+              ++rim;
+              raised += above[n] > o.roof_rim_min_m ? 1 : 0;
+            }
+          } else if (label[n] < 0 && !(occluded && (*occluded)[n])) {
+            label[n] = id;
+            stack.push_back(n);
+          }
+        }
+      }
+      if (rim > 0 && raised >= o.roof_rim_fraction * rim)
+        for (std::size_t k : members) roof_hole[k] = 1;
+    }
+  }
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
-    const std::vector<float> low = MinFilter(above, nx, ny, r, Edge::kClip);
+    const std::vector<float> low_all = MinFilter(above, nx, ny, r, Edge::kClip);
+    const std::vector<float> low_raised =
+        above_raised.empty() ? std::vector<float>() : MinFilter(above_raised, nx, ny, r, Edge::kClip);
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
       const bool ground = occluded && (*occluded)[k];
+      const std::vector<float>& low = roof_hole[k] && std::isfinite(low_raised[k]) ? low_raised : low_all;
       if (ground ? !std::isfinite(model.terrain_m[k]) || !std::isfinite(in_reach[k])
                  : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
         open = true;

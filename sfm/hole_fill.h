@@ -15,6 +15,12 @@ struct HoleFillOptions {
   int ground_radius_cells = 60;     // radius of the ground surface's opening (GroundSurface)
   float ground_tolerance_m = 1.0f;  // measured cells this close above the ground surface are ground
   int terrain_block_cells = 8;      // block side of the terrain model (TerrainModel)
+  // A seen hole (one piece of connected hole cells) whose rim of measured
+  // cells lies at least this share higher than roof_rim_min_m above the
+  // ground is a roof's hole: it is filled from the raised cells in reach
+  // only, not from the ground beyond the roof's edge. 0 = off.
+  float roof_rim_fraction = 0.9f;
+  float roof_rim_min_m = 2.0f;      // [m] above the ground, a rim cell is raised
 };
 
 // The ground under a height grid: its opening (GroundSurface), which tells
@@ -40,7 +46,9 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // max_reach_cells while nothing is in reach), added to the ground at the
 // hole (seen_hole_base_m): most such holes border the ground, and filling
 // them from a roof would put roofs in courtyards; a hole with only roof in
-// reach (inside a roof) takes the roof. Heights are measured above the
+// reach (inside a roof) takes the roof, and so does a hole whose rim is
+// mostly roof (roof_rim_fraction), from the roof cells in reach, though
+// the ground beyond the roof's edge is nearer. Heights are measured above the
 // ground, so on a slope a hole is filled at its own ground level, not at
 // the downhill one.
 std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options,

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/error.h"
@@ -52,6 +53,46 @@ TEST(HoleFill, HolesBesideAWallAreGroundAndHolesInARoofTakeTheRoof) {
       else if (roof_hole) EXPECT_NEAR(h[k], 10.0f, kTol);
       else EXPECT_EQ(h[k], before[k]);
     }
+}
+
+// A 10 m roof (columns 0-39) on flat ground with an unmatched patch 2-6
+// cells inside its east edge: the ground beyond the edge is within the
+// first reach, but every measured cell around the patch is roof.
+std::vector<float> RoofWithAHoleNearItsEdge(int nx, int ny) {
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool hole = i >= 34 && i <= 37 && j >= 4 && j <= 9;
+      h[static_cast<std::size_t>(j) * nx + i] = hole ? std::nanf("") : i < 40 ? 10.0f : 0.0f;
+    }
+  return h;
+}
+
+TEST(HoleFill, AHoleRingedByRoofTakesTheRoofThoughGroundIsInReach) {
+  const int nx = 80, ny = 14;
+  std::vector<float> h = RoofWithAHoleNearItsEdge(nx, ny);
+  const std::vector<std::uint8_t> filled = Fill(h, nx, ny, FillOptions());
+  for (int j = 4; j <= 9; ++j)
+    for (int i = 34; i <= 37; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      EXPECT_EQ(filled[k], 1);
+      EXPECT_NEAR(h[k], 10.0f, 1e-4f) << i << "," << j;  // float rounding of the ground's plane fit
+    }
+  // Off, the patch takes the ground beyond the edge: the lowest in reach.
+  std::vector<float> plain = RoofWithAHoleNearItsEdge(nx, ny);
+  HoleFillOptions off = FillOptions();
+  off.roof_rim_fraction = 0;
+  Fill(plain, nx, ny, off);
+  EXPECT_NEAR(plain[static_cast<std::size_t>(6) * nx + 36], 0.0f, 1e-4f);
+  // A rim share outside [0, 1] is refused, naming the option.
+  HoleFillOptions bad = FillOptions();
+  bad.roof_rim_fraction = 1.5f;
+  try {
+    Fill(plain, nx, ny, bad);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("fill_roof_rim_fraction"), std::string::npos) << e.what();
+  }
 }
 
 TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
