@@ -215,9 +215,9 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
   std::vector<std::array<int, 2>> anchors, sizes;
   std::vector<int> glyph_heights;  // above the text's baseline [px]
   std::vector<const ScenePoint*> labelled;
+  auto marker = [&](cv::Point p) { markers.push_back({p.x - kMarkerPx, p.y - kMarkerPx, 2 * kMarkerPx, 2 * kMarkerPx}); };
   for (const ScenePoint& s : scenes) {
     const cv::Scalar colour = s.tuned_on ? tuned : held_out;
-    auto marker = [&](cv::Point p) { markers.push_back({p.x - kMarkerPx, p.y - kMarkerPx, 2 * kMarkerPx, 2 * kMarkerPx}); };
     if (std::isfinite(s.dense_mae_m) && std::isfinite(s.seconds)) {
       cv::circle(img, at(s.seconds, s.dense_mae_m), kMarkerPx, colour, 1, cv::LINE_AA);
       marker(at(s.seconds, s.dense_mae_m));

@@ -272,6 +272,58 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
   return model;
 }
 
+namespace {
+
+// Per cell, 1 where it belongs to a roof's hole: a piece of 4-connected
+// seen-hole cells (NaN in `h`, not `occluded`) of which at least
+// roof_rim_fraction of the measured cells bordering it lie more than
+// roof_rim_min_m above the ground (`above`). Each piece is walked once, each
+// of its rim cells counted once. All 0 when the rule is off.
+std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vector<float>& above,
+                                    const std::vector<std::uint8_t>* occluded, int nx, int ny,
+                                    const HoleFillOptions& o) {
+  std::vector<std::uint8_t> roof_hole(h.size(), 0);
+  if (o.roof_rim_fraction <= 0) return roof_hole;
+  auto seen_hole = [&](std::size_t k) { return !std::isfinite(h[k]) && !(occluded && (*occluded)[k]); };
+  std::vector<std::uint8_t> visited(h.size(), 0);
+  std::vector<int> rim_of(h.size(), -1);  // the piece (its seed) a rim cell was last counted for
+  std::vector<std::size_t> stack, members;
+  for (std::size_t seed = 0; seed < h.size(); ++seed) {
+    if (visited[seed] || !seen_hole(seed)) continue;
+    const int id = static_cast<int>(seed);
+    visited[seed] = 1;
+    stack.assign(1, seed);
+    members.clear();
+    int rim = 0, raised = 0;
+    while (!stack.empty()) {
+      const std::size_t k = stack.back();
+      stack.pop_back();
+      members.push_back(k);
+      const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
+      const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
+      for (int d = 0; d < 4; ++d) {
+        const int a = i + di[d], b = j + dj[d];
+        if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+        const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+        if (std::isfinite(h[n])) {
+          if (rim_of[n] == id) continue;
+          rim_of[n] = id;
+          ++rim;
+          raised += above[n] > o.roof_rim_min_m ? 1 : 0;
+        } else if (!visited[n] && seen_hole(n)) {
+          visited[n] = 1;
+          stack.push_back(n);
+        }
+      }
+    }
+    if (rim > 0 && raised >= o.roof_rim_fraction * rim)
+      for (std::size_t k : members) roof_hole[k] = 1;
+  }
+  return roof_hole;
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
                                     const GroundModel& model, const std::vector<std::uint8_t>* occluded) {
   CheckGrid(h, nx, ny);
@@ -297,50 +349,14 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
     in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
   }
-  // Seen holes whose rim is mostly raised are a roof's holes: filled from
-  // the raised cells only. Each piece of 4-connected seen-hole cells is
-  // walked once, counting its rim's measured cells once each.
-  std::vector<std::uint8_t> roof_hole(h.size(), 0);
+  // A roof's holes are filled from the raised cells alone; the raised
+  // cells' minimum is only taken when there is such a hole.
+  const std::vector<std::uint8_t> roof_hole = RoofHoles(h, above, occluded, nx, ny, o);
   std::vector<float> above_raised;
-  if (o.roof_rim_fraction > 0) {
+  if (std::find(roof_hole.begin(), roof_hole.end(), 1) != roof_hole.end()) {
     above_raised.assign(h.size(), kNan);
     for (std::size_t k = 0; k < h.size(); ++k)
       if (above[k] > o.roof_rim_min_m) above_raised[k] = above[k];
-    std::vector<int> label(h.size(), -1);
-    std::vector<std::size_t> stack, members;
-    std::vector<int> rim_seen(h.size(), -1);
-    for (std::size_t seed = 0; seed < h.size(); ++seed) {
-      if (std::isfinite(h[seed]) || label[seed] >= 0 || (occluded && (*occluded)[seed])) continue;
-      const int id = static_cast<int>(seed);
-      label[seed] = id;
-      stack.assign(1, seed);
-      members.clear();
-      int rim = 0, raised = 0;
-      while (!stack.empty()) {
-        const std::size_t k = stack.back();
-        stack.pop_back();
-        members.push_back(k);
-        const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
-        const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
-        for (int d = 0; d < 4; ++d) {
-          const int a = i + di[d], b = j + dj[d];
-          if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-          const std::size_t n = static_cast<std::size_t>(b) * nx + a;
-          if (std::isfinite(h[n])) {
-            if (rim_seen[n] != id) {
-              rim_seen[n] = id;
-              ++rim;
-              raised += above[n] > o.roof_rim_min_m ? 1 : 0;
-            }
-          } else if (label[n] < 0 && !(occluded && (*occluded)[n])) {
-            label[n] = id;
-            stack.push_back(n);
-          }
-        }
-      }
-      if (rim > 0 && raised >= o.roof_rim_fraction * rim)
-        for (std::size_t k : members) roof_hole[k] = 1;
-    }
   }
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
