@@ -120,11 +120,42 @@ std::string DensePly(const HeightGrid& g) {
 
 }  // namespace
 
-std::vector<float> FilledCellWeights(const DenseCells& cells, double filled_weight) {
-  if (filled_weight >= 1.0) return {};  // all alike: no weights
+std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& o) {
+  const bool by_fill = o.filled_weight < 1.0, by_step = o.step_weight < 1.0 && o.step_reach_m > 0;
+  if (!by_fill && !by_step) return {};  // all alike: no weights
   std::vector<float> w(cells.points.size(), 1.0f);
-  for (std::size_t k = 0; k < w.size(); ++k)
-    if (cells.filled[k]) w[k] = static_cast<float>(filled_weight);
+  if (by_fill)
+    for (std::size_t k = 0; k < w.size(); ++k)
+      if (cells.filled[k]) w[k] = static_cast<float>(o.filled_weight);
+  if (!by_step || cells.points.empty()) return w;
+  // The cells lie on a grid of cell_m: index them by their (column, row)
+  // from the lowest corner, then look for a rise within the reach.
+  Eigen::Vector2f lo = cells.points[0].head<2>();
+  for (const Eigen::Vector3f& p : cells.points) lo = lo.cwiseMin(p.head<2>());
+  std::vector<Eigen::Vector2i> at(cells.points.size());
+  Eigen::Vector2i size(0, 0);
+  for (std::size_t k = 0; k < at.size(); ++k) {
+    const Eigen::Vector2f g = (cells.points[k].head<2>() - lo) / static_cast<float>(cells.cell_m);
+    at[k] = Eigen::Vector2i(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
+    size = size.cwiseMax(at[k] + Eigen::Vector2i(1, 1));
+  }
+  std::vector<float> height(static_cast<std::size_t>(size.x()) * size.y(), std::numeric_limits<float>::quiet_NaN());
+  for (std::size_t k = 0; k < at.size(); ++k)
+    height[static_cast<std::size_t>(at[k].y()) * size.x() + at[k].x()] = cells.points[k].z();
+  const int reach = std::max(1, static_cast<int>(std::lround(o.step_reach_m / cells.cell_m)));
+  for (std::size_t k = 0; k < at.size(); ++k) {
+    float low = cells.points[k].z(), high = low;
+    for (int dy = -reach; dy <= reach; ++dy)
+      for (int dx = -reach; dx <= reach; ++dx) {
+        const int x = at[k].x() + dx, y = at[k].y() + dy;
+        if (x < 0 || y < 0 || x >= size.x() || y >= size.y()) continue;
+        const float h = height[static_cast<std::size_t>(y) * size.x() + x];
+        if (!std::isfinite(h)) continue;
+        low = std::min(low, h);
+        high = std::max(high, h);
+      }
+    if (high - low > o.step_min_m) w[k] = std::min(w[k], static_cast<float>(o.step_weight));
+  }
   return w;
 }
 
@@ -254,7 +285,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
     const DenseCells dense = ReadDenseCells(dense_path.string());
     if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
-                                                    FilledCellWeights(dense, stage.surface_filled_weight));
+                                                    AnchorCellWeights(dense, stage.AnchorWeights()));
     ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
     if (stage.init_facade_step_m > 0)
       FacadePoints(dense.points, dense.colours, dense.cell_m, stage.init_spacing_m, stage.init_facade_step_m, &facades,
@@ -347,7 +378,7 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
   std::unique_ptr<SurfaceDepthPrior> surface;
   if (!dense.points.empty())
     surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
-                                                  FilledCellWeights(dense, train.surface_filled_weight));
+                                                  AnchorCellWeights(dense, train.AnchorWeights()));
   auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
   const std::unique_ptr<Refiner> refiner =
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),

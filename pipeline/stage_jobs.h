@@ -38,9 +38,10 @@ struct DenseCells {
   std::vector<std::uint8_t> filled;
 };
 DenseCells ReadDenseCells(const std::string& dense_ply);
-// Per cell confidence for SurfaceDepthPrior: `filled_weight` for filled
-// cells, 1 for matched ones; empty when the weight is 1 (no weighting).
-std::vector<float> FilledCellWeights(const DenseCells& cells, double filled_weight);
+// Per cell confidence for SurfaceDepthPrior: 1, less for filled cells and
+// for cells beside a step (AnchorWeightOptions); empty when every weight
+// is 1 (no weighting).
+std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& options);
 
 // True when `sfm_dir` holds a finished dense stage with the same options
 // over the same extent.
