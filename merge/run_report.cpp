@@ -174,6 +174,29 @@ std::vector<PixelBox> PlaceLabels(const std::vector<std::array<int, 2>>& anchors
   return placed;
 }
 
+NiceAxis NiceAxisOf(double lo, double hi, int max_ticks) {
+  if (!(hi > lo)) hi = lo + 1;
+  // Three ticks always suffice: a step at least the range puts one tick at
+  // or below lo, at most one between, and one at or above hi.
+  max_ticks = std::max(max_ticks, 3);
+  const double raw = (hi - lo) / (max_ticks - 1);
+  NiceAxis axis;
+  for (double decade = std::pow(10.0, std::floor(std::log10(raw)));; decade *= 10.0)
+    for (double m : {1.0, 2.0, 2.5, 5.0}) {
+      axis.step = m * decade;
+      axis.lo = std::floor(lo / axis.step + 1e-9) * axis.step;
+      axis.hi = std::ceil(hi / axis.step - 1e-9) * axis.step;
+      if (std::lround((axis.hi - axis.lo) / axis.step) + 1 <= max_ticks) return axis;
+    }
+}
+
+int NiceAxis::Decimals() const {
+  int decimals = 0;
+  while (decimals < 6 && std::abs(step * std::pow(10.0, decimals) - std::round(step * std::pow(10.0, decimals))) > 1e-6)
+    ++decimals;
+  return decimals;
+}
+
 void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path) {
   constexpr int kW = 900, kH = 520;
   const cv::Rect box(70, 40, kW - 110, kH - 100);
@@ -188,13 +211,16 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
     if (std::isfinite(s.mae_m)) y_max = std::max(y_max, s.mae_m);
     if (std::isfinite(s.dense_mae_m)) y_max = std::max(y_max, s.dense_mae_m);
   }
-  x_max *= 1.1;
   // The time axis starts at 0 unless every run took more than half the
   // longest: then at a round number below the shortest, so runs of similar
-  // length do not crowd into one corner.
-  double x_lo = 0;
-  if (std::isfinite(x_min) && x_min > 0.5 * x_max) x_lo = std::floor(0.8 * x_min / 10.0) * 10.0;
-  y_max = std::ceil(y_max * 1.15 * 2) / 2;
+  // length do not crowd into one corner. Both axes end on round ticks with
+  // room beyond the last point.
+  const bool from_zero = !(std::isfinite(x_min) && x_min > 0.5 * x_max);
+  const NiceAxis x_axis = NiceAxisOf(from_zero ? 0.0 : 0.9 * x_min, 1.05 * x_max, 6);
+  const NiceAxis y_axis = NiceAxisOf(0.0, 1.1 * y_max, 8);
+  const double x_lo = x_axis.lo;
+  x_max = x_axis.hi;
+  y_max = y_axis.hi;
   auto at = [&](double seconds, double mae) {
     return cv::Point(box.x + static_cast<int>((seconds - x_lo) / (x_max - x_lo) * box.width),
                      box.y + box.height - static_cast<int>(mae / y_max * box.height));
@@ -246,12 +272,26 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
                colour, 1, cv::LINE_AA);
     text(labelled[k]->scene, {b.x, b.y + 1 + glyph_heights[k]}, colour);
   }
-  for (int k = 0; k <= 4; ++k) {
-    char a[32], t[32];
-    std::snprintf(a, sizeof(a), "%.1f", y_max * k / 4);
-    std::snprintf(t, sizeof(t), "%.0f", x_lo + (x_max - x_lo) * k / 4);
-    text(a, {box.x - 40, box.y + box.height - k * box.height / 4 + 4}, black);
-    text(t, {box.x + k * box.width / 4 - 10, box.y + box.height + 18}, black);
+  auto tick_label = [](const NiceAxis& axis, double v) {
+    char s[32];
+    std::snprintf(s, sizeof(s), "%.*f", axis.Decimals(), v);
+    return std::string(s);
+  };
+  auto ticks = [](const NiceAxis& axis) {
+    std::vector<double> v;
+    const long n = std::lround((axis.hi - axis.lo) / axis.step);
+    for (long i = 0; i <= n; ++i) v.push_back(axis.lo + static_cast<double>(i) * axis.step);
+    return v;
+  };
+  for (double v : ticks(y_axis)) {
+    const int y = at(x_lo, v).y;
+    cv::line(img, {box.x - 4, y}, {box.x, y}, black, 1);
+    text(tick_label(y_axis, v), {box.x - 42, y + 4}, black);
+  }
+  for (double v : ticks(x_axis)) {
+    const int x = at(v, 0).x;
+    cv::line(img, {x, box.y + box.height}, {x, box.y + box.height + 4}, black, 1);
+    text(tick_label(x_axis, v), {x - 10, box.y + box.height + 18}, black);
   }
   text("whole run [s]", {box.x + box.width - 90, box.y + box.height + 34}, black);
   text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on", {box.x, kH - 8}, black);

@@ -63,6 +63,15 @@ std::vector<PixelBox> PlaceLabels(const std::vector<std::array<int, 2>>& anchors
                                   const std::vector<std::array<int, 2>>& sizes, const std::vector<PixelBox>& obstacles,
                                   const PixelBox& bounds, int gap_px);
 
+// A chart axis with round tick marks: [lo, hi] widened to whole steps of
+// 1, 2, 2.5 or 5 times a power of ten, the smallest such step that needs at
+// most `max_ticks` ticks (ends included; 3 at least) for the range given.
+struct NiceAxis {
+  double lo = 0, hi = 1, step = 1;
+  int Decimals() const;  // digits after the point that tell the ticks apart
+};
+NiceAxis NiceAxisOf(double lo, double hi, int max_ticks);
+
 // A scatter of DSM MAE against run time, one labelled point per scene
 // (trained: filled; dense alone: open; tuned-on scenes in grey), as a PNG.
 void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path);

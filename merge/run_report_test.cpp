@@ -61,3 +61,41 @@ TEST(PlaceLabels, OneSizePerAnchorIsRequired) {
 
 }  // namespace
 }  // namespace skyfall
+
+namespace skyfall {
+namespace {
+
+TEST(NiceAxis, RoundStepsThatCoverTheRange) {
+  const NiceAxis mae = NiceAxisOf(0.0, 2.76, 8);  // the 256 m benchmark's MAE axis
+  EXPECT_DOUBLE_EQ(mae.step, 0.5);
+  EXPECT_DOUBLE_EQ(mae.lo, 0.0);
+  EXPECT_DOUBLE_EQ(mae.hi, 3.0);
+  EXPECT_EQ(mae.Decimals(), 1);
+  const NiceAxis seconds = NiceAxisOf(175.5, 276.0, 6);  // its time axis
+  EXPECT_DOUBLE_EQ(seconds.step, 25.0);
+  EXPECT_DOUBLE_EQ(seconds.lo, 175.0);
+  EXPECT_DOUBLE_EQ(seconds.hi, 300.0);
+  EXPECT_EQ(seconds.Decimals(), 0);
+  EXPECT_EQ(NiceAxisOf(0.0, 0.9, 5).Decimals(), 2);  // steps of 0.25
+}
+
+TEST(NiceAxis, AnyRangeGetsANiceStepWithinTheTickCount) {
+  for (double lo : {-3.7, 0.0, 0.004, 12.0, 1834.0})
+    for (double span : {1e-3, 0.37, 1.0, 9.99, 260.0, 1.0e5})
+      for (int max_ticks : {3, 5, 8}) {
+        const NiceAxis a = NiceAxisOf(lo, lo + span, max_ticks);
+        EXPECT_LE(a.lo, lo) << lo << " " << span;
+        EXPECT_GE(a.hi, lo + span) << lo << " " << span;
+        EXPECT_LE(std::lround((a.hi - a.lo) / a.step) + 1, max_ticks) << lo << " " << span << " " << max_ticks;
+        const double mantissa = a.step / std::pow(10.0, std::floor(std::log10(a.step) + 1e-9));
+        EXPECT_TRUE(std::abs(mantissa - 1) < 1e-9 || std::abs(mantissa - 2) < 1e-9 ||
+                    std::abs(mantissa - 2.5) < 1e-9 || std::abs(mantissa - 5) < 1e-9)
+            << a.step;
+      }
+  // An empty or reversed range still gives an axis.
+  const NiceAxis flat = NiceAxisOf(5.0, 5.0, 6);
+  EXPECT_GT(flat.hi, flat.lo);
+}
+
+}  // namespace
+}  // namespace skyfall
