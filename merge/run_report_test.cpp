@@ -59,12 +59,6 @@ TEST(PlaceLabels, OneSizePerAnchorIsRequired) {
   EXPECT_THROW(PlaceLabels({{1, 1}, {2, 2}}, {{5, 5}}, {}, kBounds, kGap), Error);
 }
 
-}  // namespace
-}  // namespace skyfall
-
-namespace skyfall {
-namespace {
-
 TEST(NiceAxis, RoundStepsThatCoverTheRange) {
   const NiceAxis mae = NiceAxisOf(0.0, 2.76, 8);  // the 256 m benchmark's MAE axis
   EXPECT_DOUBLE_EQ(mae.step, 0.5);

@@ -163,10 +163,10 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("init_points", o.init_points);
   io("init_spacing_m", o.init_spacing_m);
   io("init_facade_step_m", o.init_facade_step_m);
-  io("surface_filled_weight", o.surface_filled_weight);
-  io("surface_step_weight", o.surface_step_weight);
-  io("surface_step_reach_m", o.surface_step_reach_m);
-  io("surface_step_min_m", o.surface_step_min_m);
+  io("surface_filled_weight", o.anchor.filled_weight);
+  io("surface_step_weight", o.anchor.step_weight);
+  io("surface_step_reach_m", o.anchor.step_reach_m);
+  io("surface_step_min_m", o.anchor.step_min_m);
   io("densify", o.densify);
   io("seed", t.seed);
   io("lambda_dssim", t.lambda_dssim);
@@ -482,14 +482,14 @@ void TrainStageOptions::Check() const {
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
   if (!(init_facade_step_m >= 0))
     throw Error("train", "init_facade_step_m", "must be >= 0, got " + FormatDouble(init_facade_step_m));
-  if (!(surface_filled_weight >= 0 && surface_filled_weight <= 1))
-    throw Error("train", "surface_filled_weight", "must be in [0, 1], got " + FormatDouble(surface_filled_weight));
-  if (!(surface_step_weight >= 0 && surface_step_weight <= 1))
-    throw Error("train", "surface_step_weight", "must be in [0, 1], got " + FormatDouble(surface_step_weight));
-  if (!(surface_step_reach_m >= 0))
-    throw Error("train", "surface_step_reach_m", "must be >= 0, got " + FormatDouble(surface_step_reach_m));
-  if (!(surface_step_min_m > 0))
-    throw Error("train", "surface_step_min_m", "must be > 0, got " + FormatDouble(surface_step_min_m));
+  if (!(anchor.filled_weight >= 0 && anchor.filled_weight <= 1))
+    throw Error("train", "surface_filled_weight", "must be in [0, 1], got " + FormatDouble(anchor.filled_weight));
+  if (!(anchor.step_weight >= 0 && anchor.step_weight <= 1))
+    throw Error("train", "surface_step_weight", "must be in [0, 1], got " + FormatDouble(anchor.step_weight));
+  if (!(anchor.step_reach_m >= 0))
+    throw Error("train", "surface_step_reach_m", "must be >= 0, got " + FormatDouble(anchor.step_reach_m));
+  if (!(anchor.step_min_m > 0))
+    throw Error("train", "surface_step_min_m", "must be > 0, got " + FormatDouble(anchor.step_min_m));
 }
 
 void IduStageOptions::Check() const {

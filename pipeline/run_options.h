@@ -22,10 +22,18 @@
 
 namespace skyfall {
 
-// How much the surface anchor trusts each dense cell (AnchorCellWeights).
+// How much the surface anchor trusts each dense cell (AnchorCellWeights):
+// 1, less where the dense heights are least sure. Run configuration keys
+// train.surface_filled_weight, train.surface_step_weight, ... (the same
+// names after "surface_").
 struct AnchorWeightOptions {
-  double filled_weight = 1.0;  // cells no pair matched
-  double step_weight = 1.0;    // cells within step_reach_m of a rise of more than step_min_m
+  // Cells no image pair matched (FillHoles), against 1 for matched cells.
+  double filled_weight = 1.0;
+  // Cells within step_reach_m of a step (cells within that reach differing
+  // by more than step_min_m). Windows fatten roofs onto the ground beside
+  // them by about a window radius, so the dense heights are least sure
+  // there; a lower weight leaves the photometric loss room to move the edge.
+  double step_weight = 0.1;
   double step_reach_m = 1.0;
   double step_min_m = 2.0;
 };
@@ -54,20 +62,7 @@ struct TrainStageOptions {
   // [m] With a dense start, Gaussians also on the walls of the dense heights
   // where neighbouring cells differ by this much (FacadePoints); 0 = none.
   double init_facade_step_m = 0.0;
-  // Confidence of the filled dense cells (FillHoles: no pair matched them)
-  // in the surface anchor's depth term, against 1 for matched cells.
-  double surface_filled_weight = 1.0;
-  // And of the cells within surface_step_reach_m of a step (cells within
-  // that reach differing by more than surface_step_min_m). Windows fatten
-  // roofs onto the ground beside them by about a window radius, so the
-  // dense heights are least sure there; a lower weight leaves the
-  // photometric loss room to move the edge.
-  double surface_step_weight = 0.1;
-  double surface_step_reach_m = 1.0;
-  double surface_step_min_m = 2.0;
-  AnchorWeightOptions AnchorWeights() const {
-    return {surface_filled_weight, surface_step_weight, surface_step_reach_m, surface_step_min_m};
-  }
+  AnchorWeightOptions anchor;  // per dense cell, the surface anchor's confidence
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).

@@ -95,11 +95,11 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "lidar"; }).find("train.depth_prior"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "cmd:"; }).find("train.depth_prior"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.downscale = 0; }).find("train.downscale"), std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.train.surface_step_weight = 1.5; }).find("train.surface_step_weight"),
+  EXPECT_NE(check([](RunOptions& o) { o.train.anchor.step_weight = 1.5; }).find("train.surface_step_weight"),
             std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.train.surface_step_reach_m = -1; }).find("train.surface_step_reach_m"),
+  EXPECT_NE(check([](RunOptions& o) { o.train.anchor.step_reach_m = -1; }).find("train.surface_step_reach_m"),
             std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.train.surface_step_min_m = 0; }).find("train.surface_step_min_m"),
+  EXPECT_NE(check([](RunOptions& o) { o.train.anchor.step_min_m = 0; }).find("train.surface_step_min_m"),
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.optimizer.iterations = 0; }).find("train.iterations"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dense.cell_m = -1; }).find("dense.cell_m"), std::string::npos);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -16,6 +17,7 @@
 #include "core/error.h"
 #include "core/simd.h"
 #include "sfm/export.h"
+#include "sfm/hole_fill.h"
 #include "splat/dataset.h"
 #include "splat/ply.h"
 #include "tiler/radiometry.h"
@@ -142,19 +144,15 @@ std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeight
   std::vector<float> height(static_cast<std::size_t>(size.x()) * size.y(), std::numeric_limits<float>::quiet_NaN());
   for (std::size_t k = 0; k < at.size(); ++k)
     height[static_cast<std::size_t>(at[k].y()) * size.x() + at[k].x()] = cells.points[k].z();
+  // The lowest and highest height within the reach (the highest as the
+  // lowest of the negated heights), windows cut at the grid's edges.
   const int reach = std::max(1, static_cast<int>(std::lround(o.step_reach_m / cells.cell_m)));
+  const std::vector<float> low = MinFilter(height, size.x(), size.y(), reach, WindowEdge::kClip);
+  for (float& h : height) h = -h;
+  const std::vector<float> minus_high = MinFilter(height, size.x(), size.y(), reach, WindowEdge::kClip);
   for (std::size_t k = 0; k < at.size(); ++k) {
-    float low = cells.points[k].z(), high = low;
-    for (int dy = -reach; dy <= reach; ++dy)
-      for (int dx = -reach; dx <= reach; ++dx) {
-        const int x = at[k].x() + dx, y = at[k].y() + dy;
-        if (x < 0 || y < 0 || x >= size.x() || y >= size.y()) continue;
-        const float h = height[static_cast<std::size_t>(y) * size.x() + x];
-        if (!std::isfinite(h)) continue;
-        low = std::min(low, h);
-        high = std::max(high, h);
-      }
-    if (high - low > o.step_min_m) w[k] = std::min(w[k], static_cast<float>(o.step_weight));
+    const std::size_t c = static_cast<std::size_t>(at[k].y()) * size.x() + at[k].x();
+    if (-minus_high[c] - low[c] > o.step_min_m) w[k] = std::min(w[k], static_cast<float>(o.step_weight));
   }
   return w;
 }
@@ -285,7 +283,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
     const DenseCells dense = ReadDenseCells(dense_path.string());
     if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
-                                                    AnchorCellWeights(dense, stage.AnchorWeights()));
+                                                    AnchorCellWeights(dense, stage.anchor));
     ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
     if (stage.init_facade_step_m > 0)
       FacadePoints(dense.points, dense.colours, dense.cell_m, stage.init_spacing_m, stage.init_facade_step_m, &facades,
@@ -378,7 +376,7 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
   std::unique_ptr<SurfaceDepthPrior> surface;
   if (!dense.points.empty())
     surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
-                                                  AnchorCellWeights(dense, train.AnchorWeights()));
+                                                  AnchorCellWeights(dense, train.anchor));
   auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
   const std::unique_ptr<Refiner> refiner =
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),

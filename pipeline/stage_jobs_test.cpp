@@ -44,7 +44,10 @@ TEST(AnchorCellWeights, SlopesBelowTheStepHeightAndUnitWeightsLeaveNoWeights) {
   const std::vector<float> w = AnchorCellWeights(low, o);
   for (float x : w) EXPECT_FLOAT_EQ(x, 1.0f);
   // Every weight 1: no weights at all (SurfaceDepthPrior's unweighted path).
-  EXPECT_TRUE(AnchorCellWeights(RoofBesideGround(12, 0.5, 10.0f), AnchorWeightOptions{}).empty());
+  AnchorWeightOptions unit;
+  unit.filled_weight = 1.0;
+  unit.step_weight = 1.0;
+  EXPECT_TRUE(AnchorCellWeights(RoofBesideGround(12, 0.5, 10.0f), unit).empty());
 }
 
 TEST(AnchorCellWeights, AFilledCellBesideAStepTakesTheLowerOfItsTwoWeights) {

@@ -16,16 +16,11 @@ namespace {
 
 constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
 
-// How a window meets the grid's edge: cut to the cells inside, or moved
-// inside whole (as a structuring element must lie within the grid, so that
-// a building in a corner is not mistaken for ground).
-enum class Edge { kClip, kShift };
-
 // Sliding minimum of width 2r+1 over `n` values at stride `stride` from
 // `in` into `out` (van Herk / Gil-Werman: three comparisons per value,
 // whatever r). NaN and the outside count as +infinity.
-void SlidingMin1d(const float* in, float* out, int n, std::size_t stride, int r, Edge edge, std::vector<float>& prefix,
-                  std::vector<float>& suffix) {
+void SlidingMin1d(const float* in, float* out, int n, std::size_t stride, int r, WindowEdge edge,
+                  std::vector<float>& prefix, std::vector<float>& suffix) {
   const float inf = std::numeric_limits<float>::infinity();
   const int w = 2 * r + 1;
   const int padded = ((n + 2 * r + w - 1) / w) * w;  // r of +inf on the left, the rest on the right
@@ -45,7 +40,7 @@ void SlidingMin1d(const float* in, float* out, int n, std::size_t stride, int r,
   }
   // Window of output x: padded positions [x, x + 2r].
   for (int x = 0; x < n; ++x) out[static_cast<std::size_t>(x) * stride] = std::min(suffix[x], prefix[x + 2 * r]);
-  if (edge == Edge::kShift) {
+  if (edge == WindowEdge::kShift) {
     // Windows moved inside: near an edge, the window flush with it; the
     // whole line when it is shorter than a window.
     auto at = [&](int x) -> float& { return out[static_cast<std::size_t>(x) * stride]; };
@@ -60,9 +55,9 @@ void SlidingMin1d(const float* in, float* out, int n, std::size_t stride, int r,
   }
 }
 
-// Minimum over the (2r+1)^2 square around each cell, ignoring NaN (NaN
-// where the square holds no finite value); separable, rows then columns.
-std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r, Edge edge) {
+}  // namespace
+
+std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r, WindowEdge edge) {
   std::vector<float> rows(h.size()), out(h.size()), prefix, suffix;
   for (int j = 0; j < ny; ++j) {
     const std::size_t row = static_cast<std::size_t>(j) * nx;
@@ -74,9 +69,11 @@ std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r,
   return out;
 }
 
+namespace {
+
 // Morphological opening with a flat (2r+1)^2 square, moved inside or cut
 // at the grid's edges: the highest of the square minima (NaN cells ignored).
-std::vector<float> Opening(const std::vector<float>& h, int nx, int ny, int r, Edge edge) {
+std::vector<float> Opening(const std::vector<float>& h, int nx, int ny, int r, WindowEdge edge) {
   std::vector<float> eroded = MinFilter(h, nx, ny, r, edge);
   for (float& x : eroded) x = -x;  // the maximum filter as a minimum of negatives
   std::vector<float> opened = MinFilter(eroded, nx, ny, r, edge);
@@ -210,7 +207,7 @@ std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, in
     if (trend) trend_m[k] = static_cast<float>(trend->At(static_cast<double>(k % nx), static_cast<double>(k / nx)));
     detrended[k] = h[k] - trend_m[k];
   }
-  std::vector<float> opened = Opening(detrended, nx, ny, radius_cells, Edge::kShift);
+  std::vector<float> opened = Opening(detrended, nx, ny, radius_cells, WindowEdge::kShift);
   for (std::size_t k = 0; k < h.size(); ++k) opened[k] += trend_m[k];
   return opened;
 }
@@ -268,7 +265,7 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
-  model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, Edge::kClip);
+  model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, WindowEdge::kClip);
   return model;
 }
 
@@ -347,7 +344,7 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   if (occluded) {
     std::vector<float> measured(h.size());
     for (std::size_t k = 0; k < h.size(); ++k) measured[k] = std::isfinite(h[k]) ? 0.0f : NAN;
-    in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, Edge::kClip);
+    in_reach = MinFilter(measured, nx, ny, o.max_reach_cells, WindowEdge::kClip);
   }
   // A roof's holes are filled from the raised cells alone; the raised
   // cells' minimum is only taken when there is such a hole.
@@ -361,9 +358,9 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
-    const std::vector<float> low_all = MinFilter(above, nx, ny, r, Edge::kClip);
+    const std::vector<float> low_all = MinFilter(above, nx, ny, r, WindowEdge::kClip);
     const std::vector<float> low_raised =
-        above_raised.empty() ? std::vector<float>() : MinFilter(above_raised, nx, ny, r, Edge::kClip);
+        above_raised.empty() ? std::vector<float>() : MinFilter(above_raised, nx, ny, r, WindowEdge::kClip);
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass

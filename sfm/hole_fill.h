@@ -9,6 +9,16 @@
 
 namespace skyfall {
 
+// How a window meets the grid's edge: cut to the cells inside, or moved
+// inside whole (as a structuring element must lie within the grid, so that
+// a building in a corner is not mistaken for ground).
+enum class WindowEdge { kClip, kShift };
+
+// Minimum over the (2r+1)^2 square around each cell, ignoring NaN (NaN
+// where the square holds no finite value); separable, rows then columns,
+// three comparisons per cell whatever r.
+std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r, WindowEdge edge);
+
 struct HoleFillOptions {
   int radius_cells = 10;            // first reach of a hole cell, doubled while nothing is in it
   int max_reach_cells = 40;         // cells further than this from every measured cell stay NaN

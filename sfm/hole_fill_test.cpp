@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -25,6 +26,32 @@ HoleFillOptions FillOptions() {
 std::vector<std::uint8_t> Fill(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
                                const std::vector<std::uint8_t>* occluded = nullptr) {
   return FillHoles(h, nx, ny, o, GroundModelOf(h, nx, ny, o), occluded);
+}
+
+TEST(MinFilter, TheSquaresLowestFiniteValueCutOrMovedAtTheEdges) {
+  const int nx = 7, ny = 5;
+  std::vector<float> h(nx * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) h[j * nx + i] = static_cast<float>(10 * j + i);  // lowest at the top-left
+  h[2 * nx + 3] = NAN;
+  h[4 * nx + 6] = -5.0f;
+  // Against a brute-force minimum over the square, cut at the grid's edges.
+  const std::vector<float> clipped = MinFilter(h, nx, ny, 1, WindowEdge::kClip);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      float m = INFINITY;
+      for (int b = std::max(0, j - 1); b <= std::min(ny - 1, j + 1); ++b)
+        for (int a = std::max(0, i - 1); a <= std::min(nx - 1, i + 1); ++a)
+          if (std::isfinite(h[b * nx + a])) m = std::min(m, h[b * nx + a]);
+      EXPECT_FLOAT_EQ(clipped[j * nx + i], m) << i << ", " << j;
+    }
+  // Moved inside whole, a corner's square is the 3 x 3 block at the corner.
+  const std::vector<float> shifted = MinFilter(h, nx, ny, 1, WindowEdge::kShift);
+  EXPECT_FLOAT_EQ(shifted[0], 0.0f);
+  EXPECT_FLOAT_EQ(shifted[4 * nx + 6], -5.0f);
+  EXPECT_FLOAT_EQ(shifted[0 * nx + 6], 4.0f);  // columns 4-6, rows 0-2
+  // A square of NaN only stays NaN.
+  EXPECT_TRUE(std::isnan(MinFilter(std::vector<float>(9, NAN), 3, 3, 1, WindowEdge::kClip)[4]));
 }
 
 TEST(HoleFill, HolesBesideAWallAreGroundAndHolesInARoofTakeTheRoof) {
