@@ -47,6 +47,10 @@ std::string CamerasJson(const SfmResult& r, const AoiCatalog& c) {
                       {"pinhole_mean_error_px", im.approximation.mean_error_px},
                       {"ba_offset_px", {im.ba_offset_px.x(), im.ba_offset_px.y()}},
                       {"observations", im.observations}});
+    if (im.sun_elevation_deg && im.sun_azimuth_deg) {
+      images.back()["sun_elevation_deg"] = *im.sun_elevation_deg;
+      images.back()["sun_azimuth_deg"] = *im.sun_azimuth_deg;
+    }
   }
   const json doc = {
       {"schema", "skyfall.cameras/1"},

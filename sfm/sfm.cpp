@@ -119,6 +119,8 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     im.name = rec.name;
     im.path = rec.path;
     im.acquisition_time = rec.acquisition_time;
+    im.sun_elevation_deg = rec.sun_elevation_deg;
+    im.sun_azimuth_deg = rec.sun_azimuth_deg;
     im.radiometry = rec.radiometry;
     im.approximation = ApproximateRpcByPinhole(rec.rpc, rec.width_px, rec.height_px, catalog.min_height_m,
                                                catalog.max_height_m, enu, options.pinhole);

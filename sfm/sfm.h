@@ -4,6 +4,7 @@
 // offsets and points.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,8 @@ struct SfmImage {
   std::string name;
   std::string path;
   std::string acquisition_time;
+  std::optional<double> sun_elevation_deg;    // from the catalog, when the source states it
+  std::optional<double> sun_azimuth_deg;      // clockwise from north
   Radiometry radiometry;                      // how its pixels are read (from the catalog)
   PinholeFit approximation;                   // RPC -> pinhole, before BA
   PinholeCamera camera;                       // final: the BA offset folded into cx, cy

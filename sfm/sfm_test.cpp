@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "catalogs/aoi_catalog.h"
@@ -238,6 +239,15 @@ TEST(Sfm, ColmapExportReprojectsWithColmapConventions) {
   WriteSfmOutputs(r, s.catalog, out.string());
   for (const char* f : {"cameras.json", "points.ply", "sfm_report.json", "colmap/cameras.txt"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
+  // Each image's sun from the catalog travels on to training (held-out
+  // views choose their appearance by it).
+  const nlohmann::json cameras = nlohmann::json::parse(std::ifstream(out / "cameras.json"));
+  ASSERT_EQ(cameras.at("images").size(), s.catalog.images.size());
+  for (std::size_t k = 0; k < s.catalog.images.size(); ++k) {
+    ASSERT_TRUE(s.catalog.images[k].sun_elevation_deg.has_value());
+    EXPECT_DOUBLE_EQ(cameras["images"][k].at("sun_elevation_deg").get<double>(), *s.catalog.images[k].sun_elevation_deg);
+    EXPECT_DOUBLE_EQ(cameras["images"][k].at("sun_azimuth_deg").get<double>(), *s.catalog.images[k].sun_azimuth_deg);
+  }
 
   // cameras.txt: id PINHOLE w h fx fy cx cy
   std::map<int, Eigen::Vector4d> intrinsics;

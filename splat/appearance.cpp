@@ -492,6 +492,57 @@ int TypicalImage(const AppearanceModel& model, const std::vector<int>& images) {
   return best;
 }
 
+double SunDirection::AngleToDeg(const SunDirection& other) const {
+  auto unit = [](const SunDirection& s) {
+    const double el = s.elevation_deg * M_PI / 180, az = s.azimuth_deg * M_PI / 180;
+    return Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
+  };
+  const double c = std::clamp(unit(*this).dot(unit(other)), -1.0, 1.0);
+  return std::acos(c) * 180 / M_PI;
+}
+
+Eigen::VectorXf EmbeddingForDate(const AppearanceModel& model, const std::vector<EmbeddingSource>& training,
+                                 const std::string& acquisition_time, const SunDirection& sun, std::string* how,
+                                 double sun_tolerance_deg) {
+  if (training.empty()) throw Error("appearance", "images", "no training image to choose an embedding from");
+  auto mean_of = [&](auto&& chosen) {
+    Eigen::VectorXf sum = Eigen::VectorXf::Zero(model.image_dim());
+    int n = 0;
+    for (const EmbeddingSource& t : training)
+      if (chosen(t)) {
+        sum += model.image_embeddings.col(t.image);
+        ++n;
+      }
+    return std::make_pair(n, n ? Eigen::VectorXf(sum / static_cast<float>(n)) : sum);
+  };
+  auto say = [&](const char* rule) {
+    if (how) *how = rule;
+  };
+  constexpr std::size_t kDay = 10;  // "YYYY-MM-DD"
+  if (acquisition_time.size() >= kDay) {
+    const auto [n, e] = mean_of([&](const EmbeddingSource& t) {
+      return t.acquisition_time.size() >= kDay && t.acquisition_time.compare(0, kDay, acquisition_time, 0, kDay) == 0;
+    });
+    if (n) {
+      say("same_date");
+      return e;
+    }
+  }
+  if (sun.known) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const EmbeddingSource& t : training)
+      if (t.sun.known) nearest = std::min(nearest, sun.AngleToDeg(t.sun));
+    const auto [n, e] = mean_of(
+        [&](const EmbeddingSource& t) { return t.sun.known && sun.AngleToDeg(t.sun) <= nearest + sun_tolerance_deg; });
+    if (n) {
+      say("nearest_sun");
+      return e;
+    }
+  }
+  say("mean");
+  return mean_of([](const EmbeddingSource&) { return true; }).second;
+}
+
 template struct AppearanceModelT<float>;
 template struct AppearanceModelT<double>;
 template std::vector<ColourAffine<float>> EvaluateAppearance(const AppearanceModelT<float>&, const Vec<float>&,

@@ -119,4 +119,34 @@ GaussianCloud FuseAppearance(const AppearanceModel& model, const Eigen::VectorXf
 // typical appearance, the default for export.
 int TypicalImage(const AppearanceModel& model, const std::vector<int>& images);
 
+// The sun at an image's acquisition, as the catalog states it.
+struct SunDirection {
+  bool known = false;
+  double elevation_deg = 0;
+  double azimuth_deg = 0;  // clockwise from north
+  SunDirection() = default;
+  SunDirection(double elevation, double azimuth) : known(true), elevation_deg(elevation), azimuth_deg(azimuth) {}
+  // Angle between the two directions toward the sun [deg].
+  double AngleToDeg(const SunDirection& other) const;
+};
+
+// What a training image contributes to choosing the embedding of an image
+// the model was not trained on.
+struct EmbeddingSource {
+  int image = 0;                 // column of AppearanceModel::image_embeddings
+  std::string acquisition_time;  // ISO 8601 UTC, empty when unknown
+  SunDirection sun;
+};
+
+// The embedding to render an image that has none of its own (a held-out
+// view) with, from its acquisition metadata alone, never its pixels: the
+// mean embedding of the training images taken the same UTC day (one pass of
+// the satellite: the same light, shadows and cars); else of those whose sun
+// stood nearest its own (within sun_tolerance_deg of the nearest: the
+// shadows a date casts follow the sun); else, without dates or sun angles,
+// the mean of all. `how` (optional) says which rule chose it.
+Eigen::VectorXf EmbeddingForDate(const AppearanceModel& model, const std::vector<EmbeddingSource>& training,
+                                 const std::string& acquisition_time, const SunDirection& sun,
+                                 std::string* how = nullptr, double sun_tolerance_deg = 1.0);
+
 }  // namespace skyfall

@@ -404,6 +404,45 @@ TEST(Appearance, TypicalImageIsNearestTheMeanEmbedding) {
   EXPECT_THROW(TypicalImage(m, {}), Error);
 }
 
+TEST(Appearance, SunAnglesAreMeasuredBetweenDirections) {
+  // Both 45 deg high, 90 deg apart in azimuth: unit vectors (0, c, c) and
+  // (c, 0, c) with c = cos 45, whose dot product is 1/2: 60 deg.
+  EXPECT_NEAR(SunDirection(45, 0).AngleToDeg(SunDirection(45, 90)), 60.0, 1e-9);
+  EXPECT_NEAR(SunDirection(30, 150).AngleToDeg(SunDirection(40, 150)), 10.0, 1e-9);
+  // Azimuths wrap: 359 and 1 deg are 2 deg apart at the horizon.
+  EXPECT_NEAR(SunDirection(0, 359).AngleToDeg(SunDirection(0, 1)), 2.0, 1e-9);
+}
+
+// Embeddings 0..3 hold the values 0, 1, 2, 3: which training images chose
+// an embedding can be read off its value.
+TEST(Appearance, AHeldOutDateTakesItsDaysOrNearestSunsEmbedding) {
+  AppearanceModel m = InitAppearance(AppearanceOptions{}, 4, 1, 1);
+  for (int j = 0; j < 4; ++j) m.image_embeddings.col(j).setConstant(static_cast<float>(j));
+  const std::vector<EmbeddingSource> training = {{0, "2015-01-15T15:55:00Z", SunDirection(34, 154)},
+                                                 {1, "2015-01-15T15:55:11Z", SunDirection(34, 154)},
+                                                 {2, "2015-05-18T16:16:00Z", SunDirection(70, 120)},
+                                                 {3, "2015-08-08T16:00:00Z", SunDirection(65.5, 121)}};
+  std::string how;
+  // The same UTC day (another pass seconds later): that day's images alone.
+  EXPECT_FLOAT_EQ(EmbeddingForDate(m, training, "2015-01-15T15:56:00Z", SunDirection(34, 154), &how)(0), 0.5f);
+  EXPECT_EQ(how, "same_date");
+  // Another day: the sun nearest its own; 2 and 3 are 5.1 deg apart, so
+  // only the nearest counts at the default 1 deg tolerance...
+  EXPECT_FLOAT_EQ(EmbeddingForDate(m, training, "2015-06-01T16:00:00Z", SunDirection(71, 119), &how)(0), 2.0f);
+  EXPECT_EQ(how, "nearest_sun");
+  // ...and both within a wider one.
+  EXPECT_FLOAT_EQ(EmbeddingForDate(m, training, "2015-06-01T16:00:00Z", SunDirection(71, 119), &how, 10.0)(0), 2.5f);
+  // Neither a date in common nor a sun: the mean of all.
+  EXPECT_FLOAT_EQ(EmbeddingForDate(m, training, "", SunDirection(), &how)(0), 1.5f);
+  EXPECT_EQ(how, "mean");
+  // Training images without sun angles give none to compare with.
+  std::vector<EmbeddingSource> undated = training;
+  for (EmbeddingSource& t : undated) t = {t.image, "", SunDirection()};
+  EXPECT_FLOAT_EQ(EmbeddingForDate(m, undated, "2015-01-15T15:56:00Z", SunDirection(34, 154), &how)(0), 1.5f);
+  EXPECT_EQ(how, "mean");
+  EXPECT_THROW(EmbeddingForDate(m, {}, "", SunDirection()), Error);
+}
+
 TEST(Appearance, BadShapesAndOptionsAreNamed) {
   AppearanceOptions o;
   o.hidden = 0;

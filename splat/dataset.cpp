@@ -142,6 +142,8 @@ std::vector<CameraEntry> ParseCameraEntries(const std::string& text, const std::
       e.source_image = im.value("source_image", std::string());
       e.held_out = im.value("split", std::string("train")) == "test";
       e.acquisition_time = im.value("acquisition_time", std::string());
+      if (im.contains("sun_elevation_deg") && im.contains("sun_azimuth_deg"))
+        e.sun = {im.at("sun_elevation_deg").get<double>(), im.at("sun_azimuth_deg").get<double>()};
       if (im.contains("radiometry") && !im.at("radiometry").is_null())
         e.radiometry = RadiometryFromJson(im.at("radiometry").dump(), path + ": " + e.name + ".radiometry");
       out.push_back(std::move(e));
@@ -177,6 +179,7 @@ std::vector<TrainView> LoadTrainViews(const std::string& sfm_dir, int downscale)
     v.name = entry.name;
     v.held_out = entry.held_out;
     v.acquisition_time = entry.acquisition_time;
+    v.sun = entry.sun;
     const PinholeCamera& full = entry.camera;
     v.camera = DownscaledCamera(full, downscale);
     const NormalizedImage img = ReadNormalizedImage(entry.source_image, entry.radiometry);

@@ -48,6 +48,7 @@ struct CameraEntry {
   std::string source_image;      // the pixels the camera describes
   bool held_out = false;         // "split": "test"
   std::string acquisition_time;  // empty when unknown
+  SunDirection sun;              // unknown unless cameras.json states both angles
   Radiometry radiometry;         // how the source image's pixels are read (not measured: measured on read)
 };
 

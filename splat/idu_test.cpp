@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
+#include "core/error.h"
 #include "splat/dataset.h"
 #include "splat/orbit.h"
 #include "splat/refiner.h"
@@ -73,6 +74,25 @@ TEST(Orbit, EpisodesDescendFromHighToLowAndLookAtAGridOnTheSurface) {
   for (const OrbitView& v : views) EXPECT_NEAR(v.elevation_deg, 65.0, kGeometryTol);
   // Episodes turn their rings: the first view of point 0 differs between episodes.
   EXPECT_GT(std::abs(EpisodeViews(o, core, grid, 1)[0].azimuth_deg - EpisodeViews(o, core, grid, 0)[0].azimuth_deg), 1.0);
+}
+
+TEST(Dataset, CameraEntriesCarryTheSunWhenBothAnglesAreStated) {
+  const std::string camera = R"("K": [[100, 0, 50], [0, 100, 40], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                                  "t": [0, 0, 500], "width_px": 100, "height_px": 80)";
+  const std::string text = R"({"images": [{"name": "a", )" + camera +
+                           R"(, "acquisition_time": "2015-01-15T15:55:00Z", "sun_elevation_deg": 33.8,
+                              "sun_azimuth_deg": 154.1}, {"name": "b", )" + camera +
+                           R"(, "sun_elevation_deg": 40}]})";
+  const std::vector<CameraEntry> entries = ParseCameraEntries(text, "cameras.json");
+  ASSERT_EQ(entries.size(), 2u);
+  EXPECT_TRUE(entries[0].sun.known);
+  EXPECT_DOUBLE_EQ(entries[0].sun.elevation_deg, 33.8);
+  EXPECT_DOUBLE_EQ(entries[0].sun.azimuth_deg, 154.1);
+  EXPECT_EQ(entries[0].acquisition_time, "2015-01-15T15:55:00Z");
+  EXPECT_FALSE(entries[1].sun.known);  // one angle alone is no direction
+  const std::string bad = R"({"images": [{"name": "a", )" + camera +
+                          R"(, "sun_elevation_deg": "high", "sun_azimuth_deg": 10}]})";
+  EXPECT_THROW(ParseCameraEntries(bad, "cameras.json"), Error);
 }
 
 TEST(Orbit, CamerasFileReadsBackAsCameras) {

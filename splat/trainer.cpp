@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <sstream>
@@ -480,23 +481,28 @@ double ViewDepthLoss(const RenderOutput<float>& r, const TrainView& view, double
   return loss;
 }
 
-// Held-out views have no embedding of their own: with the appearance model
-// they are rendered with the mean training embedding, and scored by
-// `score(render, view)`: the mean over the held-out views (NaN: none).
+// Held-out views have no embedding of their own. With the appearance model
+// they are rendered with the embedding their acquisition metadata choose
+// (EmbeddingForDate: the same day's, else the nearest sun's), or with the
+// mean training embedding (`by_date` false: the figure before that choice,
+// kept for comparison). Each is scored by `score(render, view)`; returns
+// the mean over the held-out views (NaN: none).
 template <typename Score>
 double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
-                        const AppearanceState& appearance, const std::vector<int>& train_ids, const Score& score) {
-  Eigen::VectorXf mean;
-  if (appearance.enabled) {
-    mean = Eigen::VectorXf::Zero(appearance.model.image_dim());
-    for (int j : train_ids) mean += appearance.model.image_embeddings.col(j);
-    mean /= static_cast<float>(train_ids.size());
-  }
-  const std::vector<ColourAffine<float>> affine = AffineFor(c, appearance, mean);
+                        const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date,
+                        const Score& score) {
+  std::vector<EmbeddingSource> sources;
+  for (int j : train_ids)
+    sources.push_back({j, by_date ? views[j].acquisition_time : std::string(), by_date ? views[j].sun : SunDirection()});
   double sum = 0;
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
+    std::vector<ColourAffine<float>> affine;
+    if (appearance.enabled)
+      affine = AffineFor(c, appearance,
+                         EmbeddingForDate(appearance.model, sources, by_date ? v.acquisition_time : std::string(),
+                                          by_date ? v.sun : SunDirection()));
     const RenderOutput<float> r = RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr);
     sum += score(r.rgb, v);
     ++n;
@@ -505,8 +511,8 @@ double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& vi
 }
 
 double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
-                   const AppearanceState& appearance, const std::vector<int>& train_ids) {
-  return MeanHeldOutScore(c, views, raster, appearance, train_ids,
+                   const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date = true) {
+  return MeanHeldOutScore(c, views, raster, appearance, train_ids, by_date,
                           [](const std::vector<float>& rgb, const TrainView& v) { return Psnr(rgb, v.rgb); });
 }
 
@@ -515,9 +521,28 @@ double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, 
 // no model trained on other dates can know, is taken out.
 double HeldOutFittedPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                          const AppearanceState& appearance, const std::vector<int>& train_ids) {
-  return MeanHeldOutScore(c, views, raster, appearance, train_ids, [](const std::vector<float>& rgb, const TrainView& v) {
-    return HalfFittedPsnr(rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
-  });
+  return MeanHeldOutScore(c, views, raster, appearance, train_ids, true,
+                          [](const std::vector<float>& rgb, const TrainView& v) {
+                            return HalfFittedPsnr(rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
+                          });
+}
+
+// How many held-out views each rule of EmbeddingForDate chose for, by
+// report metric name.
+std::map<std::string, double> HeldOutEmbeddingRules(const std::vector<TrainView>& views,
+                                                    const AppearanceState& appearance,
+                                                    const std::vector<int>& train_ids) {
+  std::map<std::string, double> count;
+  if (!appearance.enabled) return count;
+  std::vector<EmbeddingSource> sources;
+  for (int j : train_ids) sources.push_back({j, views[j].acquisition_time, views[j].sun});
+  for (const TrainView& v : views) {
+    if (!v.held_out) continue;
+    std::string how;
+    EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun, &how);
+    count["heldout_embedding_" + how] += 1;
+  }
+  return count;
 }
 
 double SceneExtent(const GaussianCloud& c) {
@@ -981,6 +1006,12 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   result.report.metrics["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians);
   result.report.metrics["psnr_test_fitted_db"] = HeldOutFittedPsnr(cloud, views, o.raster, appearance, train_ids);
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
+  const bool any_held_out = std::any_of(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; });
+  if (appearance.enabled && any_held_out) {
+    result.report.metrics["psnr_test_mean_embedding_db"] =
+        HeldOutPsnr(cloud, views, o.raster, appearance, train_ids, /*by_date=*/false);
+    for (const auto& [name, n] : HeldOutEmbeddingRules(views, appearance, train_ids)) result.report.metrics[name] = n;
+  }
   result.report.seconds = clock.Seconds();
   return result;
 }

@@ -29,6 +29,7 @@ struct TrainView {
   std::vector<std::uint8_t> valid;
   bool held_out = false;      // evaluation only
   std::string acquisition_time;  // ISO 8601 (UTC) when known, else empty
+  SunDirection sun;              // the sun at acquisition, when known
   // Synthetic views (the synthesis stage's refined orbit renders) are drawn
   // with TrainOptions::synthetic_fraction and never anchored to the surface.
   bool synthetic = false;
