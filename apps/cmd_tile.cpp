@@ -86,7 +86,7 @@ void AddMerge(CLI::App& app, Runner* runner) {
       const RunOptions options = flags->Resolve();
       options.Check();
       ConsoleProgress progress;
-      const MergeSummary m = MergeTiles(*tiles, *out, options.merge, options.dsm.export_options, progress);
+      const MergeSummary m = MergeTiles(*tiles, *out, options.merge, options.dsm, progress);
       const auto& k = m.report.metrics;
       spdlog::info("merge: {} tiles ({} missing), {} Gaussians, {} duplicates removed, {} hole fills, seam ratio {:.2f} "
                    "({:.3f} m across boundaries vs {:.3f} m elsewhere), {:.1f} s -> {}",

@@ -144,7 +144,7 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
                  const std::vector<std::string>& tile_dirs, const std::string& out_dir, json* stages,
                  CityOutcome* outcome, Progress& progress) {
   json dsm = json::array();
-  const GaussianCloud scene = ReadGaussiansPly(merged.scene_path);
+  const GaussianCloud scene = ReadGaussiansPly(merged.surface_path);
   const DenseClouds dense_clouds = DenseCellsAsGaussians(tile_dirs);
   const GaussianCloud& dense = dense_clouds.all;
   const GaussianCloud& measured = dense_clouds.measured;
@@ -359,7 +359,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   try {
     ThrowIfNoTileFinished(work.city, outcomes);
     merged = MergeTiles((work.city_dir / "tiles").string(), (work.city_dir / "scene").string(), options.merge,
-                        options.dsm.export_options, progress);
+                        options.dsm, progress);
     stages.push_back(StageEntry("merge", "ok", clock.Seconds()));
   } catch (const Error& e) {
     progress.Warn("[" + work.city + "] merge: " + e.what());
@@ -394,6 +394,14 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
                                                              "previous level's Gaussians, up to {} levels",
                                                              100 * options.merge.lod.min_reduction,
                                                              options.merge.lod.max_levels)}}}};
+  report["decisions"]["dsm_source"] = {
+      {"source", merged.surface_source},
+      {"surface", merged.surface_path},
+      {"why", merged.surface_source == "reconstruction"
+                  ? "dsm.source is reconstruction: the DSMs come from the tiles' scenes trained on the real images; "
+                    "the synthesis stage's scene (scene.ply, the LOD) also trained on the refiner's orbit renders"
+                  : options.dsm.source == "final" ? "dsm.source is final: the DSMs come from the merged scene"
+                                                  : "no synthesis stage ran: the reconstruction is the merged scene"}};
   report["seam"] = {{"ratio", Finite(merged.seam.ratio)},
                     {"boundary_mean_step_m", Finite(merged.seam.boundary_mean_step_m)},
                     {"interior_mean_step_m", Finite(merged.seam.interior_mean_step_m)}};

@@ -178,9 +178,46 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   EXPECT_EQ(RunTile(tile.string(), options, 0, progress).status, StageStatus::kOk);
   EXPECT_TRUE(fs::exists(tile / "sfm" / "points.ply"));
   const MergeSummary merged = MergeTiles((city_dir / "tiles").string(), (dir / "scene2").string(), options.merge,
-                                         options.dsm.export_options, progress);
+                                         options.dsm, progress);
   EXPECT_EQ(merged.tiles_merged, 6u);
   EXPECT_TRUE(fs::exists(dir / "scene2" / "scene.ply"));
+
+  // The DSMs come from the reconstructions (dsm.source): a synthesis-stage
+  // scene 10 m above its tile's reconstruction moves the merged scene, not
+  // the city DSM; with dsm.source "final" the DSM rises with it.
+  {
+    const fs::path idu_scene = tile / "idu" / "scene.ply", kept = dir / "idu_scene_kept.ply";
+    if (fs::exists(idu_scene)) fs::rename(idu_scene, kept);
+    fs::create_directories(tile / "idu");
+    GaussianCloud raised_cloud = ReadGaussiansPly((tile / "splat" / "scene.ply").string());
+    for (auto& m : raised_cloud.means) m.z() += 10.0f;
+    WriteGaussiansPly(idu_scene.string(), raised_cloud);
+    const DsmGrid before = ReadDsm((dir / "scene2" / "dsm_city.tif").string());
+    const MergeSummary from_reconstruction =
+        MergeTiles((city_dir / "tiles").string(), (dir / "scene3").string(), options.merge, options.dsm, progress);
+    EXPECT_EQ(from_reconstruction.surface_source, "reconstruction");
+    EXPECT_TRUE(fs::exists(dir / "scene3" / "surface.ply"));
+    const DsmGrid same = ReadDsm((dir / "scene3" / "dsm_city.tif").string());
+    ASSERT_EQ(same.height_m.size(), before.height_m.size());
+    int differ = 0;
+    for (std::size_t k = 0; k < same.height_m.size(); ++k)
+      differ += std::isfinite(same.height_m[k]) != std::isfinite(before.height_m[k]) ||
+                std::abs(same.height_m[k] - before.height_m[k]) > 1e-3f;
+    EXPECT_EQ(differ, 0);
+    RunOptions final_surface = options;
+    final_surface.dsm.source = "final";
+    const MergeSummary from_final = MergeTiles((city_dir / "tiles").string(), (dir / "scene4").string(),
+                                               final_surface.merge, final_surface.dsm, progress);
+    EXPECT_EQ(from_final.surface_source, "final");
+    EXPECT_EQ(from_final.surface_path, from_final.scene_path);
+    EXPECT_FALSE(fs::exists(dir / "scene4" / "surface.ply"));
+    const DsmGrid raised = ReadDsm((dir / "scene4" / "dsm_city.tif").string());
+    int up = 0;
+    for (std::size_t k = 0; k < raised.height_m.size(); ++k) up += raised.height_m[k] - before.height_m[k] > 5.0f;
+    EXPECT_GT(up, 100) << "the raised tile's cells";
+    fs::remove(idu_scene);
+    if (fs::exists(kept)) fs::rename(kept, idu_scene);
+  }
 
   // Other training options are another run: the tile is not taken as done.
   RunOptions other = options;

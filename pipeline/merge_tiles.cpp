@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/aoi_catalog.h"
@@ -61,9 +62,12 @@ TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions&
 }  // namespace
 
 MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
-                        const DsmExportOptions& dsm_options, Progress& progress) {
+                        const DsmOptions& dsm, Progress& progress) {
   Stopwatch clock;
   options.Check();
+  dsm.Check();
+  const DsmExportOptions& dsm_options = dsm.export_options;
+  const bool from_reconstruction = dsm.source == "reconstruction";
   MergeSummary summary;
   summary.report.stage = "merge";
   const fs::path index_path = fs::path(tiles_dir) / "tiles.json";
@@ -73,7 +77,8 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   } catch (const json::exception& e) {
     throw Error("merge", index_path.string(), std::string("not valid JSON: ") + e.what());
   }
-  std::vector<TileCloud> clouds;
+  std::vector<TileCloud> clouds, reconstructions;  // the second: for the DSMs
+  bool any_synthesized = false;  // some tile's reconstruction differs from its scene
   std::vector<std::string> missing;
   const json& tiles = index.at("tiles");
   progress.Begin("merge: reading tiles", tiles.size());
@@ -90,6 +95,13 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
     }
     if (ok) {
       clouds.push_back({spec, ReadGaussiansPly(scene.string())});
+      const std::string reconstruction = TileReconstructionPath(dir.string());
+      if (from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction)) {
+        reconstructions.push_back({spec, ReadGaussiansPly(reconstruction)});
+        any_synthesized = true;
+      } else {
+        reconstructions.push_back(clouds.back());
+      }
     } else {
       missing.push_back(spec.id);
       progress.Warn("merge: tile " + spec.id + " has no finished scene; its area is left to its neighbours");
@@ -109,12 +121,29 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
   WriteLod(out_dir, lod);
 
-  // Seam metric on a city DSM rendered from the merged scene.
+  // The surface the DSMs come from: the reconstructions stitched alike when
+  // some tile's synthesis stage changed its scene, else the merged scene.
+  std::optional<StitchResult> surface_stitched;
+  summary.surface_path = summary.scene_path;
+  summary.surface_source = "final";
+  const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
+  if (any_synthesized) {
+    const TileOwnership surface_ownership = PlanOwnership(options, dsm_options, reconstructions, summary.epsg, progress);
+    surface_stitched = StitchTiles(options.stitch, summary.enu_origin, reconstructions, &surface_ownership);
+    summary.surface_path = surface_ply.string();
+    WriteGaussiansPly(summary.surface_path, surface_stitched->cloud);
+    summary.surface_source = "reconstruction";
+  } else {
+    fs::remove(surface_ply);  // an earlier run's would no longer match the scene
+  }
+  const StitchResult& surface = surface_stitched ? *surface_stitched : stitched;
+
+  // Seam metric on a city DSM rendered from that surface.
   const GroundBox bounds = BoxFromJson(index.at("bounds"));
   DsmGrid city = GridCovering(bounds, summary.enu_origin, summary.epsg, options.seam_gsd_m);
-  RasterizeDsm(stitched.cloud, summary.enu_origin, dsm_options, &city);
+  RasterizeDsm(surface.cloud, summary.enu_origin, dsm_options, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
-  summary.seam = MeasureSeams(city, stitched.ownership, summary.enu_origin);
+  summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
   summary.tiles_merged = clouds.size();
   summary.tiles_missing = missing.size();
   summary.lod_levels = static_cast<int>(lod.size());
@@ -140,6 +169,7 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
                               {"boundary_pairs", summary.seam.boundary_pairs},
                               {"interior_pairs", summary.seam.interior_pairs}}},
                     {"lod", levels},
+                    {"dsm_source", summary.surface_source},
                     {"seconds", summary.report.seconds}};
   WriteFileAtomic((fs::path(out_dir) / "merge_report.json").string(), doc.dump(2) + "\n");
   return summary;

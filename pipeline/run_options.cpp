@@ -314,6 +314,7 @@ template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
   io("within_m", o.within_m);
 }
 template <class IO> void Visit(IO& io, DsmOptions& o) {
+  io("source", o.source);
   io("export", o.export_options);
   io("compare", o.compare);
 }
@@ -512,6 +513,7 @@ void MergeOptions::Check() const {
 }
 
 void DsmOptions::Check() const {
+  NeedOneOf(source, {"reconstruction", "final"}, "dsm", "source");
   try {
     export_options.Check();
   } catch (const Error& e) {

@@ -99,6 +99,15 @@ struct ExportOptions {
 };
 
 struct DsmOptions {
+  // The Gaussians the DSMs (OUT/<AOI>/dsm.tif, the city's dsm_city.tif) are
+  // rasterized from: "reconstruction", each tile's scene trained on the real
+  // images (splat/scene.ply), or "final", the scene after the synthesis stage
+  // (the one scene.ply and the LOD hold). The synthesis stage trains on the
+  // refiner's renders of orbit views, which no image measured: they improve
+  // oblique views and cost the nadir surface 5-17% of DSM MAE on every
+  // benchmark scene measured (docs/benchmarks.md), so heights come from the
+  // reconstruction unless asked otherwise.
+  std::string source = "reconstruction";
   DsmExportOptions export_options;   // JSON key "export"
   DsmCompareOptions compare;
   void Check() const;                // throws Error("dsm", field, ...)

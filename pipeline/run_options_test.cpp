@@ -108,6 +108,7 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dsm.compare.pyramid_levels = 0; }).find("dsm.compare.pyramid_levels"),
             std::string::npos);
+  EXPECT_NE(check([](RunOptions& o) { o.dsm.source = "idu"; }).find("dsm.source"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dsm.export_options.min_alpha = 1; }).find("dsm.export.min_alpha"),
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.executor.kind = "cloud"; }).find("executor.kind"), std::string::npos);

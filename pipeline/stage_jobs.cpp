@@ -395,9 +395,13 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
   return result;
 }
 
+std::string TileReconstructionPath(const std::string& tile_dir) {
+  return (fs::path(tile_dir) / "splat" / "scene.ply").string();
+}
+
 std::string TileScenePath(const std::string& tile_dir) {
   const fs::path idu = fs::path(tile_dir) / "idu" / "scene.ply";
-  return fs::exists(idu) ? idu.string() : (fs::path(tile_dir) / "splat" / "scene.ply").string();
+  return fs::exists(idu) ? idu.string() : TileReconstructionPath(tile_dir);
 }
 
 void RenderSceneJob(const std::string& scene_ply, const std::string& cameras_json, const std::string& out_dir,

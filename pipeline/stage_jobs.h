@@ -83,6 +83,9 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
 // The Gaussians a finished tile contributes to the merge: the synthesis
 // stage's scene when it ran, else the trained one.
 std::string TileScenePath(const std::string& tile_dir);
+// The Gaussians trained on the tile's real images alone (splat/scene.ply),
+// before any synthesis stage.
+std::string TileReconstructionPath(const std::string& tile_dir);
 
 // Renders the scene (Inria PLY) from every camera of a cameras.json into
 // out_dir: <name>_rgb.png, <name>_depth.png (visualization) and
