@@ -487,22 +487,27 @@ double ViewDepthLoss(const RenderOutput<float>& r, const TrainView& view, double
 // mean training embedding (`by_date` false: the figure before that choice,
 // kept for comparison). Each is scored by `score(render, view)`; returns
 // the mean over the held-out views (NaN: none).
+// The training views as EmbeddingForDate reads them.
+std::vector<EmbeddingSource> EmbeddingSources(const std::vector<TrainView>& views, const std::vector<int>& train_ids) {
+  std::vector<EmbeddingSource> sources;
+  for (int j : train_ids) sources.push_back({j, views[j].acquisition_time, views[j].sun});
+  return sources;
+}
+
 template <typename Score>
 double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                         const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date,
                         const Score& score) {
-  std::vector<EmbeddingSource> sources;
-  for (int j : train_ids)
-    sources.push_back({j, by_date ? views[j].acquisition_time : std::string(), by_date ? views[j].sun : SunDirection()});
+  const std::vector<EmbeddingSource> sources = EmbeddingSources(views, train_ids);
   double sum = 0;
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
     std::vector<ColourAffine<float>> affine;
-    if (appearance.enabled)
+    if (appearance.enabled)  // without a date or sun, EmbeddingForDate gives the mean
       affine = AffineFor(c, appearance,
-                         EmbeddingForDate(appearance.model, sources, by_date ? v.acquisition_time : std::string(),
-                                          by_date ? v.sun : SunDirection()));
+                         by_date ? EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun)
+                                 : EmbeddingForDate(appearance.model, sources, "", SunDirection()));
     const RenderOutput<float> r = RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr);
     sum += score(r.rgb, v);
     ++n;
@@ -534,8 +539,7 @@ std::map<std::string, double> HeldOutEmbeddingRules(const std::vector<TrainView>
                                                     const std::vector<int>& train_ids) {
   std::map<std::string, double> count;
   if (!appearance.enabled) return count;
-  std::vector<EmbeddingSource> sources;
-  for (int j : train_ids) sources.push_back({j, views[j].acquisition_time, views[j].sun});
+  const std::vector<EmbeddingSource> sources = EmbeddingSources(views, train_ids);
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
     std::string how;
