@@ -189,6 +189,13 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     const fs::path idu_scene = tile / "idu" / "scene.ply", kept = dir / "idu_scene_kept.ply";
     if (fs::exists(idu_scene)) fs::rename(idu_scene, kept);
     fs::create_directories(tile / "idu");
+    struct Restore {  // the tile as it was, however the block ends
+      fs::path scene, kept;
+      ~Restore() {
+        fs::remove(scene);
+        if (fs::exists(kept)) fs::rename(kept, scene);
+      }
+    } restore{idu_scene, kept};
     GaussianCloud raised_cloud = ReadGaussiansPly((tile / "splat" / "scene.ply").string());
     for (auto& m : raised_cloud.means) m.z() += 10.0f;
     WriteGaussiansPly(idu_scene.string(), raised_cloud);
@@ -215,8 +222,6 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     int up = 0;
     for (std::size_t k = 0; k < raised.height_m.size(); ++k) up += raised.height_m[k] - before.height_m[k] > 5.0f;
     EXPECT_GT(up, 100) << "the raised tile's cells";
-    fs::remove(idu_scene);
-    if (fs::exists(kept)) fs::rename(kept, idu_scene);
   }
 
   // Other training options are another run: the tile is not taken as done.

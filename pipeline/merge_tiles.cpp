@@ -1,5 +1,6 @@
 #include "pipeline/merge_tiles.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -77,8 +78,10 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   } catch (const json::exception& e) {
     throw Error("merge", index_path.string(), std::string("not valid JSON: ") + e.what());
   }
-  std::vector<TileCloud> clouds, reconstructions;  // the second: for the DSMs
-  bool any_synthesized = false;  // some tile's reconstruction differs from its scene
+  std::vector<TileCloud> clouds;
+  // Per merged tile, its reconstruction when the DSMs come from it and it
+  // differs from the tile's scene (the synthesis stage ran), else empty.
+  std::vector<std::string> reconstruction_of;
   std::vector<std::string> missing;
   const json& tiles = index.at("tiles");
   progress.Begin("merge: reading tiles", tiles.size());
@@ -96,12 +99,8 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
     if (ok) {
       clouds.push_back({spec, ReadGaussiansPly(scene.string())});
       const std::string reconstruction = TileReconstructionPath(dir.string());
-      if (from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction)) {
-        reconstructions.push_back({spec, ReadGaussiansPly(reconstruction)});
-        any_synthesized = true;
-      } else {
-        reconstructions.push_back(clouds.back());
-      }
+      const bool differs = from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction);
+      reconstruction_of.push_back(differs ? reconstruction : std::string());
     } else {
       missing.push_back(spec.id);
       progress.Warn("merge: tile " + spec.id + " has no finished scene; its area is left to its neighbours");
@@ -123,11 +122,24 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
 
   // The surface the DSMs come from: the reconstructions stitched alike when
   // some tile's synthesis stage changed its scene, else the merged scene.
+  // The tiles' scenes are not needed past the stitch: they become the
+  // reconstructions where those are the same, so one city's worth of tiles
+  // is held at a time.
   std::optional<StitchResult> surface_stitched;
   summary.surface_path = summary.scene_path;
   summary.surface_source = "final";
   const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
+  const bool any_synthesized =
+      std::any_of(reconstruction_of.begin(), reconstruction_of.end(), [](const std::string& p) { return !p.empty(); });
   if (any_synthesized) {
+    std::vector<TileCloud> reconstructions;
+    for (std::size_t k = 0; k < clouds.size(); ++k) {
+      if (reconstruction_of[k].empty())
+        reconstructions.push_back(std::move(clouds[k]));
+      else
+        reconstructions.push_back({clouds[k].tile, ReadGaussiansPly(reconstruction_of[k])});
+      clouds[k].cloud = GaussianCloud();
+    }
     const TileOwnership surface_ownership = PlanOwnership(options, dsm_options, reconstructions, summary.epsg, progress);
     surface_stitched = StitchTiles(options.stitch, summary.enu_origin, reconstructions, &surface_ownership);
     summary.surface_path = surface_ply.string();

@@ -85,7 +85,8 @@ std::string Decisions(const json& decisions) {
     }
     std::string value = d.contains("on") ? (d.at("on").get<bool>() ? "on" : "off")
                         : d.contains("levels") ? std::to_string(d.at("levels").get<int>()) + " levels"
-                                               : "";
+                        : d.contains("source") && d.at("source").is_string() ? d.at("source").get<std::string>()
+                                                                              : "";
     std::string why = d.value("why", "");
     for (const char* figure : {"facade_ratio", "measured_fraction"}) {
       if (d.contains(figure) && d.at(figure).is_number()) why += fmt::format("; {} {:.3f}", figure, d.at(figure).get<double>());

@@ -104,7 +104,7 @@ struct DsmOptions {
   // images (splat/scene.ply), or "final", the scene after the synthesis stage
   // (the one scene.ply and the LOD hold). The synthesis stage trains on the
   // refiner's renders of orbit views, which no image measured: they improve
-  // oblique views and cost the nadir surface 5-17% of DSM MAE on every
+  // oblique views and cost the nadir surface 6-16% of DSM MAE on every
   // benchmark scene measured (docs/benchmarks.md), so heights come from the
   // reconstruction unless asked otherwise.
   std::string source = "reconstruction";

@@ -81,6 +81,13 @@ bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* repor
   }
 }
 
+// What sfm_options.json holds: the options, and the version of what the SfM
+// writes (2: cameras.json carries each image's sun angles). An SfM of an
+// older version is redone, not reused.
+std::string SfmStamp(const SfmOptions& options) {
+  return json{{"options", json::parse(SfmOptionsJson(options))}, {"outputs_version", 2}}.dump();
+}
+
 // A finished SfM under the same options (sfm_options.json is written after
 // the SfM's own outputs, so a killed SfM is never taken as finished).
 bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
@@ -88,7 +95,7 @@ bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
     const json doc = json::parse(ReadTextFile((sfm_dir / "sfm_report.json").string()));
     return doc.value("status", "") == "ok" && fs::exists(sfm_dir / "points.ply") &&
            fs::exists(sfm_dir / "cameras.json") &&
-           ReadTextFile((sfm_dir / "sfm_options.json").string()) == SfmOptionsJson(options);
+           ReadTextFile((sfm_dir / "sfm_options.json").string()) == SfmStamp(options);
   } catch (const std::exception&) {
     return false;
   }
@@ -128,7 +135,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
     const AoiCatalog catalog = ReadAoiCatalog((fs::path(tile_dir) / "aoi.json").string());
     fs::remove(sfm_dir / "sfm_options.json");  // until this SfM has finished
     const SfmResult sfm = RunSfmJob(options.sfm, catalog, sfm_dir.string(), false, progress);
-    WriteFileAtomic((sfm_dir / "sfm_options.json").string(), SfmOptionsJson(options.sfm));
+    WriteFileAtomic((sfm_dir / "sfm_options.json").string(), SfmStamp(options.sfm));
     stages.push_back(sfm.report);
     if (sfm.report.status != StageStatus::kOk) {
       report.status = StageStatus::kDegenerate;

@@ -142,8 +142,10 @@ std::vector<CameraEntry> ParseCameraEntries(const std::string& text, const std::
       e.source_image = im.value("source_image", std::string());
       e.held_out = im.value("split", std::string("train")) == "test";
       e.acquisition_time = im.value("acquisition_time", std::string());
-      if (im.contains("sun_elevation_deg") && im.contains("sun_azimuth_deg"))
-        e.sun = {im.at("sun_elevation_deg").get<double>(), im.at("sun_azimuth_deg").get<double>()};
+      // Both angles as numbers, or the sun is unknown (null: not stated).
+      const json* el = im.contains("sun_elevation_deg") ? &im.at("sun_elevation_deg") : nullptr;
+      const json* az = im.contains("sun_azimuth_deg") ? &im.at("sun_azimuth_deg") : nullptr;
+      if (el && az && !el->is_null() && !az->is_null()) e.sun = {el->get<double>(), az->get<double>()};
       if (im.contains("radiometry") && !im.at("radiometry").is_null())
         e.radiometry = RadiometryFromJson(im.at("radiometry").dump(), path + ": " + e.name + ".radiometry");
       out.push_back(std::move(e));

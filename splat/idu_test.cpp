@@ -82,9 +82,11 @@ TEST(Dataset, CameraEntriesCarryTheSunWhenBothAnglesAreStated) {
   const std::string text = R"({"images": [{"name": "a", )" + camera +
                            R"(, "acquisition_time": "2015-01-15T15:55:00Z", "sun_elevation_deg": 33.8,
                               "sun_azimuth_deg": 154.1}, {"name": "b", )" + camera +
-                           R"(, "sun_elevation_deg": 40}]})";
+                           R"(, "sun_elevation_deg": 40}, {"name": "c", )" + camera +
+                           R"(, "sun_elevation_deg": null, "sun_azimuth_deg": null}]})";
   const std::vector<CameraEntry> entries = ParseCameraEntries(text, "cameras.json");
-  ASSERT_EQ(entries.size(), 2u);
+  ASSERT_EQ(entries.size(), 3u);
+  EXPECT_FALSE(entries[2].sun.known);  // null: not stated
   EXPECT_TRUE(entries[0].sun.known);
   EXPECT_DOUBLE_EQ(entries[0].sun.elevation_deg, 33.8);
   EXPECT_DOUBLE_EQ(entries[0].sun.azimuth_deg, 154.1);
