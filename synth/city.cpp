@@ -65,15 +65,7 @@ struct Painter {
 
 void PaintBuilding(City& city, const Building& b, int index) {
   Painter{city}.Rect(b.x0_m, b.y0_m, b.x1_m, b.y1_m, [&](std::size_t k, const Eigen::Vector2d& c) {
-    double top = b.eave_m;
-    if (b.gable) {
-      // Height falls linearly from the ridge (the footprint's centre line) to the eaves.
-      const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
-      const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
-      const double d = std::abs((b.ridge_along_x ? c.y() : c.x()) - mid);
-      top = b.eave_m + (b.ridge_m - b.eave_m) * std::max(0.0, 1.0 - d / half);
-    }
-    city.height_m[k] = static_cast<float>(top);
+    city.height_m[k] = static_cast<float>(RoofAt(b, c.x(), c.y()));
     city.material[k] = b.gable ? Material::kGableRoof : Material::kFlatRoof;
     city.cls[k] = Dfc2019Class::kBuilding;
     city.object[k] = index;
@@ -81,16 +73,21 @@ void PaintBuilding(City& city, const Building& b, int index) {
 }
 
 void PaintTree(City& city, double cx, double cy, double radius, double height) {
+  const Tree tree{cx, cy, radius, city.TerrainAt(cx, cy), height};
+  const auto index = static_cast<std::int32_t>(city.trees.size());
+  bool painted = false;
   Painter{city}.Rect(cx - radius, cy - radius, cx + radius, cy + radius,
                      [&](std::size_t k, const Eigen::Vector2d& c) {
                        const double r2 = ((c.x() - cx) * (c.x() - cx) + (c.y() - cy) * (c.y() - cy)) /
                                          (radius * radius);
                        if (r2 > 1.0 || city.material[k] != Material::kGrass) return;
-                       const double top = city.TerrainAt(cx, cy) + height * (0.55 + 0.45 * std::sqrt(1.0 - r2));
-                       city.height_m[k] = static_cast<float>(top);
+                       city.height_m[k] = static_cast<float>(tree.CrownAt(c.x(), c.y()));
                        city.material[k] = Material::kTree;
                        city.cls[k] = Dfc2019Class::kHighVegetation;
+                       city.tree[k] = index;
+                       painted = true;
                      });
+  if (painted) city.trees.push_back(tree);
 }
 
 // Buildings and trees of one city block (the area between four streets).
@@ -177,6 +174,28 @@ float City::HeightAt(double x_m, double y_m) const {
   return Inside(c.x(), c.y()) ? height_m[Index(c.x(), c.y())] : min_height_m;
 }
 
+double Tree::CrownAt(double x_m, double y_m) const {
+  const double r2 = std::min(1.0, ((x_m - cx_m) * (x_m - cx_m) + (y_m - cy_m) * (y_m - cy_m)) / (radius_m * radius_m));
+  return base_m + height_m * (0.55 + 0.45 * std::sqrt(1.0 - r2));
+}
+
+Eigen::Vector3d Tree::CrownNormal(double x_m, double y_m) const {
+  const Eigen::Vector2d d(x_m - cx_m, y_m - cy_m);
+  // z = base + H (0.55 + 0.45 s), s = sqrt(1 - |d|^2 / R^2): grad z = -0.45 H d / (R^2 s).
+  // At the rim the crown is vertical: the normal is horizontal there.
+  const double s = std::sqrt(std::max(0.0, 1.0 - d.squaredNorm() / (radius_m * radius_m)));
+  const Eigen::Vector3d n(0.45 * height_m * d.x(), 0.45 * height_m * d.y(), radius_m * radius_m * s);
+  return n.norm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
+}
+
+double RoofAt(const Building& b, double x_m, double y_m) {
+  if (!b.gable) return b.eave_m;
+  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
+  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
+  const double d = std::abs((b.ridge_along_x ? y_m : x_m) - mid);
+  return b.eave_m + (b.ridge_m - b.eave_m) * std::max(0.0, 1.0 - d / half);
+}
+
 double City::TerrainAt(double x_m, double y_m) const {
   const CityOptions& o = options;
   const double phase = static_cast<double>(o.seed % 1000) * 0.01;
@@ -213,6 +232,7 @@ City GenerateCity(const CityOptions& options) {
   city.material.assign(n, Material::kGrass);
   city.cls.assign(n, Dfc2019Class::kGround);
   city.object.assign(n, -1);
+  city.tree.assign(n, -1);
 
   // Terrain, river, streets and bridges.
   for (int j = 0; j < city.ny; ++j) {
@@ -253,6 +273,8 @@ City GenerateCity(const CityOptions& options) {
   const auto [lo, hi] = std::minmax_element(city.height_m.begin(), city.height_m.end());
   city.min_height_m = *lo;
   city.max_height_m = *hi;
+  // A crown's top may fall between cell centres: a few mm above its cells.
+  for (const Tree& t : city.trees) city.max_height_m = std::max(city.max_height_m, static_cast<float>(t.base_m + t.height_m));
   return city;
 }
 

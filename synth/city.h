@@ -45,6 +45,23 @@ struct Building {
   Eigen::Vector3f facade_rgb;
 };
 
+// A tree: a crown over a disc of `radius_m`, standing on the terrain at its
+// centre, rising from 0.55 to 1 times `height_m` above it (CrownAt).
+struct Tree {
+  double cx_m, cy_m, radius_m;
+  double base_m;    // ground height at the centre
+  double height_m;  // crown top above base_m
+  // Height of the crown at (x, y); beyond the radius, the height at its rim.
+  double CrownAt(double x_m, double y_m) const;
+  // Unit upward normal of the crown at (x, y).
+  Eigen::Vector3d CrownNormal(double x_m, double y_m) const;
+};
+
+// Height of a building's roof at (x, y) inside its footprint: the eaves for
+// a flat roof; for a gable, falling linearly from the ridge (the footprint's
+// centre line) to the eaves.
+double RoofAt(const Building& b, double x_m, double y_m);
+
 struct CityOptions {
   double width_m = 256.0;          // city extent along x (east) [m]
   double height_m = 256.0;         // city extent along y (north) [m]
@@ -75,6 +92,8 @@ struct City {
   std::vector<Dfc2019Class> cls;
   std::vector<std::int32_t> object;      // building index, or -1
   std::vector<Building> buildings;
+  std::vector<std::int32_t> tree;        // index into `trees` of a tree's cells, or -1
+  std::vector<Tree> trees;
   float min_height_m = 0, max_height_m = 0;
 
   std::size_t Index(int i, int j) const { return static_cast<std::size_t>(j) * nx + i; }

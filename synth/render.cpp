@@ -101,12 +101,81 @@ double TerrainCrossing(const City& city, const Eigen::Vector3d& o, const Eigen::
   return t1;
 }
 
+// Gable roofs and tree crowns are smooth too: as flat-topped 0.25 m
+// columns a roof's slope and a crown's dome would be stairs whose risers
+// (lit as walls) and their shadows differ in every view and at every sun
+// position, a texture no roof or tree has. A cell of either stands for its
+// object's own surface: rays and shadows meet that surface within the cell.
+// (Terrain, nearly flat within a cell, is handled apart; see OnTerrain.)
+struct SmoothTop {
+  int kind = 0;  // 0: none (a flat top), 1: gable roof, 2: tree crown
+  int id = -1;   // building or tree index
+  bool operator==(const SmoothTop& o) const { return kind == o.kind && id == o.id; }
+};
+
+SmoothTop SmoothTopOf(const City& city, std::size_t k) {
+  if (city.material[k] == Material::kGableRoof) return {1, city.object[k]};
+  if (city.material[k] == Material::kTree && city.tree[k] >= 0) return {2, city.tree[k]};
+  return {};
+}
+
+double SmoothTopAt(const City& city, const SmoothTop& s, double x, double y) {
+  return s.kind == 1 ? RoofAt(city.buildings[s.id], x, y) : city.trees[s.id].CrownAt(x, y);
+}
+
+// The highest the surface gets anywhere: above this a ray cannot meet it.
+double SmoothTopMax(const City& city, const SmoothTop& s) {
+  if (s.kind == 1) return city.buildings[s.id].ridge_m;
+  const Tree& t = city.trees[s.id];
+  return t.base_m + t.height_m;
+}
+
+Eigen::Vector3d SmoothTopNormal(const City& city, const SmoothTop& s, const Eigen::Vector3d& p) {
+  if (s.kind == 2) return city.trees[s.id].CrownNormal(p.x(), p.y());
+  const Building& b = city.buildings[s.id];
+  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
+  const double slope = (b.ridge_m - b.eave_m) / half;
+  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
+  const double side = ((b.ridge_along_x ? p.y() : p.x()) > mid) ? 1.0 : -1.0;
+  const Eigen::Vector3d n = b.ridge_along_x ? Eigen::Vector3d(0, side * slope, 1) : Eigen::Vector3d(side * slope, 0, 1);
+  return n.normalized();
+}
+
+// Samples of a ray's way through a cell, [t0, t1], at which it is compared
+// with a smooth top: the roof's ridge or the crown's dome may rise between
+// the ends, so the ends alone would miss a ray grazing over it.
+constexpr int kSmoothSamples = 4;
+
+// First t in [t0, t1] where the ray is at or below the smooth top, or -1.
+double SmoothTopCrossing(const City& city, const SmoothTop& s, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                         double t0, double t1) {
+  auto below = [&](double t) {
+    const Eigen::Vector3d p = o + t * d;
+    return p.z() <= SmoothTopAt(city, s, p.x(), p.y());
+  };
+  double prev = t0;
+  for (int k = 1; k <= kSmoothSamples; ++k) {
+    const double t = t0 + (t1 - t0) * k / kSmoothSamples;
+    if (below(t)) {
+      double lo = prev, hi = t;  // above at lo, at or below at hi: bisect to well under a mm
+      for (int it = 0; it < 40; ++it) {
+        const double m = 0.5 * (lo + hi);
+        (below(m) ? hi : lo) = m;
+      }
+      return hi;
+    }
+    prev = t;
+  }
+  return -1.0;
+}
+
 // First surface hit by a descending ray starting above every column.
 Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   Hit hit;
   Traversal tr(city, o, d);
   double t_enter = 0.0;
   bool crossed_x = false, came_from_terrain = false;
+  SmoothTop came_from_smooth;
   const double band = TerrainBandM(city);
   auto found = [&](const Eigen::Vector3d& point, Face face) {
     hit.found = true;
@@ -124,21 +193,45 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     const double t_exit = tr.NextBoundary();
     const double z_exit = o.z() + t_exit * d.z();
     const bool terrain = OnTerrain(city, k);
-    const bool enters_below_top = z_enter <= h && t_enter > 0;
-    if (enters_below_top && !(terrain && came_from_terrain)) {
-      // The ray meets this column's wall (between terrain cells there is none).
-      hit.normal = crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0);
-      return found(o + t_enter * d, Face::kWall);
+    const SmoothTop smooth = SmoothTopOf(city, k);
+    auto wall_normal = [&] { return crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0); };
+    if (smooth.kind != 0) {
+      const Eigen::Vector3d p_enter = o + t_enter * d;
+      if (t_enter > 0 && p_enter.z() <= SmoothTopAt(city, smooth, p_enter.x(), p_enter.y())) {
+        if (smooth == came_from_smooth) {  // below the surface on entering: it was crossed at the boundary
+          hit.normal = SmoothTopNormal(city, smooth, p_enter);
+          return found(p_enter, Face::kTop);
+        }
+        // A building's wall, or a crown's rim (its normal is horizontal there).
+        hit.normal = smooth.kind == 2 ? SmoothTopNormal(city, smooth, p_enter) : wall_normal();
+        return found(p_enter, Face::kWall);
+      }
+      if (z_exit <= SmoothTopMax(city, smooth)) {
+        const double t = SmoothTopCrossing(city, smooth, o, d, t_enter, t_exit);
+        if (t >= 0) {
+          const Eigen::Vector3d p = o + t * d;
+          hit.normal = SmoothTopNormal(city, smooth, p);
+          return found(p, Face::kTop);
+        }
+      }
+    } else {
+      const bool enters_below_top = z_enter <= h && t_enter > 0;
+      if (enters_below_top && !(terrain && came_from_terrain)) {
+        // The ray meets this column's wall (between terrain cells there is none).
+        hit.normal = wall_normal();
+        return found(o + t_enter * d, Face::kWall);
+      }
+      if (terrain && z_exit <= h + band && AboveTerrain(city, o + t_exit * d) <= 0) {
+        const double t = AboveTerrain(city, o + t_enter * d) <= 0 ? t_enter : TerrainCrossing(city, o, d, t_enter, t_exit);
+        const Eigen::Vector3d p = o + t * d;
+        hit.normal = TerrainNormal(city, p.x(), p.y());
+        return found(p, Face::kTop);
+      }
+      if (!terrain && z_exit <= h) return found(o + ((h - o.z()) / d.z()) * d, Face::kTop);  // down on the top
     }
-    if (terrain && z_exit <= h + band && AboveTerrain(city, o + t_exit * d) <= 0) {
-      const double t = AboveTerrain(city, o + t_enter * d) <= 0 ? t_enter : TerrainCrossing(city, o, d, t_enter, t_exit);
-      const Eigen::Vector3d p = o + t * d;
-      hit.normal = TerrainNormal(city, p.x(), p.y());
-      return found(p, Face::kTop);
-    }
-    if (!terrain && z_exit <= h) return found(o + ((h - o.z()) / d.z()) * d, Face::kTop);  // down on the top
     if (z_exit < city.min_height_m - 1.0) return hit;
     came_from_terrain = terrain;
+    came_from_smooth = smooth;
     t_enter = tr.Step(&crossed_x);
   }
   return hit;
@@ -156,6 +249,7 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
     const double z_enter = p.z() + t_enter * sun.z();
     if (z_enter > city.max_height_m) return false;
     const std::size_t k = city.Index(tr.i, tr.j);
+    const SmoothTop smooth = SmoothTopOf(city, k);
     if (OnTerrain(city, k)) {
       // The terrain is smooth, and the ray straight: it is below the
       // terrain somewhere in the cell only if it is at one of its ends.
@@ -164,6 +258,17 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
           ((t_enter > 0 && AboveTerrain(city, p + t_enter * sun) < -1e-4) ||
            AboveTerrain(city, p + t_exit * sun) < -1e-4))
         return true;
+    } else if (smooth.kind != 0) {
+      // A ridge or a dome may rise between the cell's ends: sampled.
+      if (z_enter < SmoothTopMax(city, smooth)) {
+        const double t_exit = tr.NextBoundary();
+        for (int s = 0; s <= kSmoothSamples; ++s) {
+          const double t = t_enter + (t_exit - t_enter) * s / kSmoothSamples;
+          if (t <= 0) continue;
+          const Eigen::Vector3d q = p + t * sun;
+          if (q.z() < SmoothTopAt(city, smooth, q.x(), q.y()) - 1e-4) return true;
+        }
+      }
     } else if (t_enter > 0 && z_enter < city.height_m[k] - 1e-4) {
       return true;  // ascending: the lowest point of the ray in a cell is where it enters
     }
@@ -244,17 +349,10 @@ Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
 }
 
 Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
+  // Walls, terrain, gable roofs and crowns: the hit carries its own normal.
   const std::size_t k = city.Index(hit.i, hit.j);
-  if (hit.face == Face::kWall || OnTerrain(city, k)) return hit.normal;  // terrain: its own slope
-  if (city.material[k] != Material::kGableRoof) return Eigen::Vector3d::UnitZ();
-  const Building& b = city.buildings[city.object[k]];
-  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
-  const double slope = (b.ridge_m - b.eave_m) / half;
-  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
-  const double side = ((b.ridge_along_x ? hit.point.y() : hit.point.x()) > mid) ? 1.0 : -1.0;
-  const Eigen::Vector3d n = b.ridge_along_x ? Eigen::Vector3d(0, side * slope, 1)
-                                            : Eigen::Vector3d(side * slope, 0, 1);
-  return n.normalized();
+  if (hit.face == Face::kWall || OnTerrain(city, k) || SmoothTopOf(city, k).kind != 0) return hit.normal;
+  return Eigen::Vector3d::UnitZ();
 }
 
 }  // namespace
