@@ -42,6 +42,13 @@ struct Lighting {
   Eigen::Vector3f tint = Eigen::Vector3f::Ones();         // atmosphere colour cast
   std::uint64_t noise_seed = 0;                           // sensor noise pattern
   bool cast_shadows = true;                               // off only to test shadowing
+  // A detector integrates the light over its pixel. Point-sampled at the
+  // pixel's centre, textures finer than two pixels (tile courses, road
+  // markings) alias into a moire that differs in every view and correlates
+  // between none; the texture is averaged over `subpixels` x `subpixels`
+  // points of the pixel's footprint instead (1: point sampling). Shading and
+  // shadows are the centre's.
+  int subpixels = 4;
 };
 
 struct RenderedView {
