@@ -3,7 +3,7 @@
 #   - one full training step at 100k Gaussians, 512x384, split into its phases
 #     (bench/step_bench.cpp: the real TrainGaussians step with the defaults of
 #     `skyfall run`), with and without the appearance model;
-#   - the SIMD path the kernels run on;
+#   - the SIMD path the kernels run on, and the CPU (family and model);
 #   - rasterizer forward and forward+backward (Google Benchmark);
 #   - the dense sweep and one pair's descriptor matching per SIMD path
 #     (bench/sfm_bench.cpp), with OpenCV's brute-force matcher for comparison;
@@ -49,6 +49,25 @@ PY
   --benchmark_format=json --benchmark_out="$tmp/raster.json" --benchmark_out_format=json >/dev/null 2>&1
 simd=$($B --version | sed -n 's/^SIMD path: //p')
 echo "SIMD path: $simd"
+# The CPU the figures were taken on. The same code's step time differs by
+# about 1.4x between the 2-core machines this project runs on (AMD EPYC of
+# family 25 and 26), so figures compare only on the same family and model.
+cpu=$(python3 - <<'PY'
+import json, os
+info = {}
+try:
+    for line in open("/proc/cpuinfo"):
+        key, _, value = line.partition(":")
+        key, value = key.strip(), value.strip()
+        if key in ("model name", "cpu family", "model", "stepping") and key not in info:
+            info[key] = value
+except OSError:
+    pass
+print(json.dumps({"model_name": info.get("model name"), "family": info.get("cpu family"),
+                  "model": info.get("model"), "stepping": info.get("stepping"), "cores": os.cpu_count()}))
+PY
+)
+echo "CPU: $cpu"
 
 # 2b. SfM's matching and the dense sweep, per SIMD path.
 ./build/bin/sfm_bench --grid-m 192 --views 8 --descriptors 4000 --repeats 2 > "$tmp/sfm.json"
@@ -81,9 +100,9 @@ if [ "$JAX_RUN" = 1 ] && [ -d "$JAX/Track3-Truth" ]; then
   elapsed "$start" > "$OUT/jax068_wall_seconds"
 fi
 
-python3 - "$tmp" "$OUT" "$simd" "$synth_s" "$ingest_s" "$jax_dir" "$default_model" <<'PY'
+python3 - "$tmp" "$OUT" "$simd" "$synth_s" "$ingest_s" "$jax_dir" "$default_model" "$cpu" <<'PY'
 import glob, json, os, sys
-tmp, out, simd, synth_s, ingest_s, jax_dir, default_model = sys.argv[1:8]
+tmp, out, simd, synth_s, ingest_s, jax_dir, default_model, cpu = sys.argv[1:9]
 steps = {m: json.load(open(f"{tmp}/step_{m}.json")) for m in ("off", "bilinear", "mlp")}
 raster = {}
 for b in json.load(open(f"{tmp}/raster.json"))["benchmarks"]:
@@ -94,6 +113,7 @@ doc = {
     "schema": "skyfall.bench/1",
     "simd": simd.split()[0] if simd else None,
     "simd_detail": simd,
+    "cpu": json.loads(cpu),
     "baseline_simd_step": json.load(open(f"{tmp}/step_baseline.json")),
     "step_ms": default["step_ms"],
     "raster_fwd_ms": default["raster_fwd_ms"],
