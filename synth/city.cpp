@@ -181,19 +181,36 @@ double Tree::CrownAt(double x_m, double y_m) const {
 
 Eigen::Vector3d Tree::CrownNormal(double x_m, double y_m) const {
   const Eigen::Vector2d d(x_m - cx_m, y_m - cy_m);
+  const double rho2 = d.squaredNorm() / (radius_m * radius_m);
+  if (rho2 >= 1.0) return Eigen::Vector3d::UnitZ();
   // z = base + H (0.55 + 0.45 s), s = sqrt(1 - |d|^2 / R^2): grad z = -0.45 H d / (R^2 s).
-  // At the rim the crown is vertical: the normal is horizontal there.
-  const double s = std::sqrt(std::max(0.0, 1.0 - d.squaredNorm() / (radius_m * radius_m)));
-  const Eigen::Vector3d n(0.45 * height_m * d.x(), 0.45 * height_m * d.y(), radius_m * radius_m * s);
-  return n.norm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
+  const double s = std::sqrt(1.0 - rho2);
+  return Eigen::Vector3d(0.45 * height_m * d.x(), 0.45 * height_m * d.y(), radius_m * radius_m * s).normalized();
 }
 
+namespace {
+// A gable's half width across its ridge, and the ridge line's coordinate.
+struct GableAxis {
+  double half_m, mid_m;
+  double across(const Building& b, double x_m, double y_m) const { return (b.ridge_along_x ? y_m : x_m) - mid_m; }
+};
+GableAxis AxisOf(const Building& b) {
+  return b.ridge_along_x ? GableAxis{0.5 * (b.y1_m - b.y0_m), 0.5 * (b.y0_m + b.y1_m)}
+                         : GableAxis{0.5 * (b.x1_m - b.x0_m), 0.5 * (b.x0_m + b.x1_m)};
+}
+}  // namespace
+
 double RoofAt(const Building& b, double x_m, double y_m) {
-  if (!b.gable) return b.eave_m;
-  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
-  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
-  const double d = std::abs((b.ridge_along_x ? y_m : x_m) - mid);
-  return b.eave_m + (b.ridge_m - b.eave_m) * std::max(0.0, 1.0 - d / half);
+  const GableAxis a = AxisOf(b);
+  if (!b.gable || !(a.half_m > 0)) return b.eave_m;
+  return b.eave_m + (b.ridge_m - b.eave_m) * std::max(0.0, 1.0 - std::abs(a.across(b, x_m, y_m)) / a.half_m);
+}
+
+Eigen::Vector3d RoofNormal(const Building& b, double x_m, double y_m) {
+  const GableAxis a = AxisOf(b);
+  if (!b.gable || !(a.half_m > 0) || std::abs(a.across(b, x_m, y_m)) > a.half_m) return Eigen::Vector3d::UnitZ();
+  const double slope = (a.across(b, x_m, y_m) > 0 ? 1.0 : -1.0) * (b.ridge_m - b.eave_m) / a.half_m;
+  return (b.ridge_along_x ? Eigen::Vector3d(0, slope, 1) : Eigen::Vector3d(slope, 0, 1)).normalized();
 }
 
 double City::TerrainAt(double x_m, double y_m) const {
@@ -273,8 +290,9 @@ City GenerateCity(const CityOptions& options) {
   const auto [lo, hi] = std::minmax_element(city.height_m.begin(), city.height_m.end());
   city.min_height_m = *lo;
   city.max_height_m = *hi;
-  // A crown's top may fall between cell centres: a few mm above its cells.
+  // A crown's top or a ridge may fall between cell centres, above its cells.
   for (const Tree& t : city.trees) city.max_height_m = std::max(city.max_height_m, static_cast<float>(t.base_m + t.height_m));
+  for (const Building& b : city.buildings) city.max_height_m = std::max(city.max_height_m, static_cast<float>(b.ridge_m));
   return city;
 }
 

@@ -53,7 +53,8 @@ struct Tree {
   double height_m;  // crown top above base_m
   // Height of the crown at (x, y); beyond the radius, the height at its rim.
   double CrownAt(double x_m, double y_m) const;
-  // Unit upward normal of the crown at (x, y).
+  // Unit upward normal of the crown at (x, y): up beyond the radius, where
+  // CrownAt is flat.
   Eigen::Vector3d CrownNormal(double x_m, double y_m) const;
 };
 
@@ -61,6 +62,8 @@ struct Tree {
 // a flat roof; for a gable, falling linearly from the ridge (the footprint's
 // centre line) to the eaves.
 double RoofAt(const Building& b, double x_m, double y_m);
+// Unit upward normal of that roof at (x, y).
+Eigen::Vector3d RoofNormal(const Building& b, double x_m, double y_m);
 
 struct CityOptions {
   double width_m = 256.0;          // city extent along x (east) [m]

@@ -18,7 +18,7 @@ struct Hit {
   Eigen::Vector3d point;
   int i = 0, j = 0;
   Face face = Face::kTop;
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls and terrain tops; other tops: SurfaceNormal
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls, terrain, gable and crown tops; flat tops: up
 };
 
 // Bare ground (grass, streets): its columns sample the smooth terrain, and
@@ -107,44 +107,42 @@ double TerrainCrossing(const City& city, const Eigen::Vector3d& o, const Eigen::
 // position, a texture no roof or tree has. A cell of either stands for its
 // object's own surface: rays and shadows meet that surface within the cell.
 // (Terrain, nearly flat within a cell, is handled apart; see OnTerrain.)
+enum class SmoothKind { kNone, kGableRoof, kCrown };
 struct SmoothTop {
-  int kind = 0;  // 0: none (a flat top), 1: gable roof, 2: tree crown
-  int id = -1;   // building or tree index
+  SmoothKind kind = SmoothKind::kNone;
+  int id = -1;  // building or tree index
   bool operator==(const SmoothTop& o) const { return kind == o.kind && id == o.id; }
 };
 
 SmoothTop SmoothTopOf(const City& city, std::size_t k) {
-  if (city.material[k] == Material::kGableRoof) return {1, city.object[k]};
-  if (city.material[k] == Material::kTree && city.tree[k] >= 0) return {2, city.tree[k]};
+  if (city.material[k] == Material::kGableRoof) return {SmoothKind::kGableRoof, city.object[k]};
+  if (city.material[k] == Material::kTree && city.tree[k] >= 0) return {SmoothKind::kCrown, city.tree[k]};
   return {};
 }
 
 double SmoothTopAt(const City& city, const SmoothTop& s, double x, double y) {
-  return s.kind == 1 ? RoofAt(city.buildings[s.id], x, y) : city.trees[s.id].CrownAt(x, y);
+  return s.kind == SmoothKind::kGableRoof ? RoofAt(city.buildings[s.id], x, y) : city.trees[s.id].CrownAt(x, y);
 }
 
 // The highest the surface gets anywhere: above this a ray cannot meet it.
 double SmoothTopMax(const City& city, const SmoothTop& s) {
-  if (s.kind == 1) return city.buildings[s.id].ridge_m;
+  if (s.kind == SmoothKind::kGableRoof) return city.buildings[s.id].ridge_m;
   const Tree& t = city.trees[s.id];
   return t.base_m + t.height_m;
 }
 
 Eigen::Vector3d SmoothTopNormal(const City& city, const SmoothTop& s, const Eigen::Vector3d& p) {
-  if (s.kind == 2) return city.trees[s.id].CrownNormal(p.x(), p.y());
-  const Building& b = city.buildings[s.id];
-  const double half = 0.5 * (b.ridge_along_x ? b.y1_m - b.y0_m : b.x1_m - b.x0_m);
-  const double slope = (b.ridge_m - b.eave_m) / half;
-  const double mid = b.ridge_along_x ? 0.5 * (b.y0_m + b.y1_m) : 0.5 * (b.x0_m + b.x1_m);
-  const double side = ((b.ridge_along_x ? p.y() : p.x()) > mid) ? 1.0 : -1.0;
-  const Eigen::Vector3d n = b.ridge_along_x ? Eigen::Vector3d(0, side * slope, 1) : Eigen::Vector3d(side * slope, 0, 1);
-  return n.normalized();
+  return s.kind == SmoothKind::kGableRoof ? RoofNormal(city.buildings[s.id], p.x(), p.y())
+                                          : city.trees[s.id].CrownNormal(p.x(), p.y());
 }
 
 // Samples of a ray's way through a cell, [t0, t1], at which it is compared
 // with a smooth top: the roof's ridge or the crown's dome may rise between
-// the ends, so the ends alone would miss a ray grazing over it.
-constexpr int kSmoothSamples = 4;
+// the ends, so the ends alone would miss a ray grazing over it. A cell's
+// way is at most 0.36 m across, so samples are under 5 cm apart: a ray can
+// pass over at most the tip of a ridge or dome between two of them, and
+// then meets the surface on entering the next cell.
+constexpr int kSmoothSamples = 8;
 
 // First t in [t0, t1] where the ray is at or below the smooth top, or -1.
 double SmoothTopCrossing(const City& city, const SmoothTop& s, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
@@ -195,15 +193,16 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     const bool terrain = OnTerrain(city, k);
     const SmoothTop smooth = SmoothTopOf(city, k);
     auto wall_normal = [&] { return crossed_x ? Eigen::Vector3d(-tr.step_i, 0, 0) : Eigen::Vector3d(0, -tr.step_j, 0); };
-    if (smooth.kind != 0) {
+    if (smooth.kind != SmoothKind::kNone) {
       const Eigen::Vector3d p_enter = o + t_enter * d;
       if (t_enter > 0 && p_enter.z() <= SmoothTopAt(city, smooth, p_enter.x(), p_enter.y())) {
         if (smooth == came_from_smooth) {  // below the surface on entering: it was crossed at the boundary
           hit.normal = SmoothTopNormal(city, smooth, p_enter);
           return found(p_enter, Face::kTop);
         }
-        // A building's wall, or a crown's rim (its normal is horizontal there).
-        hit.normal = smooth.kind == 2 ? SmoothTopNormal(city, smooth, p_enter) : wall_normal();
+        // A building's wall, a crown's side where its cells end, or the step
+        // between two crowns: a wall facing the cell the ray came from.
+        hit.normal = wall_normal();
         return found(p_enter, Face::kWall);
       }
       if (z_exit <= SmoothTopMax(city, smooth)) {
@@ -258,7 +257,7 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
           ((t_enter > 0 && AboveTerrain(city, p + t_enter * sun) < -1e-4) ||
            AboveTerrain(city, p + t_exit * sun) < -1e-4))
         return true;
-    } else if (smooth.kind != 0) {
+    } else if (smooth.kind != SmoothKind::kNone) {
       // A ridge or a dome may rise between the cell's ends: sampled.
       if (z_enter < SmoothTopMax(city, smooth)) {
         const double t_exit = tr.NextBoundary();
@@ -351,7 +350,7 @@ Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
 Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
   // Walls, terrain, gable roofs and crowns: the hit carries its own normal.
   const std::size_t k = city.Index(hit.i, hit.j);
-  if (hit.face == Face::kWall || OnTerrain(city, k) || SmoothTopOf(city, k).kind != 0) return hit.normal;
+  if (hit.face == Face::kWall || OnTerrain(city, k) || SmoothTopOf(city, k).kind != SmoothKind::kNone) return hit.normal;
   return Eigen::Vector3d::UnitZ();
 }
 
@@ -359,7 +358,9 @@ Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
 // pixel's footprint, as a detector integrates the light over its area. The
 // footprint is taken on the plane through the hit with the surface's normal,
 // at `sub` x `sub` points where rays through a regular grid of the pixel
-// meet that plane; shading and shadow stay those of the pixel's centre.
+// meet that plane; shading and shadow stay those of the pixel's centre, and
+// so do the material and object the texture is of: a footprint across an
+// object's edge is textured as the object at its centre.
 // Point-sampled, textures finer than two pixels (a gable's 0.6 m tile
 // courses, road markings) alias into a moire that differs in every view.
 template <typename RayFn>
