@@ -18,7 +18,7 @@ struct Hit {
   Eigen::Vector3d point;
   int i = 0, j = 0;
   Face face = Face::kTop;
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // walls, terrain, gable and crown tops; flat tops: up
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // of the surface hit (CastDown sets all but flat tops')
 };
 
 // Bare ground (grass, streets): its columns sample the smooth terrain, and
@@ -91,14 +91,21 @@ struct Traversal {
   double NextBoundary() const { return std::min(t_max_x, t_max_y); }
 };
 
-// Where a descending ray meets the terrain within [t0, t1] (it is above
-// the terrain at t0 and not above at t1): bisection, to well under a mm.
-double TerrainCrossing(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t0, double t1) {
+// Where a ray crosses a surface within [t0, t1], given `below(t)`, false at
+// t0 and true at t1: bisection, to well under a mm.
+template <typename Below>
+double Crossing(const Below& below, double t0, double t1) {
   for (int it = 0; it < 40; ++it) {
     const double m = 0.5 * (t0 + t1);
-    (AboveTerrain(city, o + m * d) <= 0 ? t1 : t0) = m;
+    (below(m) ? t1 : t0) = m;
   }
   return t1;
+}
+
+// Where a descending ray meets the terrain within [t0, t1] (it is above
+// the terrain at t0 and not above at t1).
+double TerrainCrossing(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t0, double t1) {
+  return Crossing([&](double t) { return AboveTerrain(city, o + t * d) <= 0; }, t0, t1);
 }
 
 // Gable roofs and tree crowns are smooth too: as flat-topped 0.25 m
@@ -154,14 +161,7 @@ double SmoothTopCrossing(const City& city, const SmoothTop& s, const Eigen::Vect
   double prev = t0;
   for (int k = 1; k <= kSmoothSamples; ++k) {
     const double t = t0 + (t1 - t0) * k / kSmoothSamples;
-    if (below(t)) {
-      double lo = prev, hi = t;  // above at lo, at or below at hi: bisect to well under a mm
-      for (int it = 0; it < 40; ++it) {
-        const double m = 0.5 * (lo + hi);
-        (below(m) ? hi : lo) = m;
-      }
-      return hi;
-    }
+    if (below(t)) return Crossing(below, prev, t);
     prev = t;
   }
   return -1.0;
@@ -347,13 +347,6 @@ Eigen::Vector3f Albedo(const City& city, const Hit& hit) {
   return {0.5f, 0.5f, 0.5f};
 }
 
-Eigen::Vector3d SurfaceNormal(const City& city, const Hit& hit) {
-  // Walls, terrain, gable roofs and crowns: the hit carries its own normal.
-  const std::size_t k = city.Index(hit.i, hit.j);
-  if (hit.face == Face::kWall || OnTerrain(city, k) || SmoothTopOf(city, k).kind != SmoothKind::kNone) return hit.normal;
-  return Eigen::Vector3d::UnitZ();
-}
-
 // The albedo a pixel records: the surface's texture averaged over the
 // pixel's footprint, as a detector integrates the light over its area. The
 // footprint is taken on the plane through the hit with the surface's normal,
@@ -432,7 +425,7 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
         const Hit hit = CastDown(city, o_scene, d_scene);
         Eigen::Vector3f colour(0.5f, 0.5f, 0.5f);
         if (hit.found) {
-          const Eigen::Vector3d normal = SurfaceNormal(city, hit);
+          const Eigen::Vector3d& normal = hit.normal;
           const double lambert = std::max(0.0, normal.dot(sun));
           const bool lit = lambert > 0 && !(lighting.cast_shadows && InShadow(city, hit.point + 1e-3 * normal, sun));
           const float light = lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f;
