@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <limits>
 
 #include <tbb/blocked_range.h>
@@ -30,14 +29,33 @@ std::array<double, kWindow> GaussianWindow() {
   return w;
 }
 
-// Separable 'same' convolution of one w x h plane with the (symmetric)
-// window, zero padding: symmetric and zero-padded, so it is its own adjoint.
-// One plane runs on one thread (the SSIM blurs its planes in parallel). Both
+// The SSIM's statistics are blurred with a separable 'same' convolution by
+// the (symmetric) window, zero padding: symmetric and zero-padded, so it is
+// its own adjoint, and the gradient goes back through the same blur. Both
 // passes sum the 11 taps of a pixel in registers, in tap order, with the
-// pixels along a row in the vector lanes; rows outside the plane read a row
-// of zeros. `row` holds w + 2r values, `zeros` w, `tmp` w * h. In T: float
-// for training (as 3DGS does; the SSIM constants C1, C2 keep the variances'
-// rounding harmless), double for the finite-difference tests.
+// pixels along a row in the vector lanes. In T: float for training (as 3DGS
+// does; the SSIM constants C1, C2 keep the variances' rounding harmless),
+// double for the finite-difference tests.
+template <typename T>
+std::array<T, kWindow> Window() {
+  static const auto win64 = GaussianWindow();
+  std::array<T, kWindow> win;
+  for (int k = 0; k < kWindow; ++k) win[k] = T(win64[k]);
+  return win;
+}
+
+// dst[x] = sum over k of win[k] * row[x + k], in tap order: `row` holds
+// w + 2r values, the row with r zeros on either side.
+template <typename T>
+void HorizontalTaps(const T* row, const std::array<T, kWindow>& win, T* __restrict dst, int w) {
+  for (int x = 0; x < w; ++x) {
+    T acc = 0;
+#pragma GCC unroll 11
+    for (int k = 0; k < kWindow; ++k) acc += win[k] * row[x + k];
+    dst[x] = acc;
+  }
+}
+
 // dst[x] = sum over k of win[k] * src[k][x], in tap order. The rows as
 // separate restrict pointers: through the array GCC does not vectorize.
 template <typename T>
@@ -71,43 +89,125 @@ void VerticalTaps(const T* const* src, const std::array<T, kWindow>& win, T* __r
   }
 }
 
+// The last kWindow rows of `planes` planes, horizontally blurred, row y of
+// a plane in slot y % kWindow: what the vertical pass of the blur reads.
 template <typename T>
-void BlurPlane(const T* in, T* out, T* tmp, T* row, const T* zeros, int w, int h) {
-  static const auto win64 = GaussianWindow();
-  std::array<T, kWindow> win;
-  for (int k = 0; k < kWindow; ++k) win[k] = T(win64[k]);
-  constexpr int r = kWindow / 2;
-  std::fill(row, row + r, T(0));
-  std::fill(row + r + w, row + 2 * r + w, T(0));
-  for (int y = 0; y < h; ++y) {
-    std::copy(in + static_cast<std::size_t>(y) * w, in + static_cast<std::size_t>(y + 1) * w, row + r);
-    T* dst = tmp + static_cast<std::size_t>(y) * w;
-    for (int x = 0; x < w; ++x) {
-      T acc = 0;
-#pragma GCC unroll 11
-      for (int k = 0; k < kWindow; ++k) acc += win[k] * row[x + k];
-      dst[x] = acc;
-    }
-  }
-  for (int y = 0; y < h; ++y) {
+class RowRing {
+ public:
+  RowRing(int planes, int w) : w_(w), data_(static_cast<std::size_t>(planes) * kWindow * w) {}
+  T* Row(int plane, int y) { return data_.data() + (static_cast<std::size_t>(plane) * kWindow + y % kWindow) * w_; }
+  // The vertical pass at row y of one plane; rows outside [0, h) are zero.
+  void Blur(int plane, int y, int h, const std::array<T, kWindow>& win, const T* zeros, T* dst) {
+    constexpr int r = kWindow / 2;
     const T* src[kWindow];
     for (int k = 0; k < kWindow; ++k) {
       const int yy = y + k - r;
-      src[k] = yy < 0 || yy >= h ? zeros : tmp + static_cast<std::size_t>(yy) * w;
+      src[k] = yy < 0 || yy >= h ? zeros : Row(plane, yy);
     }
-    VerticalTaps(src, win, out + static_cast<std::size_t>(y) * w, w);
+    VerticalTaps(src, win, dst, w_);
   }
-}
 
-// Blurs `planes` consecutive w x h planes of `in` into `out`, planes in parallel.
+ private:
+  int w_;
+  std::vector<T> data_;
+};
+
+// SSIM bands are this many rows: a band recomputes 2 r rows of statistics
+// and r rows of gradient terms on either side, and 3 channels x 3 bands of a
+// 384-row view keep 2 cores busy.
+constexpr int kSsimBandRows = 128;
+
+// One channel's SSIM over rows [y0, y1), streamed: each input row's
+// statistics (a, a^2, and b, b^2, ab per target) are blurred horizontally
+// into a ring of 11 rows, the vertical pass gives a row of blurred
+// statistics, whose SSIM terms are blurred back through a second ring into
+// the gradient. No statistic or gradient plane goes through memory as a
+// whole image: 24 planes of a 512 x 384 view did, and the loss was bound by
+// that traffic. Writes the row sums of SSIM into row_total[c * h + y] and,
+// with `grad`, channel c of rows [y0, y1) of it.
 template <typename T>
-void BlurPlanes(const std::vector<T>& in, std::vector<T>& out, int planes, int w, int h) {
+void SsimBand(const std::vector<T>& x, const std::vector<const std::vector<T>*>& targets, int w, int h,
+              int channels, int c, int y0, int y1, std::vector<double>* row_total, std::vector<T>* grad) {
+  constexpr int r = kWindow / 2;
+  const int S = static_cast<int>(targets.size());
   const std::size_t n = static_cast<std::size_t>(w) * h;
-  out.resize(in.size());
-  tbb::parallel_for(0, planes, [&](int k) {
-    std::vector<T> tmp(n), row(static_cast<std::size_t>(w) + kWindow), zeros(static_cast<std::size_t>(w), T(0));
-    BlurPlane(in.data() + k * n, out.data() + k * n, tmp.data(), row.data(), zeros.data(), w, h);
-  });
+  const T inv = T(1.0 / static_cast<double>(n * channels * S));
+  const T c1 = T(kC1), c2 = T(kC2);
+  const std::array<T, kWindow> win = Window<T>();
+  // Statistic planes: a, a^2, then b, b^2, ab of each target. Gradient
+  // planes: the mu_a and var_a terms summed over targets (they are blurred
+  // alike), then each target's cov term (its blur is multiplied by that
+  // target's b).
+  enum { kA, kAA };
+  enum { kGMu, kDVar };
+  const int stats_planes = 2 + 3 * S, grad_planes = 2 + S;
+  auto b_plane = [](int s, int k) { return 2 + 3 * s + k; };  // k: 0 b, 1 b^2, 2 ab
+  RowRing<T> stats(stats_planes, w), terms(grad_planes, w);
+  std::vector<T> padded(static_cast<std::size_t>(w) + 2 * r, T(0)), zeros(static_cast<std::size_t>(w), T(0));
+  std::vector<T> blurred(static_cast<std::size_t>(stats_planes) * w), g(static_cast<std::size_t>(grad_planes) * w);
+  std::vector<T> row_ssim(static_cast<std::size_t>(w));
+  auto pixel = [&](const std::vector<T>& image, int y, int px) {
+    return image[(static_cast<std::size_t>(y) * w + px) * channels + c];
+  };
+  // Blurs one row of one statistic (or gradient term) horizontally into its ring.
+  auto blur_row = [&](RowRing<T>& ring, int plane, int y, auto value) {
+    for (int px = 0; px < w; ++px) padded[r + px] = value(px);
+    HorizontalTaps(padded.data(), win, ring.Row(plane, y), w);
+  };
+  auto add_input_row = [&](int y) {
+    blur_row(stats, kA, y, [&](int px) { return pixel(x, y, px); });
+    blur_row(stats, kAA, y, [&](int px) { const T a = pixel(x, y, px); return a * a; });
+    for (int s = 0; s < S; ++s) {
+      const std::vector<T>& t = *targets[s];
+      blur_row(stats, b_plane(s, 0), y, [&](int px) { return pixel(t, y, px); });
+      blur_row(stats, b_plane(s, 1), y, [&](int px) { const T b = pixel(t, y, px); return b * b; });
+      blur_row(stats, b_plane(s, 2), y, [&](int px) { return pixel(x, y, px) * pixel(t, y, px); });
+    }
+  };
+  // The gradient at row y of the band, once the terms of rows up to y + r are in their ring.
+  std::vector<T> d_blurred(static_cast<std::size_t>(grad_planes) * w);
+  auto output_row = [&](int y) {
+    for (int k = 0; k < grad_planes; ++k) terms.Blur(k, y, h, win, zeros.data(), &d_blurred[k * w]);
+    for (int px = 0; px < w; ++px) {
+      T v = d_blurred[kGMu * w + px] + 2 * pixel(x, y, px) * d_blurred[kDVar * w + px];
+      for (int s = 0; s < S; ++s) v += pixel(*targets[s], y, px) * d_blurred[(2 + s) * w + px];
+      (*grad)[(static_cast<std::size_t>(y) * w + px) * channels + c] = v;
+    }
+  };
+  // Rows whose SSIM terms the band needs: its own, and r more on either
+  // side for the gradient's blur.
+  const int t0 = grad ? std::max(0, y0 - r) : y0, t1 = grad ? std::min(h, y1 + r) : y1;
+  int next_input = std::max(0, t0 - r), next_output = y0;
+  for (int y = t0; y < t1; ++y) {
+    for (; next_input <= std::min(h - 1, y + r); ++next_input) add_input_row(next_input);
+    for (int k = 0; k < stats_planes; ++k) stats.Blur(k, y, h, win, zeros.data(), &blurred[k * w]);
+    const T* mu_a = &blurred[kA * w];
+    const T* e_aa = &blurred[kAA * w];
+    std::fill(g.begin(), g.end(), T(0));
+    double total = 0;
+    for (int s = 0; s < S; ++s) {
+      const T* mu_b = &blurred[b_plane(s, 0) * w];
+      const T* e_bb = &blurred[b_plane(s, 1) * w];
+      const T* e_ab = &blurred[b_plane(s, 2) * w];
+      for (int p = 0; p < w; ++p) {
+        const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
+        const T cov = e_ab[p] - mu_a[p] * mu_b[p];
+        const SsimTerms<T> t = SsimAtPixel(mu_a[p], mu_b[p], va, vb, cov, c1, c2);
+        row_ssim[p] = t.ssim;
+        // var_a = E[a^2] - mu_a^2 and cov = E[ab] - mu_a mu_b chained to mu_a.
+        const T dvar = inv * t.d_var_a, dcov = inv * t.d_cov;
+        const T dmu = inv * t.d_mu_a;
+        g[kDVar * w + p] += dvar;
+        g[(2 + s) * w + p] = dcov;
+        g[kGMu * w + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;
+      }
+      for (T v : row_ssim) total += v;  // summed after the row: the pixel loop vectorizes
+    }
+    if (y >= y0 && y < y1) (*row_total)[static_cast<std::size_t>(c) * h + y] = total;
+    if (!grad) continue;
+    for (int k = 0; k < grad_planes; ++k) blur_row(terms, k, y, [&](int px) { return g[k * w + px]; });
+    for (; next_output < y1 && std::min(h - 1, next_output + r) <= y; ++next_output) output_row(next_output);
+  }
 }
 
 void RequireSameSize(size_t a, size_t b, const char* what) {
@@ -140,94 +240,20 @@ double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*
   for (const auto* t : targets) RequireSameSize(x.size(), t->size(), "ssim");
   RequireSameSize(x.size(), static_cast<size_t>(w) * h * channels, "ssim image");
   const size_t n = static_cast<size_t>(w) * h;
-  const int S = static_cast<int>(targets.size());
   if (grad) grad->assign(x.size(), T(0));
-  const T inv = T(1.0 / static_cast<double>(n * channels * S));
-  const T c1 = T(kC1), c2 = T(kC2);
-  // The statistics of every channel as planes: a and a^2 once, then b, b^2
-  // and ab of each target; all blurred in parallel. The render's own blurs
-  // are shared by the targets.
-  const int stats_per_channel = 2 + 3 * S;
-  auto plane = [&](int c, int k) { return (static_cast<size_t>(c) * stats_per_channel + k) * n; };
-  enum { kA, kAA };
-  auto b_plane = [&](int c, int s, int k) { return plane(c, 2 + 3 * s + k); };  // k: 0 b, 1 b^2, 2 ab
-  std::vector<T> stats(n * stats_per_channel * channels), blurred;
-  auto rows = [&](const std::function<void(size_t, size_t)>& body) {  // pixel ranges of whole rows, in parallel
-    tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
-      body(static_cast<size_t>(r.begin()) * w, static_cast<size_t>(r.end()) * w);
-    });
-  };
-  rows([&](size_t p0, size_t p1) {
-    for (int c = 0; c < channels; ++c)
-      for (size_t p = p0; p < p1; ++p) {
-        const T a = x[p * channels + c];
-        stats[plane(c, kA) + p] = a;
-        stats[plane(c, kAA) + p] = a * a;
-        for (int s = 0; s < S; ++s) {
-          const T b = (*targets[s])[p * channels + c];
-          stats[b_plane(c, s, 0) + p] = b;
-          stats[b_plane(c, s, 1) + p] = b * b;
-          stats[b_plane(c, s, 2) + p] = a * b;
-        }
-      }
-  });
-  BlurPlanes(stats, blurred, stats_per_channel * channels, w, h);
-  // Per pixel: SSIM and its derivatives by the blurred statistics, rows in
-  // parallel; each row's sum in double, the rows summed in order
-  // (deterministic). Gradient planes per channel: the mu_a and var_a terms
-  // summed over targets (they are blurred alike), then each target's cov term
-  // (its blur is multiplied by that target's b).
-  const int grads_per_channel = 2 + S;
-  enum { kGMu, kDVar };
-  std::vector<T> d_stats(grad ? n * grads_per_channel * channels : 0, T(0)), d_blurred;
+  // Channels and bands of rows in parallel; each row's sum in double, the
+  // rows summed in order (deterministic whatever the scheduling).
+  const int bands = std::max(1, (h + kSsimBandRows - 1) / kSsimBandRows);
   std::vector<double> row_total(static_cast<size_t>(h) * channels, 0.0);
-  tbb::parallel_for(0, h * channels, [&](int task) {
-    const int c = task / h, y = task % h;
-    const T* mu_a = blurred.data() + plane(c, kA);
-    const T* e_aa = blurred.data() + plane(c, kAA);
-    T* g = grad ? d_stats.data() + static_cast<size_t>(c) * grads_per_channel * n : nullptr;
-    double total = 0;
-    std::vector<T> row_ssim(static_cast<size_t>(w));  // summed after the row: the pixel loop vectorizes
-    const size_t row0 = static_cast<size_t>(y) * w;
-    for (int s = 0; s < S; ++s) {
-      const T* mu_b = blurred.data() + b_plane(c, s, 0);
-      const T* e_bb = blurred.data() + b_plane(c, s, 1);
-      const T* e_ab = blurred.data() + b_plane(c, s, 2);
-      for (size_t p = row0; p < row0 + w; ++p) {
-        const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
-        const T cov = e_ab[p] - mu_a[p] * mu_b[p];
-        const SsimTerms<T> t = SsimAtPixel(mu_a[p], mu_b[p], va, vb, cov, c1, c2);
-        row_ssim[p - row0] = t.ssim;
-        if (!g) continue;
-        // var_a = E[a^2] - mu_a^2 and cov = E[ab] - mu_a mu_b chained to mu_a.
-        const T dvar = inv * t.d_var_a, dcov = inv * t.d_cov;
-        const T dmu = inv * t.d_mu_a;
-        g[kDVar * n + p] += dvar;
-        g[(2 + s) * n + p] = dcov;
-        g[kGMu * n + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;
-      }
-      for (T v : row_ssim) total += v;
-    }
-    row_total[static_cast<size_t>(task)] = total;
+  tbb::parallel_for(0, channels * bands, [&](int task) {
+    const int c = task / bands, band = task % bands;
+    const int y0 = static_cast<int>(static_cast<long>(h) * band / bands);
+    const int y1 = static_cast<int>(static_cast<long>(h) * (band + 1) / bands);
+    SsimBand(x, targets, w, h, channels, c, y0, y1, &row_total, grad);
   });
   double total = 0;
   for (double t : row_total) total += t;
-  if (grad) {
-    // Through the (self-adjoint) blur.
-    BlurPlanes(d_stats, d_blurred, grads_per_channel * channels, w, h);
-    rows([&](size_t p0, size_t p1) {
-      for (int c = 0; c < channels; ++c) {
-        const T* bg = d_blurred.data() + static_cast<size_t>(c) * grads_per_channel * n;
-        const T* a = stats.data() + plane(c, kA);
-        for (size_t p = p0; p < p1; ++p) {
-          T v = bg[kGMu * n + p] + 2 * a[p] * bg[kDVar * n + p];
-          for (int s = 0; s < S; ++s) v += stats[b_plane(c, s, 0) + p] * bg[(2 + s) * n + p];
-          (*grad)[p * channels + c] = v;
-        }
-      }
-    });
-  }
-  return total * (1.0 / static_cast<double>(n * channels * S));
+  return total * (1.0 / static_cast<double>(n * channels * targets.size()));
 }
 
 template <typename T>
