@@ -439,12 +439,14 @@ double SurfaceHeightTerm(const SurfaceDepthPrior& surface, const GaussianCloud& 
                          GaussianCloud* d) {
   const std::size_t n = cloud.size();
   std::vector<float> z(n), height(n), weight(n), d_z(n, 0.0f);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f& m = cloud.means[i];
-    z[i] = m.z();
-    height[i] = static_cast<float>(surface.HeightAt(m.x(), m.y()));
-    weight[i] = surface.WeightAt(m.x(), m.y());
-  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      const Eigen::Vector3f& m = cloud.means[i];
+      z[i] = m.z();
+      height[i] = static_cast<float>(surface.HeightAt(m.x(), m.y()));
+      weight[i] = surface.WeightAt(m.x(), m.y());
+    }
+  });
   const double loss = SurfaceHeightLoss(z, height, {o.lambda_surface_height, o.surface_height_band_m}, &d_z, &weight);
   for (std::size_t i = 0; i < n; ++i) d->means[i].z() += d_z[i];
   return loss;
