@@ -381,6 +381,39 @@ TEST(Rasterizer, TilesThatAreNotWholePixelBlocksGiveTheSameRender) {
   }
 }
 
+TEST(Rasterizer, WithoutAColourGradientTheGeometryGradientsAreTheSame) {
+  // No colour gradient (an empty d_rgb, as the regularizer views pass)
+  // takes a blending loop without the colour terms. They would all be zero,
+  // so every geometry and opacity gradient must be bit-identical to the
+  // full loop's with a zero colour gradient, and the colour gradients zero.
+  const PinholeCamera cam = LookDownCamera(60.0, 97, 70, 20.0, 0.5);
+  const GaussianCloudT<float> cloud = testing::ToFloat(RandomCloud(400, 9.0, 0.4, 5));
+  const Weights w = RandomWeights(cam, 4);
+  const std::vector<float> wf_alpha(w.alpha.begin(), w.alpha.end()), wf_depth(w.depth.begin(), w.depth.end());
+  const std::vector<float> zero_rgb(w.rgb.size(), 0.0f);
+  for (SimdPath path : SupportedSimdPaths()) {
+    SCOPED_TRACE(SimdPathName(path));
+    ScopedSimdPath scoped(path);
+    const RasterOptions o;
+    const RenderOutput<float> r = RenderGaussians(cloud, cam, o);
+    ASSERT_GT(r.state.blends, 10000u);
+    const GaussianGradients<float> full = BackwardGaussians(cloud, cam, o, r, zero_rgb, wf_alpha, wf_depth);
+    const GaussianGradients<float> geometry = BackwardGaussians(cloud, cam, o, r, {}, wf_alpha, wf_depth);
+    int moved = 0;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      ASSERT_EQ(geometry.d.means[i], full.d.means[i]) << i;
+      ASSERT_EQ(geometry.d.log_scales[i], full.d.log_scales[i]) << i;
+      ASSERT_EQ(geometry.d.rotations[i], full.d.rotations[i]) << i;
+      ASSERT_EQ(geometry.d.opacity_logits[i], full.d.opacity_logits[i]) << i;
+      for (float v : geometry.d.sh[i]) {
+        ASSERT_EQ(v, 0.0f) << i;
+      }
+      moved += geometry.d.means[i].norm() > 0;
+    }
+    EXPECT_GT(moved, 100) << "the depth and alpha weights must move most Gaussians";
+  }
+}
+
 TEST(Simd, PathsParseAndUnsupportedOnesAreRefused) {
   EXPECT_EQ(ParseSimdPath("avx2"), SimdPath::kAvx2);
   EXPECT_STREQ(SimdPathName(SimdPath::kAvx512), "avx512");
