@@ -367,7 +367,9 @@ TEST(Rasterizer, TilesThatAreNotWholePixelBlocksGiveTheSameRender) {
       for (std::size_t k = 0; k < r.alpha.size(); ++k) {
         ASSERT_NEAR(r.alpha[k], ref.alpha[k], kImageTol) << k;
         ASSERT_EQ(std::isnan(r.median_depth[k]), std::isnan(ref.median_depth[k])) << k;
-        if (!std::isnan(ref.median_depth[k])) ASSERT_EQ(r.median_depth[k], ref.median_depth[k]) << k;
+        if (!std::isnan(ref.median_depth[k])) {
+          ASSERT_EQ(r.median_depth[k], ref.median_depth[k]) << k;
+        }
       }
       const GaussianGradients<float> g = BackwardGaussians(cloud, cam, o, r, wf_rgb, wf_alpha, wf_depth);
       for (std::size_t i = 0; i < cloud.size(); ++i) {
