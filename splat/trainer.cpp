@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <sstream>
@@ -176,6 +178,56 @@ Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
   return Eigen::Quaternionf(u[0], u[1], u[2], u[3]).toRotationMatrix();
 }
 
+// Spreads the low 16 bits of v to the even bits of the result.
+std::uint32_t SpreadBits(std::uint32_t v) {
+  v &= 0xFFFFu;
+  v = (v | (v << 8)) & 0x00FF00FFu;
+  v = (v | (v << 4)) & 0x0F0F0F0Fu;
+  v = (v | (v << 2)) & 0x33333333u;
+  v = (v | (v << 1)) & 0x55555555u;
+  return v;
+}
+
+// Gaussians [fixed, n) in the order of a Morton (Z-order) curve through
+// their centres' x and y, the first `fixed` in place (the trainer holds
+// those by index). A view of part of the scene (a nadir patch, a crop)
+// then reads its Gaussians from a few runs of memory: in a cloud in random
+// order, projecting the 11k Gaussians a nadir patch sees waited on memory
+// for each of them (3.9 ms, against 0.6 ms for culling all 100k).
+std::vector<std::size_t> SpatialOrder(const GaussianCloud& c, std::size_t fixed) {
+  std::vector<std::size_t> order(c.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  if (fixed + 1 >= c.size()) return order;
+  Eigen::Array2f lo = Eigen::Array2f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+  for (std::size_t i = fixed; i < c.size(); ++i) {
+    const Eigen::Array2f xy = c.means[i].head<2>().array();
+    if (!xy.allFinite()) continue;
+    lo = lo.min(xy);
+    hi = hi.max(xy);
+  }
+  constexpr float kCells = 65535.0f;  // 16 bits per axis
+  const Eigen::Array2f scale = kCells / (hi - lo).max(1e-6f);
+  std::vector<std::pair<std::uint32_t, std::size_t>> keyed;
+  keyed.reserve(c.size() - fixed);
+  for (std::size_t i = fixed; i < c.size(); ++i) {
+    const Eigen::Array2f xy = c.means[i].head<2>().array();
+    Eigen::Array2f q = Eigen::Array2f::Zero();
+    if (xy.allFinite()) q = ((xy - lo) * scale).max(0.0f).min(kCells);
+    const std::uint32_t key = SpreadBits(static_cast<std::uint32_t>(q.x())) |
+                              (SpreadBits(static_cast<std::uint32_t>(q.y())) << 1);
+    keyed.emplace_back(key, i);
+  }
+  std::sort(keyed.begin(), keyed.end());  // ties by index: deterministic
+  for (std::size_t k = 0; k < keyed.size(); ++k) order[fixed + k] = keyed[k].second;
+  return order;
+}
+
+GaussianCloud Gather(const GaussianCloud& c, const std::vector<std::size_t>& order) {
+  GaussianCloud out;
+  for (std::size_t i : order) out.Append(c, i);
+  return out;
+}
+
 struct DensifyStats {
   std::vector<float> grad_sum;
   std::vector<int> seen;
@@ -186,8 +238,9 @@ struct DensifyStats {
 };
 
 // Clone small and split large Gaussians with large view-space gradients,
-// prune transparent and huge ones. The source of every Gaussian kept or
-// added goes to `source` (per-Gaussian state kept elsewhere follows it).
+// prune transparent and huge ones, and put the cloud back in spatial order
+// (SpatialOrder). The source of every Gaussian kept or added goes to
+// `source` (per-Gaussian state kept elsewhere follows it).
 void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const TrainOptions& o, double extent_m, bool grow,
              std::mt19937_64& rng, std::vector<std::size_t>* source) {
   GaussianCloud out, m, v;
@@ -239,9 +292,13 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
       ++added;
     }
   }
-  c = std::move(out);
-  adam.m = std::move(m);
-  adam.v = std::move(v);
+  const std::vector<std::size_t> order = SpatialOrder(out, o.fixed_geometry_count);
+  c = Gather(out, order);
+  adam.m = Gather(m, order);
+  adam.v = Gather(v, order);
+  std::vector<std::size_t> ordered_source(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) ordered_source[k] = (*source)[order[k]];
+  *source = std::move(ordered_source);
 }
 
 // --- checkpoints: the cloud, Adam state, RNG and series, in one binary file.
@@ -801,6 +858,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     throw Error("train", "appearance", "synthetic views have no acquisition to embed: train them without the appearance model");
 
   const int fused_view = AppearanceViewIndex(o, views);
+  cloud = Gather(cloud, SpatialOrder(cloud, o.fixed_geometry_count));
   Adam adam;
   adam.Resize(cloud.size());
   std::mt19937_64 rng(o.seed);
