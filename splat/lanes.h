@@ -1,10 +1,10 @@
 // Fixed-width vectors for the rasterizer's per-pixel loops (GCC/Clang vector
-// extensions): four pixels of a tile row are blended at once, with lane
-// masks instead of branches. Four floats fill one SSE register, which every
-// x86-64 CPU has; vectors wider than the target's registers are slower (GCC
-// lowers them through memory), so the width is not raised without a
-// matching target: the rasterizer compiles its own copy at 8 lanes for AVX2
-// and 16 for AVX-512 (core/simd.h).
+// extensions): a block of pixels is blended at once (rasterizer_kernels.inc,
+// TileLayout), with lane masks instead of branches. Four floats fill one SSE
+// register, which every x86-64 CPU has; vectors wider than the target's
+// registers are slower (GCC lowers them through memory), so the width is not
+// raised without a matching target: the rasterizer compiles its own copy at
+// 8 lanes for AVX2 and 16 for AVX-512 (core/simd.h).
 //
 // Masks follow the vector-extension convention: a comparison gives -1 (all
 // bits) in lanes where it holds and 0 elsewhere, and `Select(m, a, b)` picks
