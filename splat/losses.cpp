@@ -249,7 +249,7 @@ double SsimMean(const std::vector<T>& x, const std::vector<const std::vector<T>*
   for (const auto* t : targets) RequireSameSize(x.size(), t->size(), "ssim");
   RequireSameSize(x.size(), static_cast<size_t>(w) * h * channels, "ssim image");
   const size_t n = static_cast<size_t>(w) * h;
-  if (grad) grad->assign(x.size(), T(0));
+  if (grad) grad->resize(x.size());  // every value is written by its channel's band
   // Channels and bands of rows in parallel; each row's sum in double, the
   // rows summed in order (deterministic whatever the scheduling).
   const int bands = std::max(1, (h + kSsimBandRows - 1) / kSsimBandRows);
