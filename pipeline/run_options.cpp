@@ -113,11 +113,13 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("step_cost_margin", o.step_cost_margin);
   io("fill_radius_m", o.fill_radius_m);
   io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
+  io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);
   io("fill_ground_tolerance_m", o.fill_ground_tolerance_m);
   io("visibility_pass", o.visibility_pass);
   io("visibility_tolerance_m", o.visibility_tolerance_m);
+  io("visibility_near_cells", o.visibility_near_cells);
   io("visibility_prior_pairs", o.visibility_prior_pairs);
 }
 template <class IO> void Visit(IO& io, PseudoCameraOptions& o) {

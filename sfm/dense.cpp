@@ -55,6 +55,8 @@ void DenseOptions::Check() const {
   positive(fill_ground_radius_m, "fill_ground_radius_m");
   if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
+  if (visibility_near_cells < -1)
+    throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
@@ -498,14 +500,14 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
 }
 
 // Per view (ENU directions toward the cameras), the height above which each
-// cell of `surface_m` is seen (VisibleAbove), less `tolerance_m`: what the
-// visibility pass and the step decision count as seen.
+// cell of `surface_m` is seen (VisibleAbove, past `near_cells`), less
+// `tolerance_m`: what the visibility pass and the step decision count as seen.
 std::vector<std::vector<float>> SeenAbove(const HeightGrid& g, const std::vector<float>& surface_m,
                                           const std::vector<Eigen::Vector3d>& to_cameras, double floor_m,
-                                          double tolerance_m) {
+                                          double tolerance_m, int near_cells) {
   std::vector<std::vector<float>> seen_above(to_cameras.size());
   tbb::parallel_for(0, static_cast<int>(to_cameras.size()), [&](int v) {
-    seen_above[v] = VisibleAbove(g, surface_m, to_cameras[v], floor_m);
+    seen_above[v] = VisibleAbove(g, surface_m, to_cameras[v], floor_m, near_cells);
     for (float& h : seen_above[v]) h -= static_cast<float>(tolerance_m);
   });
   return seen_above;
@@ -654,7 +656,7 @@ std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_c
     std::vector<float> surface = before;
     for (std::size_t k = 0; k < surface.size(); ++k)
       if (std::isfinite(lo[k])) surface[k] = kNan;
-    seen_above = SeenAbove(g, surface, *to_cameras, s.z_lo, s.o.visibility_tolerance_m);
+    seen_above = SeenAbove(g, surface, *to_cameras, s.z_lo, s.o.visibility_tolerance_m, 0);
   }
   progress.Begin("dense: deciding cells beside steps", g.ny);
   std::atomic<int> rows_done{0};
@@ -689,7 +691,7 @@ std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_c
 }  // namespace
 
 std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
-                                const Eigen::Vector3d& to_camera, double floor_m) {
+                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells) {
   if (surface_m.size() != static_cast<std::size_t>(g.nx) * g.ny)
     throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
   const float lowest = -std::numeric_limits<float>::infinity();
@@ -706,7 +708,7 @@ std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& s
   tbb::parallel_for(0, g.ny, [&](int j) {
     for (int i = 0; i < g.nx; ++i) {
       float best = lowest;
-      for (int t = 1;; ++t) {
+      for (int t = 1 + near_cells;; ++t) {
         const double drop = t * rise;
         if (top - drop <= best || top - drop < floor_m) break;  // nothing further can hide the cell
         const int a = static_cast<int>(std::lround(i + t * step_i)), b = static_cast<int>(std::lround(j + t * step_j));
@@ -854,6 +856,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   fill.radius_cells = cells_of(o.fill_radius_m);
   fill.max_reach_cells = cells_of(o.max_fill_reach_m);
   fill.roof_rim_fraction = static_cast<float>(o.fill_roof_rim_fraction);
+  fill.roof_rim_occluded = o.fill_roof_rim_occluded;
   fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
   std::vector<Eigen::Vector3d> to_cameras;
@@ -879,7 +882,9 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     if (!o.visibility_fill_seen_holes)
       for (std::size_t k = 0; k < cells; ++k)
         if (filled[k] && !fill_occluded[k]) surface[k] = kNan;
-    const std::vector<std::vector<float>> seen_above = SeenAbove(g, surface, to_cameras, z_lo, o.visibility_tolerance_m);
+    const std::vector<std::vector<float>> seen_above =
+        SeenAbove(g, surface, to_cameras, z_lo, o.visibility_tolerance_m,
+                  o.visibility_near_cells >= 0 ? o.visibility_near_cells : o.window_cells / 2);
     cost = CostVolume(sweep, &seen_above, "dense: sweeping heights the views see", progress);
     CellHeights second = PickHeights(sweep, cost, progress);
     for (std::size_t k = 0; k < cells; ++k)

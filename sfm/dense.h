@@ -76,6 +76,11 @@ struct DenseOptions {
   // (more than 2 m above the ground) takes the roof, though ground is
   // within fill_radius_m (HoleFillOptions::roof_rim_fraction). 0 = off.
   double fill_roof_rim_fraction = 0.9;
+  // Whether the rule also counts holes whose ground no pair sees: a hole in
+  // the middle of a roof hides its own ground behind the roof around it,
+  // and the occluded-ground rule alone would fill it with the terrain
+  // (HoleFillOptions::roof_rim_occluded).
+  bool fill_roof_rim_occluded = true;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.
@@ -92,6 +97,12 @@ struct DenseOptions {
   // surface (holes filled): beside a wall half the views see the ground and
   // the other half the wall, and averaging them all favours the roof.
   bool visibility_pass = true;
+  // Surface cells this near a cell (along the ray) do not hide it; -1 = the
+  // NCC window's radius. Beside a step they are the band that the windows
+  // fatten (ground at the roof's height), and counted as occluders they
+  // hid the ground under them from every view, so that the roof won there
+  // for want of a rival. 0 = every cell hides.
+  int visibility_near_cells = -1;
   // A point counts as seen when the first surface rises at most this much
   // above the ray toward the camera [m]: the first surface's own error.
   double visibility_tolerance_m = 1.0;
@@ -160,9 +171,10 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::
 // orthographic approximation, fine for satellites): the highest point of
 // `surface_m` (nx x ny, NaN = unknown, ignored) along the ray, less the
 // ray's rise to it. -infinity where nothing hides the cell; the march stops
-// once the ray is below `floor_m` (heights below it are never asked).
+// once the ray is below `floor_m` (heights below it are never asked). The
+// first `near_cells` cells along the ray hide nothing.
 std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>& surface_m,
-                                const Eigen::Vector3d& to_camera, double floor_m);
+                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells = 0);
 
 // Cells of `surface_m` (nx x ny, NaN = hole) whose ground point (the
 // terrain's height plus `tolerance_m`) fewer than two of the views (ENU

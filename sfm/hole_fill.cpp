@@ -272,7 +272,7 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
 namespace {
 
 // Per cell, 1 where it belongs to a roof's hole: a piece of 4-connected
-// seen-hole cells (NaN in `h`, not `occluded`) of which at least
+// hole cells (NaN in `h`; not `occluded` unless roof_rim_occluded) of which at least
 // roof_rim_fraction of the measured cells bordering it lie more than
 // roof_rim_min_m above the ground (`above`). Each piece is walked once, each
 // of its rim cells counted once. All 0 when the rule is off.
@@ -281,12 +281,14 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
                                     const HoleFillOptions& o) {
   std::vector<std::uint8_t> roof_hole(h.size(), 0);
   if (o.roof_rim_fraction <= 0) return roof_hole;
-  auto seen_hole = [&](std::size_t k) { return !std::isfinite(h[k]) && !(occluded && (*occluded)[k]); };
+  auto hole = [&](std::size_t k) {
+    return !std::isfinite(h[k]) && (o.roof_rim_occluded || !(occluded && (*occluded)[k]));
+  };
   std::vector<std::uint8_t> visited(h.size(), 0);
   std::vector<int> rim_of(h.size(), -1);  // the piece (its seed) a rim cell was last counted for
   std::vector<std::size_t> stack, members;
   for (std::size_t seed = 0; seed < h.size(); ++seed) {
-    if (visited[seed] || !seen_hole(seed)) continue;
+    if (visited[seed] || !hole(seed)) continue;
     const int id = static_cast<int>(seed);
     visited[seed] = 1;
     stack.assign(1, seed);
@@ -307,7 +309,7 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
           rim_of[n] = id;
           ++rim;
           raised += above[n] > o.roof_rim_min_m ? 1 : 0;
-        } else if (!visited[n] && seen_hole(n)) {
+        } else if (!visited[n] && hole(n)) {
           visited[n] = 1;
           stack.push_back(n);
         }
@@ -364,8 +366,14 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
-      const bool ground = occluded && (*occluded)[k];
-      const std::vector<float>& low = roof_hole[k] && std::isfinite(low_raised[k]) ? low_raised : low_all;
+      const bool raised_in_reach = roof_hole[k] && std::isfinite(low_raised[k]);
+      // Occluded cells of a roof's hole wait for the roof to come in reach.
+      if (occluded && (*occluded)[k] && roof_hole[k] && !raised_in_reach && r < o.max_reach_cells) {
+        open = true;
+        continue;
+      }
+      const bool ground = occluded && (*occluded)[k] && !raised_in_reach;
+      const std::vector<float>& low = raised_in_reach ? low_raised : low_all;
       if (ground ? !std::isfinite(model.terrain_m[k]) || !std::isfinite(in_reach[k])
                  : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
         open = true;

@@ -31,6 +31,10 @@ struct HoleFillOptions {
   // only, not from the ground beyond the roof's edge. 0 = off.
   float roof_rim_fraction = 0.9f;
   float roof_rim_min_m = 2.0f;      // [m] above the ground, a rim cell is raised
+  // Pieces of holes also take in the occluded cells: a roof's hole whose
+  // ground is hidden behind the roof around it then takes the roof, not the
+  // terrain. Its cells wait for the roof to come within reach.
+  bool roof_rim_occluded = false;
 };
 
 // The ground under a height grid: its opening (GroundSurface), which tells
@@ -50,7 +54,8 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // cell; returns a per-cell flag of what was filled. A cell that `occluded`
 // marks (ground no image pair can see, hidden by the measured surface: the
 // foot of a wall facing away from the views, a street between tall
-// buildings) is ground: it takes the terrain. Any other hole (a surface
+// buildings) is ground: it takes the terrain, unless roof_rim_occluded
+// counts it in a roof's hole. Any other hole (a surface
 // seen but not matched: a plain roof, a shadow, a tree) takes the lowest
 // height above the ground within radius_cells (doubled up to
 // max_reach_cells while nothing is in reach), added to the ground at the

@@ -122,6 +122,55 @@ TEST(HoleFill, AHoleRingedByRoofTakesTheRoofThoughGroundIsInReach) {
   }
 }
 
+// A 10 m roof over columns 70-129 on flat ground (0 m), with a patch no
+// pair measured in its middle (columns 90-115, rows 5-34: cells up to 13
+// from the roof, beyond the first reach of 10) and a 3-cell strip beside its
+// east wall. The ground under both is hidden from every pair (`occluded`): the
+// patch's by the roof around it, the strip's by the wall.
+struct RoofWithAnOccludedHole {
+  static constexpr int nx = 200, ny = 40;
+  std::vector<float> h;
+  std::vector<std::uint8_t> occluded;
+  static bool Patch(int i, int j) { return i >= 90 && i <= 115 && j >= 5 && j <= 34; }
+  static bool Strip(int i) { return i >= 130 && i <= 132; }
+  RoofWithAnOccludedHole() : h(static_cast<std::size_t>(nx) * ny), occluded(h.size(), 0) {
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+        const bool hole = Patch(i, j) || Strip(i);
+        h[k] = hole ? std::nanf("") : i >= 70 && i < 130 ? 10.0f : 0.0f;
+        occluded[k] = hole ? 1 : 0;
+      }
+  }
+};
+
+TEST(HoleFill, AnOccludedHoleRingedByRoofTakesTheRoofAndAStripBesideAWallTheGround) {
+  using Scene = RoofWithAnOccludedHole;
+  HoleFillOptions o = FillOptions();
+  o.roof_rim_occluded = true;
+  Scene on;
+  const std::vector<std::uint8_t> filled = Fill(on.h, Scene::nx, Scene::ny, o, &on.occluded);
+  // Tolerance: float rounding of the terrain's plane fits over ~50 m.
+  constexpr float kTol = 1e-4f;
+  for (int j = 0; j < Scene::ny; ++j)
+    for (int i = 0; i < Scene::nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * Scene::nx + i;
+      if (Scene::Patch(i, j)) {
+        EXPECT_EQ(filled[k], 1);
+        EXPECT_NEAR(on.h[k], 10.0f, kTol) << i << "," << j;  // the deepest cells too, though beyond the first reach
+      } else if (Scene::Strip(i)) {
+        EXPECT_NEAR(on.h[k], 0.0f, kTol) << i << "," << j;  // half its rim is ground: not a roof's hole
+      }
+    }
+  // Off, occluded cells are ground whatever surrounds them: the patch takes
+  // the terrain.
+  Scene off;
+  o.roof_rim_occluded = false;
+  Fill(off.h, Scene::nx, Scene::ny, o, &off.occluded);
+  EXPECT_NEAR(off.h[static_cast<std::size_t>(20) * Scene::nx + 102], 0.0f, kTol);
+  EXPECT_NEAR(off.h[static_cast<std::size_t>(20) * Scene::nx + 131], 0.0f, kTol);
+}
+
 TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
   // A 30% slope rising east (0.5 m cells: 0.15 m per cell) and a 40 m tall
   // building whose south wall hides a 20-cell strip of ground that runs to
