@@ -34,6 +34,8 @@ mkdir -p "$OUT"
 # Settings of the dense stage and the trainer were chosen on JAX_068 (the only
 # real AOI with truth here), the surface-anchor weights on syn_default (its
 # 128 m quick form); the other synthetic scenes are held out of all tuning.
+# Later dense-stage rules were also chosen on cities of other seeds
+# (`skyfall synth --seed 2|3`, docs/benchmarks.md), none of them listed here.
 SCENES=(
   "jax068|true|dfc2019"
   "syn_default|true|"
