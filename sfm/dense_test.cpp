@@ -382,17 +382,14 @@ constexpr double kBrightRoofHalfM = 10.0;
 struct BrightRoofScene {
   double roof_m;
   std::vector<DenseView> views;
-  std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {0, 3, 100}, {1, 2, 100}, {1, 3, 100}, {2, 3, 100}};
+  std::vector<DensePair> pairs;  // every pair of the views
   std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}};
-  // The first four views, or eight (the pairs then all 28 of them).
+  // The first `view_count` (at most 8) of the views below.
   explicit BrightRoofScene(double roof_height_m = 12.0, int view_count = 4) : roof_m(roof_height_m) {
     points.emplace_back(0, 0, roof_m);
     const double zenith_deg[] = {0, 15, 20, 25, 15, 20, 25, 10}, azimuth_deg[] = {0, 90, 200, 320, 270, 30, 140, 180};
-    if (view_count == 8) {
-      pairs.clear();
-      for (int a = 0; a < 8; ++a)
-        for (int b = a + 1; b < 8; ++b) pairs.push_back({a, b, 100});
-    }
+    for (int a = 0; a < view_count; ++a)
+      for (int b = a + 1; b < view_count; ++b) pairs.push_back({a, b, 100});
     for (int v = 0; v < view_count; ++v) {
       views.push_back(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
                                    roof_m, kBrightRoofHalfM, BrightRoofTexture));

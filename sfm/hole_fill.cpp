@@ -366,13 +366,14 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
+      const bool hidden = occluded && (*occluded)[k];
       const bool raised_in_reach = roof_hole[k] && std::isfinite(low_raised[k]);
       // Occluded cells of a roof's hole wait for the roof to come in reach.
-      if (occluded && (*occluded)[k] && roof_hole[k] && !raised_in_reach && r < o.max_reach_cells) {
+      if (hidden && roof_hole[k] && !raised_in_reach && r < o.max_reach_cells) {
         open = true;
         continue;
       }
-      const bool ground = occluded && (*occluded)[k] && !raised_in_reach;
+      const bool ground = hidden && !raised_in_reach;
       const std::vector<float>& low = raised_in_reach ? low_raised : low_all;
       if (ground ? !std::isfinite(model.terrain_m[k]) || !std::isfinite(in_reach[k])
                  : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
