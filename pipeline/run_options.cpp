@@ -106,6 +106,8 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("coarse_window_cells", o.coarse_window_cells);
   io("visibility_fill_seen_holes", o.visibility_fill_seen_holes);
   io("refine_steps", o.refine_steps);
+  io("step_pull_run_cells", o.step_pull_run_cells);
+  io("step_pull_min_m", o.step_pull_min_m);
   io("step_min_m", o.step_min_m);
   io("step_reach_cells", o.step_reach_cells);
   io("support_radius_cells", o.support_radius_cells);

@@ -61,6 +61,9 @@ void DenseOptions::Check() const {
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   positive(step_min_m, "step_min_m");
+  positive(step_pull_min_m, "step_pull_min_m");
+  if (step_pull_run_cells < 0 || step_pull_run_cells > 16)
+    throw Error("dense", "step_pull_run_cells", "must be in [0, 16] (0 = off), got " + std::to_string(step_pull_run_cells));
   positive(support_grey_sigma, "support_grey_sigma");
   if (!(step_cost_margin >= 0)) throw Error("dense", "step_cost_margin", "must be >= 0, got " + std::to_string(step_cost_margin));
   if (step_reach_cells < 1) throw Error("dense", "step_reach_cells", "must be >= 1, got " + std::to_string(step_reach_cells));
@@ -928,6 +931,15 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     // Coarse heights count as filled: not measured at the grid's own scale.
     for (std::size_t k = 0; k < cells; ++k) g.filled[k] |= from_coarse[k];
   }
+  std::size_t step_pulled = 0;
+  if (o.step_pull_run_cells > 0) {
+    StepPullOptions pull;
+    pull.run_cells = o.step_pull_run_cells;
+    pull.min_step_m = static_cast<float>(o.step_pull_min_m);
+    pull.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
+    step_pulled = PullStepsToGround(g.height_m, GroundModelOf(g.height_m, g.nx, g.ny, fill).ground_m, g.nx, g.ny, pull,
+                                    &g.filled);
+  }
 
   // Colour from the most nadir view that sees the cell.
   std::vector<int> by_elevation(views.size());
@@ -971,6 +983,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);
+  r.metrics["step_pulled_fraction"] = static_cast<double>(step_pulled) / static_cast<double>(cells);
   r.seconds = clock.Seconds();
   return result;
 }

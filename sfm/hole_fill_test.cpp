@@ -284,5 +284,76 @@ TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
   EXPECT_THROW(FillHoles(grid, 3, 2, FillOptions(), GroundModelOf(grid, 3, 2, FillOptions()), &wrong_mask), Error);
 }
 
+// A 20 m square roof 10 m above flat ground at 2 m, fattened by one cell on
+// every side, with a 3 m rooftop unit fattened the same way: the roof's
+// edge moves back onto its true outline; the unit, which stands on the
+// roof, not on the ground, keeps its cells.
+TEST(StepPull, StepsOntoTheGroundMoveBackOneCellAndStepsOntoARoofStay) {
+  const int nx = 80, ny = 80;
+  auto index = [&](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
+  std::vector<float> truth(nx * ny, 2.0f);
+  for (int j = 20; j < 60; ++j)
+    for (int i = 20; i < 60; ++i) truth[index(i, j)] = 12.0f;
+  for (int j = 35; j < 45; ++j)
+    for (int i = 35; i < 45; ++i) truth[index(i, j)] = 15.0f;
+  std::vector<float> h = truth;
+  for (int j = 19; j <= 60; ++j)
+    for (int i = 19; i <= 60; ++i)
+      if (i == 19 || j == 19 || i == 60 || j == 60) h[index(i, j)] = 12.0f;
+  for (int j = 34; j <= 45; ++j)
+    for (int i = 34; i <= 45; ++i)
+      if (i == 34 || j == 34 || i == 45 || j == 45) h[index(i, j)] = 15.0f;
+  const HoleFillOptions fill = FillOptions();
+  const std::vector<float> ground = GroundModelOf(h, nx, ny, fill).ground_m;
+  StepPullOptions pull;
+  const std::size_t pulled = PullStepsToGround(h, ground, nx, ny, pull);
+  EXPECT_EQ(pulled, 4u * 41u) << "the fattened ring round the roof, 42 cells a side";
+  int roof_rim_wrong = 0, unit_changed = 0;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool on_unit_ring = i >= 34 && i <= 45 && j >= 34 && j <= 45;
+      if (on_unit_ring) {
+        unit_changed += h[index(i, j)] != (i == 34 || j == 34 || i == 45 || j == 45 ? 15.0f : truth[index(i, j)]);
+      } else {
+        roof_rim_wrong += h[index(i, j)] != truth[index(i, j)];
+      }
+    }
+  EXPECT_EQ(roof_rim_wrong, 0);
+  EXPECT_EQ(unit_changed, 0) << "a step onto a roof is not a step onto the ground";
+  // Nor are filled ones: a hole in the roof filled with the ground keeps its rim.
+  std::vector<float> holed = truth;
+  std::vector<std::uint8_t> filled(nx * ny, 0);
+  for (int j = 24; j < 30; ++j)
+    for (int i = 24; i < 30; ++i) {
+      holed[index(i, j)] = 2.0f;
+      filled[index(i, j)] = 1;
+    }
+  auto hole_rim_kept = [&](const std::vector<float>& g) {
+    int kept = 0;
+    for (int j = 23; j <= 30; ++j)
+      for (int i = 23; i <= 30; ++i)
+        if (i == 23 || j == 23 || i == 30 || j == 30) kept += g[index(i, j)] == 12.0f;
+    return kept;
+  };
+  std::vector<float> measured_hole = holed;
+  PullStepsToGround(holed, ground, nx, ny, StepPullOptions(), &filled);
+  EXPECT_EQ(hole_rim_kept(holed), 28);
+  PullStepsToGround(measured_hole, ground, nx, ny, StepPullOptions());
+  EXPECT_LT(hole_rim_kept(measured_hole), 28) << "the same hole taken as measured";
+  // Unknown cells are no evidence of ground; 0 turns the pull off.
+  std::vector<float> holes(nx * ny, NAN), copy = h;
+  holes[index(40, 40)] = 10.0f;
+  EXPECT_EQ(PullStepsToGround(holes, ground, nx, ny, pull), 0u);
+  pull.run_cells = 0;
+  EXPECT_EQ(PullStepsToGround(copy, ground, nx, ny, pull), 0u);
+  pull.run_cells = 17;
+  try {
+    PullStepsToGround(copy, ground, nx, ny, pull);
+    FAIL() << "a run longer than 16 cells must be refused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("step_pull_run_cells"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace skyfall
