@@ -62,8 +62,9 @@ void DenseOptions::Check() const {
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   positive(step_min_m, "step_min_m");
   positive(step_pull_min_m, "step_pull_min_m");
-  if (step_pull_run_cells < 0 || step_pull_run_cells > 16)
-    throw Error("dense", "step_pull_run_cells", "must be in [0, 16] (0 = off), got " + std::to_string(step_pull_run_cells));
+  if (step_pull_run_cells < 0 || step_pull_run_cells > StepPullOptions::kMaxRunCells)
+    throw Error("dense", "step_pull_run_cells", "must be in [0, " + std::to_string(StepPullOptions::kMaxRunCells) +
+                                                    "] (0 = off), got " + std::to_string(step_pull_run_cells));
   positive(support_grey_sigma, "support_grey_sigma");
   if (!(step_cost_margin >= 0)) throw Error("dense", "step_cost_margin", "must be >= 0, got " + std::to_string(step_cost_margin));
   if (step_reach_cells < 1) throw Error("dense", "step_reach_cells", "must be >= 1, got " + std::to_string(step_reach_cells));
@@ -937,8 +938,9 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     pull.run_cells = o.step_pull_run_cells;
     pull.min_step_m = static_cast<float>(o.step_pull_min_m);
     pull.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
-    step_pulled = PullStepsToGround(g.height_m, GroundModelOf(g.height_m, g.nx, g.ny, fill).ground_m, g.nx, g.ny, pull,
-                                    &g.filled);
+    // The ground surface alone (GroundModelOf's ground_m), of the filled heights.
+    step_pulled = PullStepsToGround(g.height_m, GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells), g.nx,
+                                    g.ny, pull, &g.filled);
   }
 
   // Colour from the most nadir view that sees the cell.

@@ -393,9 +393,10 @@ std::size_t PullStepsToGround(std::vector<float>& h, const std::vector<float>& g
   CheckGrid(h, nx, ny);
   if (ground.size() != h.size()) throw Error("dense", "ground surface", "size differs from the height grid's");
   if (filled && filled->size() != h.size()) throw Error("dense", "filled", "size differs from the height grid's");
-  constexpr int kMaxRun = 16;
+  constexpr int kMaxRun = StepPullOptions::kMaxRunCells;
   if (o.run_cells < 0 || o.run_cells > kMaxRun)
-    throw Error("dense", "step_pull_run_cells", std::to_string(o.run_cells) + " must be in [0, 16] (0 = off)");
+    throw Error("dense", "step_pull_run_cells",
+                std::to_string(o.run_cells) + " must be in [0, " + std::to_string(kMaxRun) + "] (0 = off)");
   if (o.run_cells == 0) return 0;
   const std::vector<float> before = h;
   const int n = o.run_cells;

@@ -102,7 +102,8 @@ std::vector<float> TerrainModel(const std::vector<float>& height_m, const std::v
 // in a roof that took the terrain would only grow). Decided on the heights
 // as given, not as changed; returns how many cells changed.
 struct StepPullOptions {
-  int run_cells = 4;               // 0 = off
+  static constexpr int kMaxRunCells = 16;
+  int run_cells = 4;               // 0 = off, at most kMaxRunCells
   float min_step_m = 2.0f;
   float ground_tolerance_m = 1.0f;
 };
