@@ -171,7 +171,7 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
     if (dense.size() > 0) {
       // The dense heights' own DSM and error map sit beside the trained
       // scene's, so an analyst sees where training changed the surface.
-      DsmGrid dense_pred, unused;
+      DsmGrid dense_pred, measured_pred;
       const DsmComparison d = CompareSceneWithTruth(dense, merged.enu_origin, *a.truth, truth, options.dsm.compare,
                                                     &dense_pred, options.dsm.export_options);
       WriteDsm((aoi_dir / "dense_dsm.tif").string(), dense_pred);
@@ -179,7 +179,10 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
                          {(aoi_dir / "dense_dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
                          (aoi_dir / "dense_dsm_compare").string());
       const DsmComparison m = CompareSceneWithTruth(measured, merged.enu_origin, *a.truth, truth,
-                                                    options.dsm.compare, &unused, options.dsm.export_options);
+                                                    options.dsm.compare, &measured_pred, options.dsm.export_options);
+      // The matched cells alone (nodata where a cell was filled): which
+      // heights a pair of views measured, and which were filled in.
+      WriteDsm((aoi_dir / "dense_measured_dsm.tif").string(), measured_pred);
       entry["dense"] = ComparisonJson(d);
       entry["dense"]["filled_cell_fraction"] = cells ? static_cast<double>(filled) / cells : 0.0;
       entry["dense"]["cells"] = static_cast<double>(cells);

@@ -135,6 +135,15 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   }
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
     EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm.tif")) << aoi;
+    // The matched cells' DSM has heights on fewer pixels than the dense
+    // heights with the filled cells (the city has holes to fill).
+    auto valid = [](const DsmGrid& g) {
+      return std::count_if(g.height_m.begin(), g.height_m.end(), [](float h) { return std::isfinite(h); });
+    };
+    const DsmGrid all_cells = ReadDsm((dir / "out" / aoi / "dense_dsm.tif").string());
+    const DsmGrid matched = ReadDsm((dir / "out" / aoi / "dense_measured_dsm.tif").string());
+    EXPECT_GT(valid(matched), 0) << aoi;
+    EXPECT_LT(valid(matched), valid(all_cells)) << aoi;
     EXPECT_GT(ReadJson(dir / "out" / aoi / "dsm_compare" / "report.json")["completeness"].get<double>(), 0.5) << aoi;
   }
   // Scene and LOD: the finest level is the merged scene, counts fall.
