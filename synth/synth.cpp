@@ -47,14 +47,32 @@ struct Acquisition {
   double utc_hours = 16.0;
 };
 
-Acquisition MakeAcquisition(int date_index, int shot_in_pass) {
+// Sun-synchronous imaging satellites (WorldView-3 among them) pass at about
+// 10:30 local solar time. The passes of every date fall at 10:28-10:57 local
+// mean solar time: 15:55-16:24 UTC at the default longitude (Jacksonville,
+// as the DFC2019 scenes), earlier or later elsewhere, so that a city far
+// east or west is not imaged at night.
+constexpr double kPassReferenceLonDeg = -81.6637;
+
+Acquisition MakeAcquisition(int date_index, int shot_in_pass, double lon_deg) {
   const long days_2015_01_15 = 16450;  // 2015-01-15
-  const long day = days_2015_01_15 + 41L * date_index;
+  constexpr long kMinutesPerDay = 24 * 60;
+  const long minute_at_reference = 15 * 60 + 55 + (date_index * 7) % 30;
+  // The sun's local time advances 4 minutes per degree of longitude east.
+  long utc_minute = minute_at_reference - std::lround(4.0 * (lon_deg - kPassReferenceLonDeg));
+  long day = days_2015_01_15 + 41L * date_index;
+  while (utc_minute < 0) {
+    utc_minute += kMinutesPerDay;
+    --day;
+  }
+  while (utc_minute >= kMinutesPerDay) {
+    utc_minute -= kMinutesPerDay;
+    ++day;
+  }
   int y, m, d;
   CivilFromDays(day, &y, &m, &d);
-  const int minute = 55 + (date_index * 7) % 30;
   const int second = 11 * shot_in_pass;
-  const int hh = 15 + minute / 60, mm = minute % 60;
+  const int hh = static_cast<int>(utc_minute / 60), mm = static_cast<int>(utc_minute % 60);
   char compact[64], iso[64];
   std::snprintf(compact, sizeof(compact), "%04d%02d%02d%02d%02d%02d", y, m, d, hh, mm, second);
   std::snprintf(iso, sizeof(iso), "%04d-%02d-%02dT%02d:%02d:%02dZ", y, m, d, hh, mm, second);
@@ -367,7 +385,7 @@ Scene MakeScene(const SynthOptions& o, SynthResult* r) {
 // view's time and sun angles.
 Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx, int by, SynthView* view) {
   const int date = v / o.views_per_date;
-  const Acquisition acq = MakeAcquisition(date, v % o.views_per_date);
+  const Acquisition acq = MakeAcquisition(date, v % o.views_per_date, o.lon_deg);
   view->acquisition_time = acq.iso;
   SunPosition(o.lat_deg, o.lon_deg, acq, &view->sun_elevation_deg, &view->sun_azimuth_deg);
   Lighting light;
@@ -416,7 +434,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                                            o.seed * 7919 + date));
         }
         const ViewGeometry vg = MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v);
-        const Acquisition acq = MakeAcquisition(date, v % o.views_per_date);
+        const Acquisition acq = MakeAcquisition(date, v % o.views_per_date, o.lon_deg);
         SynthView view;
         char name[64];
         std::snprintf(name, sizeof(name), "%s_%03d_RGB", aoi.name.c_str(), v + 1);

@@ -462,6 +462,28 @@ TEST(Synth, IngestReadsTheSceneLikeRealData) {
   }
 }
 
+// Passes fall at about 10:30 local solar time at any longitude, as a
+// sun-synchronous satellite's do: over a mid-latitude city far east or west
+// of the default one the sun is up (at 45 S in its winter, 10:30 puts it
+// about 18 deg high; 10 deg leaves room for the approximate solar position),
+// and at the default longitude the times are those of before.
+TEST(Synth, PassesFallInTheLocalMorningAtAnyLongitude) {
+  constexpr double kMinSunElevationDeg = 10.0;
+  for (const double lon_deg : {-170.0, 0.0, 100.0, 170.5}) {
+    SynthOptions o = SmallScene();
+    o.size_m = 64.0;
+    o.views = 4;
+    o.views_per_date = 1;  // four dates, January to June
+    o.lat_deg = -45.0;
+    o.lon_deg = lon_deg;
+    const Scene s = MakeScene(o);
+    for (const SynthView& v : s.result.aois[0].views)
+      EXPECT_GT(v.sun_elevation_deg, kMinSunElevationDeg) << "lon " << lon_deg << " " << v.acquisition_time;
+  }
+  const Scene reference = MakeScene(SmallScene());
+  EXPECT_EQ(reference.result.aois[0].views[0].acquisition_time, "2015-01-15T15:55:00Z");
+}
+
 // Stiff and extreme geometry (docs/reliability.md lists each case and its
 // outcome): far north and south, a UTM zone boundary, steep views, a 300 m
 // tower, fine and coarse GSD. In each the written RPCs reproduce the true
