@@ -32,8 +32,8 @@ struct AnchorWeightOptions {
   // Cells within step_reach_m of a step (cells within that reach differing
   // by more than step_min_m). Windows fatten roofs onto the ground beside
   // them by about a window radius, so the dense heights are least sure
-  // there; a lower weight leaves the photometric loss room to move the edge.
-  double step_weight = 0.1;
+  // there; 0 leaves the edge to the photometric loss alone.
+  double step_weight = 0.0;
   double step_reach_m = 1.0;
   double step_min_m = 2.0;
 };
