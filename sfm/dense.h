@@ -78,9 +78,10 @@ struct DenseOptions {
   // (within fill_ground_tolerance_m of the ground surface) takes their
   // median. Steps onto lower roofs and the rims of holes filled with the
   // ground are left alone: pulling those cost JAX_068 and gable roofs.
-  // Off by default: on the benchmark it lowers the trained MAE on seven of
-  // nine scenes but raises syn_south45's by 7% (its training erodes the
-  // thinner band; docs/benchmarks.md, "Steps onto matched ground"). 0 = off.
+  // Off by default: with the surface anchor off beside steps
+  // (train.surface_step_weight 0) it gains nothing that holds across the
+  // tuning scenes (docs/benchmarks.md, "Steps onto matched ground" and "No
+  // anchor beside steps"). 0 = off.
   int step_pull_run_cells = 0;
   double step_pull_min_m = 2.0;
   double fill_radius_m = 5.0;

@@ -59,16 +59,11 @@ Acquisition MakeAcquisition(int date_index, int shot_in_pass, double lon_deg) {
   constexpr long kMinutesPerDay = 24 * 60;
   const long minute_at_reference = 15 * 60 + 55 + (date_index * 7) % 30;
   // The sun's local time advances 4 minutes per degree of longitude east.
-  long utc_minute = minute_at_reference - std::lround(4.0 * (lon_deg - kPassReferenceLonDeg));
-  long day = days_2015_01_15 + 41L * date_index;
-  while (utc_minute < 0) {
-    utc_minute += kMinutesPerDay;
-    --day;
-  }
-  while (utc_minute >= kMinutesPerDay) {
-    utc_minute -= kMinutesPerDay;
-    ++day;
-  }
+  // Counted in minutes since 1970 (always positive here), the pass carries
+  // into the day before or after by plain division.
+  const long utc_minutes = (days_2015_01_15 + 41L * date_index) * kMinutesPerDay + minute_at_reference -
+                           std::lround(4.0 * (lon_deg - kPassReferenceLonDeg));
+  const long day = utc_minutes / kMinutesPerDay, utc_minute = utc_minutes % kMinutesPerDay;
   int y, m, d;
   CivilFromDays(day, &y, &m, &d);
   const int second = 11 * shot_in_pass;
