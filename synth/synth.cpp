@@ -376,11 +376,17 @@ Scene MakeScene(const SynthOptions& o, SynthResult* r) {
   return sc;
 }
 
+// When image v (0-based) was taken: its date, its shot within that date's
+// pass, and the scene's longitude decide it.
+Acquisition ViewAcquisition(const SynthOptions& o, int v) {
+  return MakeAcquisition(v / o.views_per_date, v % o.views_per_date, o.lon_deg);
+}
+
 // The light of image v (0-based) of the AOI at block (bx, by); fills the
 // view's time and sun angles.
 Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx, int by, SynthView* view) {
   const int date = v / o.views_per_date;
-  const Acquisition acq = MakeAcquisition(date, v % o.views_per_date, o.lon_deg);
+  const Acquisition acq = ViewAcquisition(o, v);
   view->acquisition_time = acq.iso;
   SunPosition(o.lat_deg, o.lon_deg, acq, &view->sun_elevation_deg, &view->sun_azimuth_deg);
   Lighting light;
@@ -429,7 +435,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                                            o.seed * 7919 + date));
         }
         const ViewGeometry vg = MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v);
-        const Acquisition acq = MakeAcquisition(date, v % o.views_per_date, o.lon_deg);
+        const Acquisition acq = ViewAcquisition(o, v);
         SynthView view;
         char name[64];
         std::snprintf(name, sizeof(name), "%s_%03d_RGB", aoi.name.c_str(), v + 1);
