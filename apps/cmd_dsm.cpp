@@ -68,6 +68,19 @@ void AddExport(CLI::App& dsm, Runner* runner) {
   });
 }
 
+// One line per class and rim band: its share of the cells, its own MAE and
+// its part of the overall MAE.
+void LogBreakdown(const DsmBreakdown& b) {
+  std::vector<DsmErrorGroup> groups = b.classes;
+  groups.push_back(b.roof_rim);
+  groups.push_back(b.beside_buildings);
+  for (const DsmErrorGroup& g : groups) {
+    if (g.cells == 0) continue;
+    spdlog::info("  {:<18} {:5.1f}% of cells, MAE {:.3f} m, bias {:+.3f} m, part of the MAE {:.3f} m", g.name,
+                 100 * g.share, g.mae_m, g.bias_m, g.mae_part_m);
+  }
+}
+
 struct CompareArgs {
   std::string pred, gt, gt_txt, cls, out;
   int epsg = 0;
@@ -84,6 +97,9 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
   cmd->add_option("--epsg", a->epsg, "UTM EPSG of a truth read through --gt-txt (JAX: 32617)");
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--max-shift", opts->max_shift_px, "Shift search radius per pyramid level [px]")->capture_default_str();
+  cmd->add_option("--rim-width", opts->breakdown.rim_width_m,
+                  "With --cls: width of the bands on both sides of building outlines whose error is reported apart [m]")
+      ->capture_default_str();
   cmd->callback([runner, a, opts] {
     *runner = [a, opts] {
       if (!a->gt_txt.empty() && a->epsg == 0) {
@@ -92,13 +108,22 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
       const DsmGrid truth = ReadDsm(a->gt, a->gt_txt, a->epsg);
       const DsmGrid cropped = SampleOnGrid(ReadDsm(a->pred), truth, a->pred);
       std::vector<float> cls;
-      if (!a->cls.empty()) cls = ReadFloatBand(a->cls).values;
+      if (!a->cls.empty()) {
+        const FloatBand band = ReadFloatBand(a->cls);
+        if (band.width_px != truth.width_px || band.height_px != truth.height_px) {
+          throw Error("dsm", a->cls, "classes are " + std::to_string(band.width_px) + "x" + std::to_string(band.height_px) +
+                                         " px, the truth " + std::to_string(truth.width_px) + "x" +
+                                         std::to_string(truth.height_px) + " px: give the truth's own _CLS raster");
+        }
+        cls = band.values;
+      }
       const DsmComparison r = CompareDsm(cropped, truth, a->cls.empty() ? nullptr : &cls, *opts);
       WriteDsmComparison(r, truth, *opts, {a->pred, a->gt, a->cls}, a->out);
       spdlog::info("dsm compare: MAE {:.3f} m, RMSE {:.3f} m, median {:.3f} m, NMAD {:.3f} m, completeness {:.1f}%, "
                    "within 1 m {:.1f}%, shift ({}, {}) px, vertical offset {:.3f} m -> {}",
                    r.mae_m, r.rmse_m, r.median_abs_m, r.nmad_m, 100 * r.completeness, 100 * r.within_fraction,
                    r.shift_col_px, r.shift_row_px, r.z_offset_m, a->out);
+      if (r.has_breakdown) LogBreakdown(r.breakdown);
       return 0;
     };
   });

@@ -288,6 +288,10 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   // absolute error.
   out.nmad_m = 1.4826 * out.median_abs_m;
   out.within_fraction = static_cast<double>(within) / diff.size();
+  if (cls) {
+    out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
+    out.has_breakdown = true;
+  }
   return out;
 }
 
@@ -351,6 +355,7 @@ void DsmCompareOptions::Check() const {
   if (max_shift_px < 0) throw Error("dsm", "max_shift_px", "must be >= 0, got " + std::to_string(max_shift_px));
   if (pyramid_levels < 1) throw Error("dsm", "pyramid_levels", "must be >= 1, got " + std::to_string(pyramid_levels));
   if (!(within_m > 0)) throw Error("dsm", "within_m", "must be > 0, got " + FormatDouble(within_m));
+  breakdown.Check();
 }
 
 }  // namespace skyfall

@@ -8,6 +8,7 @@
 
 #include "core/aoi.h"
 #include "core/gaussians.h"
+#include "merge/dsm_breakdown.h"
 #include "tiler/dfc2019.h"
 
 namespace skyfall {
@@ -74,6 +75,7 @@ struct DsmCompareOptions {
   int pyramid_levels = 2;      // 2x levels searched coarse to fine
   bool mask_water = true;      // CLS == 9 is left out
   double within_m = 1.0;       // threshold of the "within" fraction
+  DsmBreakdownOptions breakdown;  // error by class and beside building outlines (needs classes)
   void Check() const;          // throws Error("dsm", field, ...)
 };
 
@@ -88,9 +90,11 @@ struct DsmComparison {
   double within_fraction = 0;  // |error| <= within_m, over valid in both
   int valid_pixels = 0;
   std::vector<float> error_m;  // per truth pixel, NaN where not compared
+  bool has_breakdown = false;  // the truth came with classes
+  DsmBreakdown breakdown;      // error by class and beside building outlines
 };
 
-// `cls` (optional, same grid) masks water. Both grids must have the same size.
+// `cls` (optional, same grid) masks water and breaks the error down by class. Both grids must have the same size.
 DsmComparison CompareDsm(const DsmGrid& prediction, const DsmGrid& truth, const std::vector<float>* cls,
                          const DsmCompareOptions& options);
 

@@ -91,7 +91,40 @@ void HistogramPng(const DsmComparison& r, const std::string& path) {
   WritePngBgr(img, path);
 }
 
+nlohmann::json GroupJson(const DsmErrorGroup& g) {
+  nlohmann::json j = {{"name", g.name},       {"cells", g.cells},   {"share", g.share},
+                      {"mae_m", g.mae_m},     {"rmse_m", g.rmse_m}, {"median_abs_m", g.median_abs_m},
+                      {"bias_m", g.bias_m},   {"mae_part_m", g.mae_part_m}};
+  if (g.cls >= 0) j["class"] = g.cls;
+  return j;
+}
+
+// report_by_class.csv: one row per class, then the two rim bands.
+std::string BreakdownCsv(const DsmBreakdown& b) {
+  std::string csv = "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
+  const auto row = [&](const DsmErrorGroup& g) {
+    char line[256];
+    std::snprintf(line, sizeof(line), "%s,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", g.name.c_str(), g.cls, g.cells,
+                  g.share, g.mae_m, g.rmse_m, g.median_abs_m, g.bias_m, g.mae_part_m);
+    csv += line;
+  };
+  for (const DsmErrorGroup& g : b.classes) row(g);
+  row(b.roof_rim);
+  row(b.beside_buildings);
+  return csv;
+}
+
 }  // namespace
+
+nlohmann::json DsmBreakdownJson(const DsmBreakdown& b) {
+  nlohmann::json classes = nlohmann::json::array();
+  for (const DsmErrorGroup& g : b.classes) classes.push_back(GroupJson(g));
+  return {{"by_class", classes},
+          {"building_rims",
+           {{"rim_width_m", b.rim_width_m},
+            {"roof_rim", GroupJson(b.roof_rim)},
+            {"beside_buildings", GroupJson(b.beside_buildings)}}}};
+}
 
 void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmCompareOptions& o,
                         const DsmReportInputs& in, const std::string& out_dir) {
@@ -104,7 +137,12 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
       {"bias_m", r.bias_m}, {"z_offset_m", r.z_offset_m}, {"mae_m", r.mae_m}, {"rmse_m", r.rmse_m},
       {"median_abs_m", r.median_abs_m}, {"nmad_m", r.nmad_m}, {"completeness", r.completeness}, {"within_fraction", r.within_fraction},
       {"valid_pixels", r.valid_pixels}};
-  WriteFileAtomic((dir / "report.json").string(), report.dump(2) + "\n");
+  nlohmann::json full = report;
+  if (r.has_breakdown) {
+    full.update(DsmBreakdownJson(r.breakdown));
+    WriteFileAtomic((dir / "report_by_class.csv").string(), BreakdownCsv(r.breakdown));
+  }
+  WriteFileAtomic((dir / "report.json").string(), full.dump(2) + "\n");
   char csv[512];
   std::snprintf(csv, sizeof(csv),
                 "mae_m,rmse_m,median_abs_m,nmad_m,completeness,within_fraction,bias_m,shift_col_px,shift_row_px,"

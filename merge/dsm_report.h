@@ -3,6 +3,7 @@
 // histogram of the signed errors.
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "merge/dsm.h"
@@ -15,6 +16,11 @@ struct DsmReportInputs {
   std::string cls_path;  // may be empty
 };
 
+// {"by_class": [...], "building_rims": {...}}: the breakdown as report.json has it.
+nlohmann::json DsmBreakdownJson(const DsmBreakdown& breakdown);
+
+// report.json (with the breakdown when the truth came with classes, and then
+// also report_by_class.csv), report.csv, the error map and the histogram.
 void WriteDsmComparison(const DsmComparison& result, const DsmGrid& truth_grid, const DsmCompareOptions& options,
                         const DsmReportInputs& inputs, const std::string& out_dir);
 

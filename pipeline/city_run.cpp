@@ -133,8 +133,10 @@ DenseClouds DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs) {
 }
 
 json ComparisonJson(const DsmComparison& c) {
-  return {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
-          {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
+  json j = {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
+            {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
+  if (c.has_breakdown) j.update(DsmBreakdownJson(c.breakdown));
+  return j;
 }
 
 // Exports and compares the DSM of every AOI with truth; returns their entries.

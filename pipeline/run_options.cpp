@@ -316,6 +316,7 @@ template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
   io("pyramid_levels", o.pyramid_levels);
   io("mask_water", o.mask_water);
   io("within_m", o.within_m);
+  io("rim_width_m", o.breakdown.rim_width_m);
 }
 template <class IO> void Visit(IO& io, DsmOptions& o) {
   io("source", o.source);

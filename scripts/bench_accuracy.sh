@@ -101,6 +101,13 @@ for name in sorted(os.listdir(out)):
         values = [s["metrics"][key] for t in report.get("tiles", []) for s in t.get("stages", [])
                   if s.get("stage") == "splat" and isinstance(s.get("metrics", {}).get(key), (int, float))]
         return sum(values) / len(values) if values else None
+    def mae_parts(entry):
+        if "by_class" not in entry:
+            return None
+        parts = {g["name"]: g["mae_part_m"] for g in entry["by_class"]}
+        for band in ("roof_rim", "beside_buildings"):
+            parts[band] = entry["building_rims"][band]["mae_part_m"]
+        return parts
     scenes.append({
         "scene": name,
         "mae_m": d.get("mae_m"), "rmse_m": d.get("rmse_m"), "median_m": d.get("median_abs_m"),
@@ -114,6 +121,10 @@ for name in sorted(os.listdir(out)):
         "heldout_psnr_fitted_db": splat_metric("psnr_test_fitted_db"),
         "seconds": float(open(os.path.join(out, name, "wall_seconds")).read())
                    if os.path.isfile(os.path.join(out, name, "wall_seconds")) else summary.get("seconds"),
+        # The part of the MAE each truth class and each building-rim band
+        # accounts for (merge/dsm_breakdown.h), trained and dense-only.
+        "mae_parts_m": mae_parts(d),
+        "dense_mae_parts_m": mae_parts(d.get("dense") or {}),
         "tuned_on": name in tuned,
         "synthetic_size_m": None if name == "jax068" else size,
     })
@@ -132,6 +143,17 @@ for s in scenes:
                  f"{fmt(s['dense_mae_m'], suffix=' m')} | {fmt(s['filled_cell_fraction'], 0, 100, '%')} | "
                  f"{fmt(s['heldout_psnr_db'], 1, 1, ' dB')} | {fmt(s['heldout_psnr_fitted_db'], 1, 1, ' dB')} | "
                  f"{fmt(s['seconds'], 0, 1, ' s')} |")
+groups = [("ground", "ground"), ("building", "buildings"), ("high_vegetation", "trees"),
+          ("roof_rim", "roof rims"), ("beside_buildings", "beside buildings")]
+lines += ["", "Where the MAE comes from: each group's part of it (trained, dense-only in brackets); the",
+          "rim bands are the cells within 1 m of a building outline, inside and outside, and overlap",
+          "the classes.", "",
+          "| scene | " + " | ".join(label for _, label in groups) + " |",
+          "|---|" + "---|" * len(groups)]
+for s in scenes:
+    parts, dense = s["mae_parts_m"] or {}, s["dense_mae_parts_m"] or {}
+    cells = [f"{fmt(parts.get(g), suffix=' m')} ({fmt(dense.get(g))})" for g, _ in groups]
+    lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))
 PY

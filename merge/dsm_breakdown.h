@@ -1,0 +1,51 @@
+// Where a DSM's error comes from: the error of a comparison broken down by
+// the truth's classes (the ASPRS codes of DFC2019's _CLS rasters) and by
+// distance from building outlines. At a building's rim one pixel of
+// misplaced edge costs the building's whole height, so next to tall
+// buildings a few rim cells can outweigh all the ground.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace skyfall {
+
+struct DsmErrorGroup {
+  std::string name;        // "ground", "building", "class_64", "roof_rim", "beside_buildings"
+  int cls = -1;            // ASPRS class code; -1 for the rim bands
+  int cells = 0;           // compared cells in the group
+  double share = 0;        // cells / all compared cells
+  double mae_m = 0, rmse_m = 0, median_abs_m = 0;
+  double bias_m = 0;       // mean signed error (pred - truth, after the comparison's vertical offset)
+  // Sum of |error| over the group divided by all compared cells: the part of
+  // the overall MAE the group accounts for (the classes' parts add up to it).
+  double mae_part_m = 0;
+};
+
+struct DsmBreakdownOptions {
+  // Building cells whose centre is within this distance of a non-building
+  // cell's centre form the roof rim; non-building cells as close to a
+  // building cell form the band beside buildings. 1 m: two cells at the
+  // DFC2019 GSD of 0.5 m.
+  double rim_width_m = 1.0;
+  int building_class = 6;  // ASPRS "building"
+  void Check() const;      // throws Error("dsm", field, ...)
+};
+
+struct DsmBreakdown {
+  std::vector<DsmErrorGroup> classes;        // one per class with compared cells, ascending code
+  DsmErrorGroup roof_rim, beside_buildings;  // cells = 0 when the truth has no buildings
+  double rim_width_m = 0;
+};
+
+// The ASPRS name of a class code ("ground", "high_vegetation", ...; DFC2019's
+// 65 is "unlabeled"), else "class_<code>".
+std::string AsprsClassName(int code);
+
+// `error_m` (NaN where not compared) and `cls` are the same row-major grid of
+// `width_px` x `height_px` cells of `gsd_m` metres. Throws Error on a size
+// mismatch or a GSD that is not positive.
+DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vector<float>& cls, int width_px,
+                               int height_px, double gsd_m, const DsmBreakdownOptions& options);
+
+}  // namespace skyfall

@@ -1,0 +1,160 @@
+#include "merge/dsm_breakdown.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "merge/dsm.h"
+#include "merge/dsm_report.h"
+#include "tests/test_support.h"
+#include "tiler/raster.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+constexpr int kW = 20, kH = 16;
+constexpr double kGsdM = 0.5;
+constexpr double kSumTolM = 1e-9;  // sums of a few hundred doubles
+
+// A 6 x 6-cell building (class 6) at columns 7-12, rows 5-10, one tree cell
+// (class 5) and ground (class 2) elsewhere.
+std::vector<float> ToyClasses() {
+  std::vector<float> cls(kW * kH, 2.0f);
+  for (int r = 5; r <= 10; ++r)
+    for (int c = 7; c <= 12; ++c) cls[r * kW + c] = 6.0f;
+  cls[2 * kW + 2] = 5.0f;
+  return cls;
+}
+
+bool InBuilding(int c, int r) { return c >= 7 && c <= 12 && r >= 5 && r <= 10; }
+
+// Brute force: the smallest centre-to-centre distance [cells] from (c, r) to a
+// cell on the other side of the building outline.
+double DistanceAcross(int c, int r) {
+  double best = std::numeric_limits<double>::infinity();
+  for (int rr = 0; rr < kH; ++rr)
+    for (int cc = 0; cc < kW; ++cc)
+      if (InBuilding(cc, rr) != InBuilding(c, r)) best = std::min(best, std::hypot(cc - c, rr - r));
+  return best;
+}
+
+TEST(DsmBreakdown, ClassFiguresAndRimBandsMatchABruteForceCount) {
+  const std::vector<float> cls = ToyClasses();
+  std::vector<float> error(kW * kH);
+  for (int p = 0; p < kW * kH; ++p) error[p] = 0.01f * static_cast<float>((p * 37) % 23) - 0.1f;
+  error[0] = NAN;  // not compared: left out of every group
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+
+  ASSERT_EQ(b.classes.size(), 3u);
+  EXPECT_EQ(b.classes[0].name, "ground");
+  EXPECT_EQ(b.classes[1].name, "high_vegetation");
+  EXPECT_EQ(b.classes[2].name, "building");
+  EXPECT_EQ(b.classes[2].cells, 36);
+  EXPECT_EQ(b.classes[1].cells, 1);
+  EXPECT_EQ(b.classes[0].cells, kW * kH - 36 - 1 - 1);
+
+  // Each class against a direct computation; the parts add up to the MAE.
+  double part_sum = 0, abs_all = 0;
+  int compared = 0;
+  for (float e : error)
+    if (std::isfinite(e)) abs_all += std::abs(e), ++compared;
+  for (const DsmErrorGroup& g : b.classes) {
+    double abs_sum = 0, sum = 0, sq = 0;
+    int n = 0;
+    for (int p = 0; p < kW * kH; ++p) {
+      if (!std::isfinite(error[p]) || static_cast<int>(cls[p]) != g.cls) continue;
+      abs_sum += std::abs(error[p]), sum += error[p], sq += error[p] * error[p], ++n;
+    }
+    EXPECT_EQ(g.cells, n) << g.name;
+    EXPECT_NEAR(g.mae_m, abs_sum / n, kSumTolM) << g.name;
+    EXPECT_NEAR(g.bias_m, sum / n, kSumTolM) << g.name;
+    EXPECT_NEAR(g.rmse_m, std::sqrt(sq / n), kSumTolM) << g.name;
+    EXPECT_NEAR(g.share, static_cast<double>(n) / compared, kSumTolM) << g.name;
+    part_sum += g.mae_part_m;
+  }
+  EXPECT_NEAR(part_sum, abs_all / compared, kSumTolM);
+
+  // Rim width 1 m = 2 cells at 0.5 m.
+  int roof_rim = 0, beside = 0;
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c) {
+      if (!std::isfinite(error[r * kW + c]) || DistanceAcross(c, r) > 2.0) continue;
+      (InBuilding(c, r) ? roof_rim : beside) += 1;
+    }
+  EXPECT_EQ(roof_rim, 36 - 4);  // all but the 2 x 2 core
+  EXPECT_EQ(b.roof_rim.cells, roof_rim);
+  EXPECT_EQ(b.beside_buildings.cells, beside);
+  EXPECT_EQ(b.roof_rim.cls, -1);
+}
+
+TEST(DsmBreakdown, RimErrorsShowApartFromTheRestOfTheirClass) {
+  // A roof one cell too wide on every side (the fattening of a DSM at steps):
+  // the first ring of ground around the building is 30 m too high.
+  const std::vector<float> cls = ToyClasses();
+  std::vector<float> error(kW * kH, 0.0f);
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c)
+      if (!InBuilding(c, r) && DistanceAcross(c, r) < 1.5) error[r * kW + c] = 30.0f;
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  EXPECT_NEAR(b.roof_rim.mae_m, 0.0, kSumTolM);
+  EXPECT_GT(b.beside_buildings.bias_m, 10.0);
+  EXPECT_NEAR(b.beside_buildings.mae_part_m, b.classes[0].mae_part_m, kSumTolM);  // all the ground's error
+  EXPECT_NEAR(b.classes[2].mae_m, 0.0, kSumTolM);
+}
+
+TEST(DsmBreakdown, NoBuildingsLeavesTheRimBandsEmpty) {
+  const std::vector<float> cls(kW * kH, 2.0f), error(kW * kH, 0.25f);
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  ASSERT_EQ(b.classes.size(), 1u);
+  EXPECT_NEAR(b.classes[0].mae_m, 0.25, 1e-7);
+  EXPECT_EQ(b.roof_rim.cells, 0);
+  EXPECT_EQ(b.beside_buildings.cells, 0);
+}
+
+TEST(DsmBreakdown, BadInputIsRefused) {
+  const std::vector<float> cls = ToyClasses(), error(kW * kH, 0.0f);
+  EXPECT_THROW(BreakDownDsmError(error, std::vector<float>(10, 2.0f), kW, kH, kGsdM, DsmBreakdownOptions{}), Error);
+  EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, 0.0, DsmBreakdownOptions{}), Error);
+  DsmBreakdownOptions bad;
+  bad.rim_width_m = 0;
+  EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
+  EXPECT_EQ(AsprsClassName(64), "class_64");
+}
+
+TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
+  SKYFALL_REQUIRE_DFC2019();
+  const fs::path t = Dfc2019Root() / "Track3-Truth";
+  const DsmGrid truth = ReadDsm((t / "JAX_068_DSM.tif").string(), (t / "JAX_068_DSM.txt").string(), 32617);
+  const std::vector<float> cls = ReadFloatBand((t / "JAX_068_CLS.tif").string()).values;
+  DsmGrid pred = truth;
+  for (float& h : pred.height_m) h += 0.3f;  // removed by the vertical offset
+  for (std::size_t p = 0; p < cls.size(); p += 7) {
+    if (static_cast<int>(cls[p]) == 6) pred.height_m[p] += 5.0f;  // some roof cells wrong
+  }
+  const DsmComparison r = CompareDsm(pred, truth, &cls, DsmCompareOptions{});
+  ASSERT_TRUE(r.has_breakdown);
+  double part_sum = 0;
+  for (const DsmErrorGroup& g : r.breakdown.classes) {
+    part_sum += g.mae_part_m;
+    if (g.name != "building") {
+      EXPECT_LT(g.mae_m, 1e-5) << g.name;
+    }
+  }
+  EXPECT_NEAR(part_sum, r.mae_m, 1e-6);
+  const fs::path dir = ScratchDir("breakdown_report");
+  WriteDsmComparison(r, truth, DsmCompareOptions{}, {"p.tif", "t.tif", "c.tif"}, dir.string());
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "report.json"));
+  ASSERT_TRUE(report.contains("by_class"));
+  EXPECT_EQ(report["by_class"].size(), r.breakdown.classes.size());
+  EXPECT_EQ(report["building_rims"]["roof_rim"]["cells"], r.breakdown.roof_rim.cells);
+  EXPECT_TRUE(fs::exists(dir / "report_by_class.csv"));
+}
+
+}  // namespace
+}  // namespace skyfall
