@@ -132,6 +132,21 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_LE(d["dense"]["cells"].get<double>(), kEdgeRounding * kCityCells);
     // The matched cells alone cover no more than all cells do.
     EXPECT_LE(d["dense_measured_only"]["completeness"].get<double>(), d["dense"]["completeness"].get<double>() + 1e-9);
+    // The synthetic truth has classes: each figure comes with its breakdown,
+    // whose classes' parts add up to its MAE.
+    for (const char* key : {"", "dense", "dense_measured_only"}) {
+      const json& figures = *key ? d[key] : d;
+      ASSERT_TRUE(figures.contains("by_class")) << key;
+      double parts = 0;
+      bool buildings = false;
+      for (const auto& g : figures["by_class"]) {
+        parts += g["mae_part_m"].get<double>();
+        buildings |= g["name"] == "building";
+      }
+      EXPECT_NEAR(parts, figures["mae_m"].get<double>(), 1e-6) << key;
+      // Rim bands exactly where the AOI has buildings.
+      EXPECT_EQ(figures["building_rims"]["roof_rim"]["cells"].get<int>() > 0, buildings) << key;
+    }
   }
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
     EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm.tif")) << aoi;
@@ -145,6 +160,7 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_GT(valid(matched), 0) << aoi;
     EXPECT_LT(valid(matched), valid(all_cells)) << aoi;
     EXPECT_GT(ReadJson(dir / "out" / aoi / "dsm_compare" / "report.json")["completeness"].get<double>(), 0.5) << aoi;
+    EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm_compare" / "report_by_class.csv")) << aoi;
   }
   // Scene and LOD: the finest level is the merged scene, counts fall.
   const json lod = ReadJson(city_dir / "scene" / "lod.json");
