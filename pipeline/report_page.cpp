@@ -75,6 +75,40 @@ std::string DsmTable(const json& report) {
   return html + "</table>";
 }
 
+// Where an AOI's error comes from (present when its truth has classes): each
+// class and each band along building outlines, trained beside dense alone.
+std::string BreakdownTable(const json& d) {
+  if (!d.contains("by_class")) return "";
+  const json dense = d.value("dense", json::object());
+  // The dense figures of the same group, matched by name.
+  const auto dense_group = [&](const std::string& name) {
+    for (const json& g : dense.value("by_class", json::array()))
+      if (g.value("name", "") == name) return g;
+    const json rims = dense.value("building_rims", json::object());
+    return rims.value(name, json::object());
+  };
+  std::string html =
+      "<table><tr><th>where</th><th>share of cells</th><th>MAE [m]</th><th>mean error [m]</th>"
+      "<th>part of the MAE [m]</th><th>dense alone: MAE [m]</th><th>dense: part [m]</th></tr>";
+  const auto row = [&](const json& g, const std::string& label) {
+    if (g.value("cells", 0) == 0) return;  // a rim band of an AOI without buildings
+    const json o = dense_group(g.value("name", ""));
+    html += "<tr>" + Cell(HtmlEscape(label)) + Cell(Number(g, "share", 1, 100) + " %", true) +
+            Cell(Number(g, "mae_m", 2), true) + Cell(Number(g, "bias_m", 2), true) +
+            Cell(Number(g, "mae_part_m", 3), true) + Cell(Number(o, "mae_m", 2), true) +
+            Cell(Number(o, "mae_part_m", 3), true) + "</tr>";
+  };
+  for (const json& g : d.at("by_class")) row(g, "class: " + g.value("name", "?"));
+  const json rims = d.value("building_rims", json::object());
+  const std::string width = Number(rims, "rim_width_m", 1);
+  if (rims.contains("roof_rim")) row(rims.at("roof_rim"), "roof rim (building, within " + width + " m of its edge)");
+  if (rims.contains("beside_buildings")) {
+    row(rims.at("beside_buildings"), "beside buildings (within " + width + " m of a roof edge)");
+  }
+  return html + "</table><p class=muted>The parts of the classes add up to the MAE; the rim bands overlap the "
+                "classes. At a roof edge one misplaced cell costs the building's height.</p>";
+}
+
 std::string Decisions(const json& decisions) {
   std::string text;
   for (const auto& [name, d] : decisions.items()) {
@@ -140,7 +174,9 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
     const fs::path compare = out_dir / aoi / "dsm_compare";
     html += "<h4>" + HtmlEscape(aoi) + "</h4><p>" + Link(out_dir / aoi / "dsm.tif", out_dir, "DSM (GeoTIFF)") +
             Link(compare / "report.json", out_dir, "comparison (JSON)") +
-            Link(compare / "error_map.tif", out_dir, "error map (GeoTIFF)") + "</p><div class=pair><figure>" +
+            Link(compare / "error_map.tif", out_dir, "error map (GeoTIFF)") +
+            Link(compare / "report_by_class.csv", out_dir, "error by class (CSV)") + "</p>" + BreakdownTable(d) +
+            "<div class=pair><figure>" +
             EmbeddedPng(compare / "error_map.png", aoi + " error map") +
             "<figcaption>Error map: DSM minus truth (blue low, red high)</figcaption></figure><figure>" +
             EmbeddedPng(compare / "error_histogram.png", aoi + " error histogram") +

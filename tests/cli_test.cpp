@@ -747,7 +747,8 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
   std::ifstream page_in(fs::path(out) / "report.html");
   const std::string page((std::istreambuf_iterator<char>(page_in)), {});
   for (const char* expected : {"MAE [m]", "within 1 m", "data:image/png;base64,", "SYN_001_c0_r0", "peak memory",
-                               "appearance", "3dtiles/tileset.json", "SYN_001/dsm_compare/report.json"}) {
+                               "appearance", "3dtiles/tileset.json", "SYN_001/dsm_compare/report.json", "part of the MAE",
+                               "class: ground"}) {
     EXPECT_NE(page.find(expected), std::string::npos) << expected;
   }
   EXPECT_GE(std::count(page.begin(), page.end(), '<') , 100);
