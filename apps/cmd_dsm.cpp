@@ -102,21 +102,14 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
       ->capture_default_str();
   cmd->callback([runner, a, opts] {
     *runner = [a, opts] {
+      opts->Check();
       if (!a->gt_txt.empty() && a->epsg == 0) {
         throw Error("dsm", a->gt_txt, "a _DSM.txt grid carries no CRS: give --epsg (DFC2019 JAX is 32617)");
       }
       const DsmGrid truth = ReadDsm(a->gt, a->gt_txt, a->epsg);
       const DsmGrid cropped = SampleOnGrid(ReadDsm(a->pred), truth, a->pred);
       std::vector<float> cls;
-      if (!a->cls.empty()) {
-        const FloatBand band = ReadFloatBand(a->cls);
-        if (band.width_px != truth.width_px || band.height_px != truth.height_px) {
-          throw Error("dsm", a->cls, "classes are " + std::to_string(band.width_px) + "x" + std::to_string(band.height_px) +
-                                         " px, the truth " + std::to_string(truth.width_px) + "x" +
-                                         std::to_string(truth.height_px) + " px: give the truth's own _CLS raster");
-        }
-        cls = band.values;
-      }
+      if (!a->cls.empty()) cls = ReadClassRaster(a->cls, truth);
       const DsmComparison r = CompareDsm(cropped, truth, a->cls.empty() ? nullptr : &cls, *opts);
       WriteDsmComparison(r, truth, *opts, {a->pred, a->gt, a->cls}, a->out);
       spdlog::info("dsm compare: MAE {:.3f} m, RMSE {:.3f} m, median {:.3f} m, NMAD {:.3f} m, completeness {:.1f}%, "

@@ -214,7 +214,7 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   if (cls && o.mask_water) {
     if (cls->size() != truth.height_m.size()) throw Error("dsm", "compare", "CLS raster size differs from the truth");
     for (size_t p = 0; p < truth.height_m.size(); ++p)
-      if (static_cast<int>((*cls)[p]) == kWaterClass) truth.height_m[p] = kNoData;
+      if (ClassCodeOf((*cls)[p]) == kWaterClass) truth.height_m[p] = kNoData;
   }
   // Coarse-to-fine integer shift search maximizing NCC.
   std::vector<DsmGrid> pp{pred}, tp{truth};
@@ -260,7 +260,11 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
     }
   out.valid_pixels = static_cast<int>(diff.size());
   out.completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
-  if (diff.empty()) return out;
+  if (diff.empty()) {
+    if (cls) out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
+    out.has_breakdown = cls != nullptr;
+    return out;
+  }
   double sum = 0;
   for (double d : diff) sum += d;
   out.bias_m = sum / diff.size();
@@ -298,8 +302,22 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
 TruthDsm ReadTruthDsm(const TruthGrid& truth) {
   TruthDsm t;
   t.dsm = ReadDsm(truth.dsm_path, truth.dsm_txt_path, truth.epsg);
-  if (!truth.cls_path.empty()) t.cls = ReadFloatBand(truth.cls_path).values;
+  if (!truth.cls_path.empty()) t.cls = ReadClassRaster(truth.cls_path, t.dsm);
   return t;
+}
+
+std::vector<float> ReadClassRaster(const std::string& path, const DsmGrid& truth) {
+  FloatBand band = ReadFloatBand(path);
+  if (band.width_px != truth.width_px || band.height_px != truth.height_px) {
+    throw Error("dsm", path, "classes are " + std::to_string(band.width_px) + "x" + std::to_string(band.height_px) +
+                                 " px, the truth " + std::to_string(truth.width_px) + "x" +
+                                 std::to_string(truth.height_px) + " px: give the truth's own _CLS raster");
+  }
+  // Nodata cells have no class (ClassCodeOf maps NaN to -1).
+  if (band.has_nodata)
+    for (float& v : band.values)
+      if (v == static_cast<float>(band.nodata)) v = std::numeric_limits<float>::quiet_NaN();
+  return std::move(band.values);
 }
 
 DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,

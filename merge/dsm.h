@@ -105,6 +105,10 @@ struct TruthDsm {
 };
 TruthDsm ReadTruthDsm(const TruthGrid& truth);
 
+// A class raster (_CLS.tif) for `truth`: its values, nodata as NaN. Throws
+// Error naming `path` when its size is not the truth's.
+std::vector<float> ReadClassRaster(const std::string& path, const DsmGrid& truth);
+
 // Rasterizes `scene` (ENU frame at `enu_origin`) on the truth grid into
 // `prediction` and compares it with the truth.
 DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,

@@ -27,7 +27,7 @@ struct GroupSums {
     g.name = std::move(name);
     g.cls = cls;
     g.cells = static_cast<int>(abs_error_m.size());
-    if (g.cells == 0) return g;
+    if (g.cells == 0) return g;  // also when nothing was compared: compared_cells is 0 only then
     double abs_sum = 0;
     for (double a : abs_error_m) abs_sum += a;
     g.share = static_cast<double>(g.cells) / compared_cells;
@@ -48,7 +48,7 @@ cv::Mat DistanceAcrossOutline(const std::vector<float>& cls, int width_px, int h
   bool other_side_exists = false;
   for (int r = 0; r < height_px; ++r)
     for (int c = 0; c < width_px; ++c) {
-      const bool building = static_cast<int>(cls[static_cast<std::size_t>(r) * width_px + c]) == building_class;
+      const bool building = ClassCodeOf(cls[static_cast<std::size_t>(r) * width_px + c]) == building_class;
       const bool inside = building == from_buildings;
       side.at<std::uint8_t>(r, c) = inside ? 255 : 0;
       other_side_exists |= !inside;
@@ -64,7 +64,13 @@ void DsmBreakdownOptions::Check() const {
   if (!(rim_width_m > 0)) throw Error("dsm", "rim_width_m", "must be > 0, got " + FormatDouble(rim_width_m));
 }
 
+int ClassCodeOf(float value) {
+  if (!(value >= 0.0f && value <= 255.0f)) return -1;  // NaN fails both
+  return static_cast<int>(std::lround(value));
+}
+
 std::string AsprsClassName(int code) {
+  if (code == -1) return "no_class";
   static const std::map<int, std::string> kNames = {
       {1, "unclassified"},     {2, "ground"},   {3, "low_vegetation"}, {4, "medium_vegetation"},
       {5, "high_vegetation"}, {6, "building"}, {7, "low_noise"},      {9, "water"},
@@ -98,7 +104,7 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
       const float e = error_m[p];
       if (!std::isfinite(e)) continue;
       ++compared;
-      const int code = static_cast<int>(cls[p]);
+      const int code = ClassCodeOf(cls[p]);
       by_class[code].Add(e);
       const float in = inside.at<float>(r, c), out = outside.at<float>(r, c);
       if (code == options.building_class && in > 0 && in <= rim_cells) roof_rim.Add(e);
@@ -106,7 +112,6 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
     }
   DsmBreakdown b;
   b.rim_width_m = options.rim_width_m;
-  if (compared == 0) return b;
   for (const auto& [code, sums] : by_class) b.classes.push_back(sums.Finish(AsprsClassName(code), code, compared));
   b.roof_rim = roof_rim.Finish("roof_rim", -1, compared);
   b.beside_buildings = beside.Finish("beside_buildings", -1, compared);

@@ -38,8 +38,13 @@ struct DsmBreakdown {
   double rim_width_m = 0;
 };
 
+// The class code of a class raster's value: -1 for NaN, nodata filled with
+// NaN, or a value outside [0, 255] (ASPRS codes are bytes), so that a float
+// raster from a user never reaches an undefined float-to-int conversion.
+int ClassCodeOf(float value);
+
 // The ASPRS name of a class code ("ground", "high_vegetation", ...; DFC2019's
-// 65 is "unlabeled"), else "class_<code>".
+// 65 is "unlabeled"), "no_class" for -1, else "class_<code>".
 std::string AsprsClassName(int code);
 
 // `error_m` (NaN where not compared) and `cls` are the same row-major grid of

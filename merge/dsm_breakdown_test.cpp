@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "core/error.h"
 #include "merge/dsm.h"
@@ -127,6 +128,51 @@ TEST(DsmBreakdown, BadInputIsRefused) {
   EXPECT_EQ(AsprsClassName(64), "class_64");
 }
 
+TEST(DsmBreakdown, CellsWithoutAClassFormTheirOwnGroup) {
+  // A user's float class raster may hold NaN (nodata) or values that are no
+  // class code: they are grouped apart, and the parts still add up.
+  std::vector<float> cls = ToyClasses(), error(kW * kH, 1.0f);
+  cls[0] = NAN;
+  cls[1] = -3.0f;
+  cls[2] = 1e9f;
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  ASSERT_EQ(b.classes.front().name, "no_class");
+  EXPECT_EQ(b.classes.front().cells, 3);
+  double parts = 0;
+  for (const DsmErrorGroup& g : b.classes) parts += g.mae_part_m;
+  EXPECT_NEAR(parts, 1.0, kSumTolM);
+  EXPECT_EQ(ClassCodeOf(5.9999f), 6);  // a resampled raster's near-integers round
+  EXPECT_EQ(ClassCodeOf(NAN), -1);
+}
+
+TEST(DsmBreakdown, NothingComparedStillNamesItsGroups) {
+  const std::vector<float> cls = ToyClasses(), error(kW * kH, NAN);
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  EXPECT_TRUE(b.classes.empty());
+  EXPECT_EQ(b.roof_rim.name, "roof_rim");
+  EXPECT_EQ(b.roof_rim.cells, 0);
+  EXPECT_EQ(b.beside_buildings.name, "beside_buildings");
+}
+
+TEST(DsmBreakdown, AClassRasterOfAnotherSizeIsRefusedByName) {
+  const fs::path dir = ScratchDir("cls_size");
+  const std::vector<float> values(8 * 6, 2.0f);
+  const std::string path = (dir / "AOI_CLS.tif").string();
+  WriteFloatTiff(path, 8, 6, values.data());
+  DsmGrid truth;
+  truth.width_px = 6;
+  truth.height_px = 8;
+  try {
+    ReadClassRaster(path, truth);
+    FAIL() << "a transposed class raster was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("AOI_CLS.tif"), std::string::npos) << e.what();
+  }
+  truth.width_px = 8;
+  truth.height_px = 6;
+  EXPECT_EQ(ReadClassRaster(path, truth).size(), values.size());
+}
+
 TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
   SKYFALL_REQUIRE_DFC2019();
   const fs::path t = Dfc2019Root() / "Track3-Truth";
@@ -151,9 +197,22 @@ TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
   WriteDsmComparison(r, truth, DsmCompareOptions{}, {"p.tif", "t.tif", "c.tif"}, dir.string());
   const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "report.json"));
   ASSERT_TRUE(report.contains("by_class"));
-  EXPECT_EQ(report["by_class"].size(), r.breakdown.classes.size());
+  // One group per class present among the compared cells, counted here from
+  // the raster itself.
+  std::set<int> present;
+  for (std::size_t p = 0; p < cls.size(); ++p)
+    if (std::isfinite(r.error_m[p])) present.insert(static_cast<int>(cls[p]));
+  EXPECT_EQ(report["by_class"].size(), present.size());
   EXPECT_EQ(report["building_rims"]["roof_rim"]["cells"], r.breakdown.roof_rim.cells);
-  EXPECT_TRUE(fs::exists(dir / "report_by_class.csv"));
+  EXPECT_GT(r.breakdown.roof_rim.cells, 0);
+  // The CSV's columns as docs/outputs.md gives them, one row per group.
+  std::ifstream csv(dir / "report_by_class.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m");
+  std::size_t rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, present.size() + 2);
 }
 
 }  // namespace

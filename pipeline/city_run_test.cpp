@@ -143,7 +143,10 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
         parts += g["mae_part_m"].get<double>();
         buildings |= g["name"] == "building";
       }
-      EXPECT_NEAR(parts, figures["mae_m"].get<double>(), 1e-6) << key;
+      // The parts come from the float error map: its rounding (float epsilon
+      // times errors of up to a few tens of metres here) bounds the mismatch.
+      constexpr double kFloatErrorMapTolM = 1e-4;
+      EXPECT_NEAR(parts, figures["mae_m"].get<double>(), kFloatErrorMapTolM) << key;
       // Rim bands exactly where the AOI has buildings.
       EXPECT_EQ(figures["building_rims"]["roof_rim"]["cells"].get<int>() > 0, buildings) << key;
     }

@@ -106,7 +106,7 @@ for name in sorted(os.listdir(out)):
             return None
         parts = {g["name"]: g["mae_part_m"] for g in entry["by_class"]}
         for band in ("roof_rim", "beside_buildings"):
-            parts[band] = entry["building_rims"][band]["mae_part_m"]
+            parts[band] = (entry.get("building_rims") or {}).get(band, {}).get("mae_part_m")
         return parts
     scenes.append({
         "scene": name,
@@ -146,8 +146,8 @@ for s in scenes:
 groups = [("ground", "ground"), ("building", "buildings"), ("high_vegetation", "trees"),
           ("roof_rim", "roof rims"), ("beside_buildings", "beside buildings")]
 lines += ["", "Where the MAE comes from: each group's part of it (trained, dense-only in brackets); the",
-          "rim bands are the cells within 1 m of a building outline, inside and outside, and overlap",
-          "the classes.", "",
+          "rim bands are the cells whose centre is within `dsm.compare.rim_width_m` (1 m by default) of a",
+          "cell across a building outline, inside and outside; they overlap the classes.", "",
           "| scene | " + " | ".join(label for _, label in groups) + " |",
           "|---|" + "---|" * len(groups)]
 for s in scenes:
