@@ -71,10 +71,7 @@ void AddExport(CLI::App& dsm, Runner* runner) {
 // One line per class and rim band: its share of the cells, its own MAE and
 // its part of the overall MAE.
 void LogBreakdown(const DsmBreakdown& b) {
-  std::vector<DsmErrorGroup> groups = b.classes;
-  groups.push_back(b.roof_rim);
-  groups.push_back(b.beside_buildings);
-  for (const DsmErrorGroup& g : groups) {
+  for (const DsmErrorGroup& g : b.Groups()) {
     if (g.cells == 0) continue;
     spdlog::info("  {:<18} {:5.1f}% of cells, MAE {:.3f} m, bias {:+.3f} m, part of the MAE {:.3f} m", g.name,
                  100 * g.share, g.mae_m, g.bias_m, g.mae_part_m);

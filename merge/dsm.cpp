@@ -260,9 +260,14 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
     }
   out.valid_pixels = static_cast<int>(diff.size());
   out.completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
+  // With classes, the errors' breakdown, on the final (offset-free) error map.
+  const auto break_down = [&] {
+    if (!cls) return;
+    out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
+    out.has_breakdown = true;
+  };
   if (diff.empty()) {
-    if (cls) out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
-    out.has_breakdown = cls != nullptr;
+    break_down();
     return out;
   }
   double sum = 0;
@@ -292,10 +297,7 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   // absolute error.
   out.nmad_m = 1.4826 * out.median_abs_m;
   out.within_fraction = static_cast<double>(within) / diff.size();
-  if (cls) {
-    out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
-    out.has_breakdown = true;
-  }
+  break_down();
   return out;
 }
 

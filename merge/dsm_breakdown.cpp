@@ -60,6 +60,13 @@ cv::Mat DistanceAcrossOutline(const std::vector<float>& cls, int width_px, int h
 
 }  // namespace
 
+std::vector<DsmErrorGroup> DsmBreakdown::Groups() const {
+  std::vector<DsmErrorGroup> groups = classes;
+  groups.push_back(roof_rim);
+  groups.push_back(beside_buildings);
+  return groups;
+}
+
 void DsmBreakdownOptions::Check() const {
   if (!(rim_width_m > 0)) throw Error("dsm", "rim_width_m", "must be > 0, got " + FormatDouble(rim_width_m));
 }

@@ -36,6 +36,9 @@ struct DsmBreakdown {
   std::vector<DsmErrorGroup> classes;        // one per class with compared cells, ascending code
   DsmErrorGroup roof_rim, beside_buildings;  // cells = 0 when the truth has no buildings
   double rim_width_m = 0;
+  // The classes, then the roof rim and the band beside buildings: the order
+  // of the report's rows.
+  std::vector<DsmErrorGroup> Groups() const;
 };
 
 // The class code of a class raster's value: -1 for NaN, nodata filled with

@@ -102,15 +102,12 @@ nlohmann::json GroupJson(const DsmErrorGroup& g) {
 // report_by_class.csv: one row per class, then the two rim bands.
 std::string BreakdownCsv(const DsmBreakdown& b) {
   std::string csv = "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
-  const auto row = [&](const DsmErrorGroup& g) {
+  for (const DsmErrorGroup& g : b.Groups()) {
     char line[256];
     std::snprintf(line, sizeof(line), "%s,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", g.name.c_str(), g.cls, g.cells,
                   g.share, g.mae_m, g.rmse_m, g.median_abs_m, g.bias_m, g.mae_part_m);
     csv += line;
-  };
-  for (const DsmErrorGroup& g : b.classes) row(g);
-  row(b.roof_rim);
-  row(b.beside_buildings);
+  }
   return csv;
 }
 

@@ -75,6 +75,11 @@ std::string DsmTable(const json& report) {
   return html + "</table>";
 }
 
+// A string field of a report object, or `fallback` when it is missing or not a string.
+std::string TextField(const json& j, const char* key, const std::string& fallback = "") {
+  return j.is_object() && j.contains(key) && j.at(key).is_string() ? j.at(key).get<std::string>() : fallback;
+}
+
 // Where an AOI's error comes from (present when its truth has classes): each
 // class and each band along building outlines, trained beside dense alone.
 std::string BreakdownTable(const json& d) {
@@ -82,8 +87,9 @@ std::string BreakdownTable(const json& d) {
   const json dense = d.value("dense", json::object());
   // The dense figures of the same group, matched by name.
   const auto dense_group = [&](const std::string& name) {
+    if (name.empty()) return json::object();
     for (const json& g : dense.value("by_class", json::array()))
-      if (g.is_object() && g.contains("name") && g.at("name") == name) return g;
+      if (TextField(g, "name") == name) return g;
     const json rims = dense.value("building_rims", json::object());
     const json rim = rims.is_object() ? rims.value(name, json::object()) : json::object();
     return rim.is_object() ? rim : json::object();
@@ -94,15 +100,13 @@ std::string BreakdownTable(const json& d) {
   const auto row = [&](const json& g, const std::string& label) {
     if (!g.is_object() || !g.contains("cells") || !g.at("cells").is_number()) return;
     if (g.at("cells").get<double>() == 0) return;  // a rim band of an AOI without buildings
-    const json o = dense_group(g.contains("name") && g.at("name").is_string() ? g.at("name").get<std::string>() : "");
+    const json o = dense_group(TextField(g, "name"));
     html += "<tr>" + Cell(HtmlEscape(label)) + Cell(Number(g, "share", 1, 100) + " %", true) +
             Cell(Number(g, "mae_m", 2), true) + Cell(Number(g, "bias_m", 2), true) +
             Cell(Number(g, "mae_part_m", 3), true) + Cell(Number(o, "mae_m", 2), true) +
             Cell(Number(o, "mae_part_m", 3), true) + "</tr>";
   };
-  for (const json& g : d.at("by_class")) {
-    if (g.is_object()) row(g, "class: " + (g.contains("name") && g.at("name").is_string() ? g.at("name").get<std::string>() : "?"));
-  }
+  for (const json& g : d.at("by_class")) row(g, "class: " + TextField(g, "name", "?"));
   const json rims = d.contains("building_rims") && d.at("building_rims").is_object() ? d.at("building_rims") : json::object();
   const std::string width = Number(rims, "rim_width_m", 1);
   if (rims.contains("roof_rim")) row(rims.at("roof_rim"), "roof rim (building, within " + width + " m of its edge)");
