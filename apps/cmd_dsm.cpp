@@ -97,6 +97,11 @@ void AddCompare(CLI::App& dsm, Runner* runner) {
   cmd->add_option("--rim-width", opts->breakdown.rim_width_m,
                   "With --cls: width of the bands on both sides of building outlines whose error is reported apart [m]")
       ->capture_default_str();
+  cmd->add_option("--edge-band", opts->breakdown.edge_band_m,
+                  "With --cls: width of each band of the edge profile (error by distance from building outlines) [m]")
+      ->capture_default_str();
+  cmd->add_option("--edge-bands", opts->breakdown.edge_bands, "With --cls: bands of the edge profile on each side")
+      ->capture_default_str();
   cmd->callback([runner, a, opts] {
     *runner = [a, opts] {
       opts->Check();

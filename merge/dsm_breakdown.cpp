@@ -1,5 +1,6 @@
 #include "merge/dsm_breakdown.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <opencv2/imgproc.hpp>
@@ -69,6 +70,9 @@ std::vector<DsmErrorGroup> DsmBreakdown::Groups() const {
 
 void DsmBreakdownOptions::Check() const {
   if (!(rim_width_m > 0)) throw Error("dsm", "rim_width_m", "must be > 0, got " + FormatDouble(rim_width_m));
+  if (!(edge_band_m > 0)) throw Error("dsm", "edge_band_m", "must be > 0, got " + FormatDouble(edge_band_m));
+  if (edge_bands < 1 || edge_bands > 100)
+    throw Error("dsm", "edge_bands", "must be in 1..100, got " + std::to_string(edge_bands));
 }
 
 int ClassCodeOf(float value) {
@@ -102,8 +106,17 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
   // A small tolerance keeps a rim of exactly k cells from losing its last
   // ring to rounding (distances of 1, 2 cells are exact in theory).
   const float rim_cells = static_cast<float>(options.rim_width_m / gsd_m + 1e-6);
+  // Band of a distance [cells]: -1 on the outline's own side (distance 0),
+  // edge_bands beyond the last band. The tolerance as for the rim.
+  const double cells_per_band = options.edge_band_m / gsd_m;
+  auto band_of = [&](float distance_cells) {
+    if (!(distance_cells > 0)) return -1;
+    const double k = std::ceil(distance_cells / cells_per_band - 1e-6) - 1;
+    return static_cast<int>(std::clamp(k, 0.0, static_cast<double>(options.edge_bands)));
+  };
   std::map<int, GroupSums> by_class;
-  GroupSums roof_rim, beside;
+  GroupSums roof_rim, beside, roof_interior;
+  std::vector<GroupSums> roof_bands(options.edge_bands), beside_bands(options.edge_bands);
   int compared = 0;
   for (int r = 0; r < height_px; ++r)
     for (int c = 0; c < width_px; ++c) {
@@ -116,12 +129,25 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
       const float in = inside.at<float>(r, c), out = outside.at<float>(r, c);
       if (code == options.building_class && in > 0 && in <= rim_cells) roof_rim.Add(e);
       if (code != options.building_class && out > 0 && out <= rim_cells) beside.Add(e);
+      if (code == options.building_class) {
+        const int k = band_of(in);
+        if (k >= 0) (k < options.edge_bands ? roof_bands[k] : roof_interior).Add(e);
+      } else {
+        const int k = band_of(out);
+        if (k >= 0 && k < options.edge_bands) beside_bands[k].Add(e);
+      }
     }
   DsmBreakdown b;
   b.rim_width_m = options.rim_width_m;
   for (const auto& [code, sums] : by_class) b.classes.push_back(sums.Finish(AsprsClassName(code), code, compared));
   b.roof_rim = roof_rim.Finish("roof_rim", -1, compared);
   b.beside_buildings = beside.Finish("beside_buildings", -1, compared);
+  b.edge_band_m = options.edge_band_m;
+  for (int k = 0; k < options.edge_bands; ++k) {
+    b.roof_bands.push_back(roof_bands[k].Finish("roof_band_" + std::to_string(k), -1, compared));
+    b.beside_bands.push_back(beside_bands[k].Finish("beside_band_" + std::to_string(k), -1, compared));
+  }
+  b.roof_interior = roof_interior.Finish("roof_interior", -1, compared);
   return b;
 }
 

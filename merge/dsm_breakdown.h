@@ -28,6 +28,12 @@ struct DsmBreakdownOptions {
   // building cell form the band beside buildings. 1 m: two cells at the
   // DFC2019 GSD of 0.5 m.
   double rim_width_m = 1.0;
+  // The edge profile: the error in bands of edge_band_m by distance from
+  // the outline, edge_bands of them on the roof side and as many beside the
+  // buildings. A roof eroded by a cell shows as a low mean error in the
+  // first roof bands, one fattened onto the ground as a high one beside.
+  double edge_band_m = 0.5;
+  int edge_bands = 6;
   int building_class = 6;  // ASPRS "building"
   void Check() const;      // throws Error("dsm", field, ...)
 };
@@ -36,6 +42,13 @@ struct DsmBreakdown {
   std::vector<DsmErrorGroup> classes;        // one per class with compared cells, ascending code
   DsmErrorGroup roof_rim, beside_buildings;  // cells = 0 when the truth has no buildings
   double rim_width_m = 0;
+  // Band k (from 0) holds the cells whose centre lies more than k and at most
+  // k + 1 edge_band_m from the nearest cell centre across the outline
+  // ("roof_band_<k>", "beside_band_<k>"); the roof's cells beyond the last
+  // band are its interior. Empty bands have cells = 0.
+  std::vector<DsmErrorGroup> roof_bands, beside_bands;
+  DsmErrorGroup roof_interior;
+  double edge_band_m = 0;
   // The classes, then the roof rim and the band beside buildings: the order
   // of the report's rows.
   std::vector<DsmErrorGroup> Groups() const;

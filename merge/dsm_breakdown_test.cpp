@@ -109,6 +109,64 @@ TEST(DsmBreakdown, RimErrorsShowApartFromTheRestOfTheirClass) {
   EXPECT_NEAR(b.classes[2].mae_m, 0.0, kSumTolM);
 }
 
+TEST(DsmBreakdown, EdgeBandsMatchABruteForceCount) {
+  // Band k holds the cells more than k and at most k + 1 band widths (0.5 m =
+  // one cell here) from the nearest cell across the outline; the roof's cells
+  // beyond the last band are its interior; every compared cell of either
+  // side within the bands is in exactly one.
+  const std::vector<float> cls = ToyClasses();
+  std::vector<float> error(kW * kH);
+  for (int p = 0; p < kW * kH; ++p) error[p] = 0.02f * static_cast<float>((p * 29) % 17) - 0.15f;
+  error[kW + 1] = NAN;
+  DsmBreakdownOptions o;
+  o.edge_bands = 2;
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, o);
+  ASSERT_EQ(b.roof_bands.size(), 2u);
+  ASSERT_EQ(b.beside_bands.size(), 2u);
+  EXPECT_EQ(b.edge_band_m, 0.5);
+  for (int side = 0; side < 2; ++side) {
+    const bool roof = side == 0;
+    for (int k = 0; k <= 2; ++k) {
+      int n = 0;
+      double sum = 0;
+      for (int r = 0; r < kH; ++r)
+        for (int c = 0; c < kW; ++c) {
+          const float e = error[r * kW + c];
+          if (!std::isfinite(e) || InBuilding(c, r) != roof) continue;
+          const double d = DistanceAcross(c, r);
+          const bool in_band = k < 2 ? d > k + 1e-9 && d <= k + 1 + 1e-9 : d > 2 + 1e-9;
+          if (in_band) ++n, sum += e;
+        }
+      if (k == 2 && !roof) continue;  // beside the buildings there is no interior
+      const DsmErrorGroup& g = k < 2 ? (roof ? b.roof_bands[k] : b.beside_bands[k]) : b.roof_interior;
+      EXPECT_EQ(g.cells, n) << g.name;
+      if (n > 0) EXPECT_NEAR(g.bias_m, sum / n, kSumTolM) << g.name;
+    }
+  }
+  // The 6 x 6 roof: its outer ring (20 cells, all within one cell of the
+  // ground) in band 0, the diagonal-only corners of the next ring in band 1,
+  // the rest beyond.
+  EXPECT_EQ(b.roof_bands[0].cells, 20);
+  EXPECT_EQ(b.roof_bands[0].name, "roof_band_0");
+  EXPECT_EQ(b.roof_bands[1].cells + b.roof_interior.cells, 16);
+  EXPECT_EQ(b.roof_interior.name, "roof_interior");
+}
+
+TEST(DsmBreakdown, AnErodedRoofShowsInItsFirstBandOnly) {
+  // The roof's outermost ring 20 m too low (an edge eroded by one cell): the
+  // first roof band carries all of it, the next bands and the ground nothing.
+  const std::vector<float> cls = ToyClasses();
+  std::vector<float> error(kW * kH, 0.0f);
+  for (int r = 0; r < kH; ++r)
+    for (int c = 0; c < kW; ++c)
+      if (InBuilding(c, r) && DistanceAcross(c, r) < 1.5) error[r * kW + c] = -20.0f;
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  EXPECT_NEAR(b.roof_bands[0].bias_m, -20.0, kSumTolM);
+  EXPECT_NEAR(b.roof_bands[0].mae_part_m, b.classes[2].mae_part_m, kSumTolM);
+  for (std::size_t k = 1; k < b.roof_bands.size(); ++k) EXPECT_NEAR(b.roof_bands[k].mae_m, 0.0, kSumTolM);
+  for (const DsmErrorGroup& g : b.beside_bands) EXPECT_NEAR(g.mae_m, 0.0, kSumTolM) << g.name;
+}
+
 TEST(DsmBreakdown, NoBuildingsLeavesTheRimBandsEmpty) {
   const std::vector<float> cls(kW * kH, 2.0f), error(kW * kH, 0.25f);
   const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
@@ -124,6 +182,12 @@ TEST(DsmBreakdown, BadInputIsRefused) {
   EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, 0.0, DsmBreakdownOptions{}), Error);
   DsmBreakdownOptions bad;
   bad.rim_width_m = 0;
+  EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
+  bad = DsmBreakdownOptions{};
+  bad.edge_band_m = -0.5;
+  EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
+  bad = DsmBreakdownOptions{};
+  bad.edge_bands = 0;
   EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
   EXPECT_EQ(AsprsClassName(64), "class_64");
 }
@@ -213,6 +277,22 @@ TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
   std::size_t rows = 0;
   while (std::getline(csv, line)) ++rows;
   EXPECT_EQ(rows, present.size() + 2);
+  // The edge profile: JSON bands with their bounds, and the CSV's rows
+  // (roof bands, roof interior, bands beside).
+  const nlohmann::json& profile = report["building_edge_profile"];
+  const DsmBreakdownOptions defaults;
+  ASSERT_EQ(profile["roof"].size(), static_cast<std::size_t>(defaults.edge_bands));
+  EXPECT_EQ(profile["beside"].size(), static_cast<std::size_t>(defaults.edge_bands));
+  EXPECT_DOUBLE_EQ(profile["roof"][1]["from_m"].get<double>(), defaults.edge_band_m);
+  EXPECT_EQ(profile["roof"][0]["cells"], r.breakdown.roof_bands[0].cells);
+  EXPECT_GT(r.breakdown.roof_bands[0].cells, 0);
+  EXPECT_EQ(profile["roof_interior"]["cells"], r.breakdown.roof_interior.cells);
+  std::ifstream edge_csv(dir / "report_edge_profile.csv");
+  std::getline(edge_csv, header);
+  EXPECT_EQ(header, "side,from_m,to_m,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m");
+  rows = 0;
+  while (std::getline(edge_csv, line)) ++rows;
+  EXPECT_EQ(rows, 2u * defaults.edge_bands + 1);
 }
 
 }  // namespace

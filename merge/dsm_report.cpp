@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/atomic_file.h"
+#include "core/format.h"
 #include "tiler/raster.h"
 
 namespace skyfall {
@@ -111,16 +112,52 @@ std::string BreakdownCsv(const DsmBreakdown& b) {
   return csv;
 }
 
+// report_edge_profile.csv: the roof's bands from the outline inwards, its
+// interior (no upper bound), then the bands beside the buildings outwards.
+std::string EdgeProfileCsv(const DsmBreakdown& b) {
+  std::string csv = "side,from_m,to_m,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
+  auto row = [&](const char* side, std::size_t k, const DsmErrorGroup& g, bool interior) {
+    char line[256];
+    const std::string to = interior ? "" : FormatDouble((k + 1) * b.edge_band_m);
+    std::snprintf(line, sizeof(line), "%s,%s,%s,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", side,
+                  FormatDouble(k * b.edge_band_m).c_str(), to.c_str(), g.cells, g.share, g.mae_m, g.rmse_m,
+                  g.median_abs_m, g.bias_m, g.mae_part_m);
+    csv += line;
+  };
+  for (std::size_t k = 0; k < b.roof_bands.size(); ++k) row("roof", k, b.roof_bands[k], false);
+  row("roof", b.roof_bands.size(), b.roof_interior, true);
+  for (std::size_t k = 0; k < b.beside_bands.size(); ++k) row("beside", k, b.beside_bands[k], false);
+  return csv;
+}
+
+nlohmann::json BandsJson(const std::vector<DsmErrorGroup>& bands, double band_m) {
+  nlohmann::json out = nlohmann::json::array();
+  for (std::size_t k = 0; k < bands.size(); ++k) {
+    nlohmann::json j = GroupJson(bands[k]);
+    j["from_m"] = k * band_m;
+    j["to_m"] = (k + 1) * band_m;
+    out.push_back(j);
+  }
+  return out;
+}
+
 }  // namespace
 
 nlohmann::json DsmBreakdownJson(const DsmBreakdown& b) {
   nlohmann::json classes = nlohmann::json::array();
   for (const DsmErrorGroup& g : b.classes) classes.push_back(GroupJson(g));
+  nlohmann::json interior = GroupJson(b.roof_interior);
+  interior["from_m"] = b.roof_bands.size() * b.edge_band_m;
   return {{"by_class", classes},
           {"building_rims",
            {{"rim_width_m", b.rim_width_m},
             {"roof_rim", GroupJson(b.roof_rim)},
-            {"beside_buildings", GroupJson(b.beside_buildings)}}}};
+            {"beside_buildings", GroupJson(b.beside_buildings)}}},
+          {"building_edge_profile",
+           {{"band_m", b.edge_band_m},
+            {"roof", BandsJson(b.roof_bands, b.edge_band_m)},
+            {"roof_interior", interior},
+            {"beside", BandsJson(b.beside_bands, b.edge_band_m)}}}};
 }
 
 void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmCompareOptions& o,
@@ -138,6 +175,7 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
   if (r.has_breakdown) {
     full.update(DsmBreakdownJson(r.breakdown));
     WriteFileAtomic((dir / "report_by_class.csv").string(), BreakdownCsv(r.breakdown));
+    WriteFileAtomic((dir / "report_edge_profile.csv").string(), EdgeProfileCsv(r.breakdown));
   }
   WriteFileAtomic((dir / "report.json").string(), full.dump(2) + "\n");
   char csv[512];

@@ -16,7 +16,8 @@ struct DsmReportInputs {
   std::string cls_path;  // may be empty
 };
 
-// {"by_class": [...], "building_rims": {...}}: the breakdown as report.json has it.
+// {"by_class": [...], "building_rims": {...}, "building_edge_profile": {...}}:
+// the breakdown as report.json has it.
 nlohmann::json DsmBreakdownJson(const DsmBreakdown& breakdown);
 
 // report.json (with the breakdown when the truth came with classes, and then

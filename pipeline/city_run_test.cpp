@@ -149,6 +149,8 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
       EXPECT_NEAR(parts, figures["mae_m"].get<double>(), kFloatErrorMapTolM) << key;
       // Rim bands exactly where the AOI has buildings.
       EXPECT_EQ(figures["building_rims"]["roof_rim"]["cells"].get<int>() > 0, buildings) << key;
+      // And the edge profile, whose first roof band is the outline's own ring.
+      EXPECT_EQ(figures["building_edge_profile"]["roof"][0]["cells"].get<int>() > 0, buildings) << key;
     }
   }
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
@@ -164,6 +166,7 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_LT(valid(matched), valid(all_cells)) << aoi;
     EXPECT_GT(ReadJson(dir / "out" / aoi / "dsm_compare" / "report.json")["completeness"].get<double>(), 0.5) << aoi;
     EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm_compare" / "report_by_class.csv")) << aoi;
+    EXPECT_TRUE(fs::exists(dir / "out" / aoi / "dsm_compare" / "report_edge_profile.csv")) << aoi;
   }
   // Scene and LOD: the finest level is the merged scene, counts fall.
   const json lod = ReadJson(city_dir / "scene" / "lod.json");

@@ -183,7 +183,9 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
     html += "<h4>" + HtmlEscape(aoi) + "</h4><p>" + Link(out_dir / aoi / "dsm.tif", out_dir, "DSM (GeoTIFF)") +
             Link(compare / "report.json", out_dir, "comparison (JSON)") +
             Link(compare / "error_map.tif", out_dir, "error map (GeoTIFF)") +
-            Link(compare / "report_by_class.csv", out_dir, "error by class (CSV)") + "</p>" + BreakdownTable(d) +
+            Link(compare / "report_by_class.csv", out_dir, "error by class (CSV)") +
+            Link(compare / "report_edge_profile.csv", out_dir, "error by distance from building outlines (CSV)") +
+            "</p>" + BreakdownTable(d) +
             "<div class=pair><figure>" +
             EmbeddedPng(compare / "error_map.png", aoi + " error map") +
             "<figcaption>Error map: DSM minus truth (blue low, red high)</figcaption></figure><figure>" +

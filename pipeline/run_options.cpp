@@ -317,6 +317,8 @@ template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
   io("mask_water", o.mask_water);
   io("within_m", o.within_m);
   io("rim_width_m", o.breakdown.rim_width_m);
+  io("edge_band_m", o.breakdown.edge_band_m);
+  io("edge_bands", o.breakdown.edge_bands);
 }
 template <class IO> void Visit(IO& io, DsmOptions& o) {
   io("source", o.source);

@@ -227,6 +227,8 @@ json AoiAssets(const AoiCatalog& a, const StacCity& city, const fs::path& doc_di
   AddIfExists(&assets, "dsm_report_csv", compare / "report.csv", doc_dir, kCsv, {"metadata"}, "DSM comparison");
   AddIfExists(&assets, "dsm_report_by_class", compare / "report_by_class.csv", doc_dir, kCsv, {"metadata"},
               "DSM error by truth class and along building outlines");
+  AddIfExists(&assets, "dsm_report_edge_profile", compare / "report_edge_profile.csv", doc_dir, kCsv, {"metadata"},
+              "DSM error by distance from building outlines");
   const fs::path scene = city.scene_dir;
   AddIfExists(&assets, "scene", scene / "scene.ply", doc_dir, kPly, {"data"}, "Gaussian splats (Inria PLY)");
   for (int level = 0; fs::exists(scene / ("lod_" + std::to_string(level) + ".ply")); ++level) {

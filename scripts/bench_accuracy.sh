@@ -108,6 +108,12 @@ for name in sorted(os.listdir(out)):
         for band in ("roof_rim", "beside_buildings"):
             parts[band] = (entry.get("building_rims") or {}).get(band, {}).get("mae_part_m")
         return parts
+    def edge_bias(entry):
+        profile = entry.get("building_edge_profile")
+        if not profile:
+            return None
+        bias = {side: [b["bias_m"] if b["cells"] else None for b in profile[side]] for side in ("roof", "beside")}
+        return dict(bias, band_m=profile["band_m"])
     scenes.append({
         "scene": name,
         "mae_m": d.get("mae_m"), "rmse_m": d.get("rmse_m"), "median_m": d.get("median_abs_m"),
@@ -125,6 +131,12 @@ for name in sorted(os.listdir(out)):
         # accounts for (merge/dsm_breakdown.h), trained and dense-only.
         "mae_parts_m": mae_parts(d),
         "dense_mae_parts_m": mae_parts(d.get("dense") or {}),
+        # The mean signed error in bands of 0.5 m from the building outlines,
+        # roof side inwards and ground side outwards (building_edge_profile):
+        # negative on the roof where roofs are eroded, positive beside them
+        # where they are fattened.
+        "edge_bias_m": edge_bias(d),
+        "dense_edge_bias_m": edge_bias(d.get("dense") or {}),
         "tuned_on": name in tuned,
         "synthetic_size_m": None if name == "jax068" else size,
     })
@@ -153,6 +165,18 @@ lines += ["", "Where the MAE comes from: each group's part of it (trained, dense
 for s in scenes:
     parts, dense = s["mae_parts_m"] or {}, s["dense_mae_parts_m"] or {}
     cells = [f"{fmt(parts.get(g), suffix=' m')} ({fmt(dense.get(g))})" for g, _ in groups]
+    lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
+bands = 3
+band_m = next((s["edge_bias_m"]["band_m"] for s in scenes if s["edge_bias_m"]), 0.5)
+lines += ["", f"Mean signed error by distance from building outlines, in bands of {band_m:g} m (trained, dense-only",
+          "in brackets): negative on the roof side where roofs are eroded, positive beside where they spread.", "",
+          "| scene | " + " | ".join(f"roof {k * band_m:g}-{(k + 1) * band_m:g} m" for k in range(bands)) + " | " +
+          " | ".join(f"beside {k * band_m:g}-{(k + 1) * band_m:g} m" for k in range(bands)) + " |",
+          "|---|" + "---|" * (2 * bands)]
+for s in scenes:
+    edge, dense = s["edge_bias_m"] or {}, s["dense_edge_bias_m"] or {}
+    cells = [f"{fmt((edge.get(side) or [None] * bands)[k], 1, 1, ' m')} ({fmt((dense.get(side) or [None] * bands)[k], 1)})"
+             for side in ("roof", "beside") for k in range(bands)]
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))

@@ -508,6 +508,7 @@ TEST(Cli, CronSafeIncrementalRunsWithAStacCatalog) {
   EXPECT_EQ(item["assets"]["dsm"]["unit"], "m");
   EXPECT_TRUE(item["assets"]["dsm"]["statistics"].contains("mean"));
   EXPECT_EQ(item["assets"]["dsm_report_by_class"]["type"], "text/csv") << item["assets"].dump();
+  EXPECT_EQ(item["assets"]["dsm_report_edge_profile"]["type"], "text/csv") << item["assets"].dump();
 
   // Every line of the JSON log is an event; the DSM figures are there.
   std::ifstream events(dir / "events.jsonl");
