@@ -69,8 +69,10 @@ std::vector<DsmErrorGroup> DsmBreakdown::Groups() const {
 }
 
 void DsmBreakdownOptions::Check() const {
-  if (!(rim_width_m > 0)) throw Error("dsm", "rim_width_m", "must be > 0, got " + FormatDouble(rim_width_m));
-  if (!(edge_band_m > 0)) throw Error("dsm", "edge_band_m", "must be > 0, got " + FormatDouble(edge_band_m));
+  if (!(rim_width_m > 0) || !std::isfinite(rim_width_m))
+    throw Error("dsm", "rim_width_m", "must be a finite value > 0, got " + FormatDouble(rim_width_m));
+  if (!(edge_band_m > 0) || !std::isfinite(edge_band_m))
+    throw Error("dsm", "edge_band_m", "must be a finite value > 0, got " + FormatDouble(edge_band_m));
   if (edge_bands < 1 || edge_bands > 100)
     throw Error("dsm", "edge_bands", "must be in 1..100, got " + std::to_string(edge_bands));
 }
@@ -106,11 +108,12 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
   // A small tolerance keeps a rim of exactly k cells from losing its last
   // ring to rounding (distances of 1, 2 cells are exact in theory).
   const float rim_cells = static_cast<float>(options.rim_width_m / gsd_m + 1e-6);
-  // Band of a distance [cells]: -1 on the outline's own side (distance 0),
-  // edge_bands beyond the last band. The tolerance as for the rim.
+  // Band of a distance across the outline [cells], edge_bands beyond the
+  // last band; a distance of 0 means the grid has nothing across the
+  // outline: beyond every band. The tolerance as for the rim.
   const double cells_per_band = options.edge_band_m / gsd_m;
   auto band_of = [&](float distance_cells) {
-    if (!(distance_cells > 0)) return -1;
+    if (!(distance_cells > 0)) return options.edge_bands;
     const double k = std::ceil(distance_cells / cells_per_band - 1e-6) - 1;
     return static_cast<int>(std::clamp(k, 0.0, static_cast<double>(options.edge_bands)));
   };
@@ -131,10 +134,10 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
       if (code != options.building_class && out > 0 && out <= rim_cells) beside.Add(e);
       if (code == options.building_class) {
         const int k = band_of(in);
-        if (k >= 0) (k < options.edge_bands ? roof_bands[k] : roof_interior).Add(e);
+        (k < options.edge_bands ? roof_bands[k] : roof_interior).Add(e);
       } else {
         const int k = band_of(out);
-        if (k >= 0 && k < options.edge_bands) beside_bands[k].Add(e);
+        if (k < options.edge_bands) beside_bands[k].Add(e);
       }
     }
   DsmBreakdown b;

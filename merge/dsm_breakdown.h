@@ -11,8 +11,10 @@
 namespace skyfall {
 
 struct DsmErrorGroup {
-  std::string name;        // "ground", "building", "class_64", "roof_rim", "beside_buildings"
-  int cls = -1;            // ASPRS class code; -1 for the rim bands
+  // "ground", "building", "class_64", "roof_rim", "beside_buildings",
+  // "roof_band_<k>", "beside_band_<k>", "roof_interior"
+  std::string name;
+  int cls = -1;            // ASPRS class code; -1 for the rim and edge bands
   int cells = 0;           // compared cells in the group
   double share = 0;        // cells / all compared cells
   double mae_m = 0, rmse_m = 0, median_abs_m = 0;
@@ -45,10 +47,13 @@ struct DsmBreakdown {
   // Band k (from 0) holds the cells whose centre lies more than k and at most
   // k + 1 edge_band_m from the nearest cell centre across the outline
   // ("roof_band_<k>", "beside_band_<k>"); the roof's cells beyond the last
-  // band are its interior. Empty bands have cells = 0.
+  // band (all of them when the grid has no cell that is not building) are
+  // its interior. An empty band has cells = 0 and every figure 0 (bands
+  // narrower than a cell leave some empty: distances come in cell steps).
   std::vector<DsmErrorGroup> roof_bands, beside_bands;
   DsmErrorGroup roof_interior;
   double edge_band_m = 0;
+  double BandFromM(std::size_t k) const { return static_cast<double>(k) * edge_band_m; }
   // The classes, then the roof rim and the band beside buildings: the order
   // of the report's rows.
   std::vector<DsmErrorGroup> Groups() const;

@@ -110,46 +110,85 @@ TEST(DsmBreakdown, RimErrorsShowApartFromTheRestOfTheirClass) {
 }
 
 TEST(DsmBreakdown, EdgeBandsMatchABruteForceCount) {
-  // Band k holds the cells more than k and at most k + 1 band widths (0.5 m =
-  // one cell here) from the nearest cell across the outline; the roof's cells
-  // beyond the last band are its interior; every compared cell of either
-  // side within the bands is in exactly one.
+  // Band k holds the cells more than k and at most k + 1 band widths from
+  // the nearest cell across the outline (in metres: distances in cells times
+  // the GSD); the roof's cells beyond the last band are its interior. Band
+  // widths of one cell, two cells and one and a half.
   const std::vector<float> cls = ToyClasses();
   std::vector<float> error(kW * kH);
   for (int p = 0; p < kW * kH; ++p) error[p] = 0.02f * static_cast<float>((p * 29) % 17) - 0.15f;
-  error[kW + 1] = NAN;
-  DsmBreakdownOptions o;
-  o.edge_bands = 2;
-  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, o);
-  ASSERT_EQ(b.roof_bands.size(), 2u);
-  ASSERT_EQ(b.beside_bands.size(), 2u);
-  EXPECT_EQ(b.edge_band_m, 0.5);
-  for (int side = 0; side < 2; ++side) {
-    const bool roof = side == 0;
-    for (int k = 0; k <= 2; ++k) {
-      int n = 0;
-      double sum = 0;
-      for (int r = 0; r < kH; ++r)
-        for (int c = 0; c < kW; ++c) {
-          const float e = error[r * kW + c];
-          if (!std::isfinite(e) || InBuilding(c, r) != roof) continue;
-          const double d = DistanceAcross(c, r);
-          const bool in_band = k < 2 ? d > k + 1e-9 && d <= k + 1 + 1e-9 : d > 2 + 1e-9;
-          if (in_band) ++n, sum += e;
-        }
-      if (k == 2 && !roof) continue;  // beside the buildings there is no interior
-      const DsmErrorGroup& g = k < 2 ? (roof ? b.roof_bands[k] : b.beside_bands[k]) : b.roof_interior;
-      EXPECT_EQ(g.cells, n) << g.name;
-      if (n > 0) EXPECT_NEAR(g.bias_m, sum / n, kSumTolM) << g.name;
+  error[5 * kW + 7] = NAN;  // a roof corner and the ground beside it, both in band 0: left out
+  error[4 * kW + 7] = NAN;
+  for (const double band_m : {0.5, 1.0, 0.75}) {
+    DsmBreakdownOptions o;
+    o.edge_band_m = band_m;
+    o.edge_bands = 2;
+    const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, o);
+    ASSERT_EQ(b.roof_bands.size(), 2u);
+    ASSERT_EQ(b.beside_bands.size(), 2u);
+    EXPECT_EQ(b.edge_band_m, band_m);
+    for (const bool roof : {true, false}) {
+      for (int k = 0; k <= 2; ++k) {
+        if (k == 2 && !roof) continue;  // beside the buildings there is no interior
+        int n = 0;
+        double sum = 0;
+        for (int r = 0; r < kH; ++r)
+          for (int c = 0; c < kW; ++c) {
+            const float e = error[r * kW + c];
+            if (!std::isfinite(e) || InBuilding(c, r) != roof) continue;
+            const double d_m = DistanceAcross(c, r) * kGsdM;
+            constexpr double kTol = 1e-9;
+            const bool in_band = k < 2 ? d_m > k * band_m + kTol && d_m <= (k + 1) * band_m + kTol
+                                       : d_m > 2 * band_m + kTol;
+            if (in_band) ++n, sum += e;
+          }
+        const DsmErrorGroup& g = k < 2 ? (roof ? b.roof_bands[k] : b.beside_bands[k]) : b.roof_interior;
+        EXPECT_EQ(g.cells, n) << g.name << " at " << band_m << " m";
+        if (n > 0) EXPECT_NEAR(g.bias_m, sum / n, kSumTolM) << g.name;
+      }
     }
   }
-  // The 6 x 6 roof: its outer ring (20 cells, all within one cell of the
-  // ground) in band 0, the diagonal-only corners of the next ring in band 1,
-  // the rest beyond.
-  EXPECT_EQ(b.roof_bands[0].cells, 20);
+  // One-cell bands on the 6 x 6 roof: its outer ring (20 cells, one its NaN
+  // corner) at 0.5 m from the ground, the next ring (12) at 1 m, the 2 x 2
+  // core beyond. With the defaults the rim band (1 m) is the first two bands.
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  EXPECT_EQ(b.roof_bands[0].cells, 19);
   EXPECT_EQ(b.roof_bands[0].name, "roof_band_0");
-  EXPECT_EQ(b.roof_bands[1].cells + b.roof_interior.cells, 16);
+  EXPECT_EQ(b.roof_bands[1].cells, 12);
+  EXPECT_EQ(b.roof_bands[2].cells, 4);
+  EXPECT_EQ(b.roof_interior.cells, 0);
   EXPECT_EQ(b.roof_interior.name, "roof_interior");
+  EXPECT_EQ(b.roof_rim.cells, b.roof_bands[0].cells + b.roof_bands[1].cells);
+  EXPECT_EQ(b.beside_buildings.cells, b.beside_bands[0].cells + b.beside_bands[1].cells);
+}
+
+TEST(DsmBreakdown, AComparisonWithoutClassesLeavesNoEarlierBreakdownBehind) {
+  DsmGrid truth;
+  truth.width_px = kW;
+  truth.height_px = kH;
+  truth.gsd_m = kGsdM;
+  truth.epsg = 32617;
+  truth.upper_left_easting_m = 435000;
+  truth.upper_left_northing_m = 3350000;
+  const std::vector<float> cls = ToyClasses();
+  for (int p = 0; p < kW * kH; ++p) truth.height_m.push_back(10.0f + 0.01f * p + (cls[p] == 6.0f ? 10.0f : 0.0f));
+  const fs::path dir = ScratchDir("breakdown_stale");
+  WriteDsmComparison(CompareDsm(truth, truth, &cls, DsmCompareOptions{}), truth, DsmCompareOptions{}, {}, dir.string());
+  ASSERT_TRUE(fs::exists(dir / "report_by_class.csv"));
+  ASSERT_TRUE(fs::exists(dir / "report_edge_profile.csv"));
+  WriteDsmComparison(CompareDsm(truth, truth, nullptr, DsmCompareOptions{}), truth, DsmCompareOptions{}, {}, dir.string());
+  EXPECT_FALSE(fs::exists(dir / "report_by_class.csv"));
+  EXPECT_FALSE(fs::exists(dir / "report_edge_profile.csv"));
+  EXPECT_TRUE(fs::exists(dir / "report.json"));
+}
+
+TEST(DsmBreakdown, AGridOfBuildingIsAllInterior) {
+  // Nothing across an outline: no band, every roof cell in the interior.
+  const std::vector<float> cls(kW * kH, 6.0f), error(kW * kH, 0.5f);
+  const DsmBreakdown b = BreakDownDsmError(error, cls, kW, kH, kGsdM, DsmBreakdownOptions{});
+  EXPECT_EQ(b.roof_interior.cells, kW * kH);
+  for (const DsmErrorGroup& g : b.roof_bands) EXPECT_EQ(g.cells, 0) << g.name;
+  for (const DsmErrorGroup& g : b.beside_bands) EXPECT_EQ(g.cells, 0) << g.name;
 }
 
 TEST(DsmBreakdown, AnErodedRoofShowsInItsFirstBandOnly) {
@@ -174,6 +213,9 @@ TEST(DsmBreakdown, NoBuildingsLeavesTheRimBandsEmpty) {
   EXPECT_NEAR(b.classes[0].mae_m, 0.25, 1e-7);
   EXPECT_EQ(b.roof_rim.cells, 0);
   EXPECT_EQ(b.beside_buildings.cells, 0);
+  for (const DsmErrorGroup& g : b.roof_bands) EXPECT_EQ(g.cells, 0) << g.name;
+  for (const DsmErrorGroup& g : b.beside_bands) EXPECT_EQ(g.cells, 0) << g.name;
+  EXPECT_EQ(b.roof_interior.cells, 0);
 }
 
 TEST(DsmBreakdown, BadInputIsRefused) {
@@ -185,6 +227,8 @@ TEST(DsmBreakdown, BadInputIsRefused) {
   EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
   bad = DsmBreakdownOptions{};
   bad.edge_band_m = -0.5;
+  EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
+  bad.edge_band_m = std::numeric_limits<double>::infinity();
   EXPECT_THROW(BreakDownDsmError(error, cls, kW, kH, kGsdM, bad), Error);
   bad = DsmBreakdownOptions{};
   bad.edge_bands = 0;
@@ -279,20 +323,33 @@ TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
   EXPECT_EQ(rows, present.size() + 2);
   // The edge profile: JSON bands with their bounds, and the CSV's rows
   // (roof bands, roof interior, bands beside).
+  // Every building cell is in one roof band or the interior.
   const nlohmann::json& profile = report["building_edge_profile"];
-  const DsmBreakdownOptions defaults;
-  ASSERT_EQ(profile["roof"].size(), static_cast<std::size_t>(defaults.edge_bands));
-  EXPECT_EQ(profile["beside"].size(), static_cast<std::size_t>(defaults.edge_bands));
-  EXPECT_DOUBLE_EQ(profile["roof"][1]["from_m"].get<double>(), defaults.edge_band_m);
-  EXPECT_EQ(profile["roof"][0]["cells"], r.breakdown.roof_bands[0].cells);
-  EXPECT_GT(r.breakdown.roof_bands[0].cells, 0);
-  EXPECT_EQ(profile["roof_interior"]["cells"], r.breakdown.roof_interior.cells);
+  ASSERT_EQ(profile["roof"].size(), 6u);
+  ASSERT_EQ(profile["beside"].size(), 6u);
+  int roof_cells = profile["roof_interior"]["cells"].get<int>();
+  for (const auto& band : profile["roof"]) roof_cells += band["cells"].get<int>();
+  int building_cells = 0;
+  for (const auto& g : report["by_class"])
+    if (g["name"] == "building") building_cells = g["cells"].get<int>();
+  EXPECT_GT(profile["roof"][0]["cells"].get<int>(), 0);
+  EXPECT_EQ(roof_cells, building_cells);
+  EXPECT_DOUBLE_EQ(profile["band_m"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(profile["roof"][1]["from_m"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(profile["beside"][5]["to_m"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(profile["roof_interior"]["from_m"].get<double>(), 3.0);
+  EXPECT_FALSE(profile["roof_interior"].contains("to_m"));
+  // The CSV: the roof's bands inwards, its interior (no upper bound), the
+  // bands beside outwards.
   std::ifstream edge_csv(dir / "report_edge_profile.csv");
   std::getline(edge_csv, header);
   EXPECT_EQ(header, "side,from_m,to_m,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m");
-  rows = 0;
-  while (std::getline(edge_csv, line)) ++rows;
-  EXPECT_EQ(rows, 2u * defaults.edge_bands + 1);
+  std::vector<std::string> bounds;
+  while (std::getline(edge_csv, line)) bounds.push_back(line.substr(0, line.find(',', line.find(',', line.find(',') + 1) + 1)));
+  const std::vector<std::string> expected = {"roof,0,0.5",   "roof,0.5,1",   "roof,1,1.5",   "roof,1.5,2",   "roof,2,2.5",
+                                             "roof,2.5,3",   "roof,3,",      "beside,0,0.5", "beside,0.5,1", "beside,1,1.5",
+                                             "beside,1.5,2", "beside,2,2.5", "beside,2.5,3"};
+  EXPECT_EQ(bounds, expected);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 #include "core/atomic_file.h"
@@ -100,45 +101,62 @@ nlohmann::json GroupJson(const DsmErrorGroup& g) {
   return j;
 }
 
+// One CSV row of a group's figures, after the columns given in `head`.
+std::string GroupCsvFigures(const DsmErrorGroup& g) {
+  char line[192];
+  std::snprintf(line, sizeof(line), "%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", g.cells, g.share, g.mae_m, g.rmse_m,
+                g.median_abs_m, g.bias_m, g.mae_part_m);
+  return line;
+}
+
 // report_by_class.csv: one row per class, then the two rim bands.
 std::string BreakdownCsv(const DsmBreakdown& b) {
   std::string csv = "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
-  for (const DsmErrorGroup& g : b.Groups()) {
-    char line[256];
-    std::snprintf(line, sizeof(line), "%s,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", g.name.c_str(), g.cls, g.cells,
-                  g.share, g.mae_m, g.rmse_m, g.median_abs_m, g.bias_m, g.mae_part_m);
-    csv += line;
-  }
+  for (const DsmErrorGroup& g : b.Groups()) csv += g.name + "," + std::to_string(g.cls) + "," + GroupCsvFigures(g);
   return csv;
 }
 
-// report_edge_profile.csv: the roof's bands from the outline inwards, its
+// The edge profile's rows: the roof's bands from the outline inwards, its
 // interior (no upper bound), then the bands beside the buildings outwards.
+struct EdgeRow {
+  const char* side;
+  double from_m;
+  std::optional<double> to_m;
+  const DsmErrorGroup* group;
+};
+std::vector<EdgeRow> EdgeRows(const DsmBreakdown& b) {
+  std::vector<EdgeRow> rows;
+  for (std::size_t k = 0; k < b.roof_bands.size(); ++k)
+    rows.push_back({"roof", b.BandFromM(k), b.BandFromM(k + 1), &b.roof_bands[k]});
+  rows.push_back({"roof", b.BandFromM(b.roof_bands.size()), std::nullopt, &b.roof_interior});
+  for (std::size_t k = 0; k < b.beside_bands.size(); ++k)
+    rows.push_back({"beside", b.BandFromM(k), b.BandFromM(k + 1), &b.beside_bands[k]});
+  return rows;
+}
+
 std::string EdgeProfileCsv(const DsmBreakdown& b) {
   std::string csv = "side,from_m,to_m,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
-  auto row = [&](const char* side, std::size_t k, const DsmErrorGroup& g, bool interior) {
-    char line[256];
-    const std::string to = interior ? "" : FormatDouble((k + 1) * b.edge_band_m);
-    std::snprintf(line, sizeof(line), "%s,%s,%s,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", side,
-                  FormatDouble(k * b.edge_band_m).c_str(), to.c_str(), g.cells, g.share, g.mae_m, g.rmse_m,
-                  g.median_abs_m, g.bias_m, g.mae_part_m);
-    csv += line;
-  };
-  for (std::size_t k = 0; k < b.roof_bands.size(); ++k) row("roof", k, b.roof_bands[k], false);
-  row("roof", b.roof_bands.size(), b.roof_interior, true);
-  for (std::size_t k = 0; k < b.beside_bands.size(); ++k) row("beside", k, b.beside_bands[k], false);
+  for (const EdgeRow& r : EdgeRows(b)) {
+    csv += std::string(r.side) + "," + FormatDouble(r.from_m) + "," + (r.to_m ? FormatDouble(*r.to_m) : "") + "," +
+           GroupCsvFigures(*r.group);
+  }
   return csv;
 }
 
-nlohmann::json BandsJson(const std::vector<DsmErrorGroup>& bands, double band_m) {
-  nlohmann::json out = nlohmann::json::array();
-  for (std::size_t k = 0; k < bands.size(); ++k) {
-    nlohmann::json j = GroupJson(bands[k]);
-    j["from_m"] = k * band_m;
-    j["to_m"] = (k + 1) * band_m;
-    out.push_back(j);
+nlohmann::json EdgeProfileJson(const DsmBreakdown& b) {
+  nlohmann::json profile = {{"band_m", b.edge_band_m}, {"roof", nlohmann::json::array()},
+                            {"beside", nlohmann::json::array()}};
+  for (const EdgeRow& r : EdgeRows(b)) {
+    nlohmann::json j = GroupJson(*r.group);
+    j["from_m"] = r.from_m;
+    if (!r.to_m) {
+      profile["roof_interior"] = j;
+      continue;
+    }
+    j["to_m"] = *r.to_m;
+    profile[r.side].push_back(j);
   }
-  return out;
+  return profile;
 }
 
 }  // namespace
@@ -146,18 +164,12 @@ nlohmann::json BandsJson(const std::vector<DsmErrorGroup>& bands, double band_m)
 nlohmann::json DsmBreakdownJson(const DsmBreakdown& b) {
   nlohmann::json classes = nlohmann::json::array();
   for (const DsmErrorGroup& g : b.classes) classes.push_back(GroupJson(g));
-  nlohmann::json interior = GroupJson(b.roof_interior);
-  interior["from_m"] = b.roof_bands.size() * b.edge_band_m;
   return {{"by_class", classes},
           {"building_rims",
            {{"rim_width_m", b.rim_width_m},
             {"roof_rim", GroupJson(b.roof_rim)},
             {"beside_buildings", GroupJson(b.beside_buildings)}}},
-          {"building_edge_profile",
-           {{"band_m", b.edge_band_m},
-            {"roof", BandsJson(b.roof_bands, b.edge_band_m)},
-            {"roof_interior", interior},
-            {"beside", BandsJson(b.beside_bands, b.edge_band_m)}}}};
+          {"building_edge_profile", EdgeProfileJson(b)}};
 }
 
 void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmCompareOptions& o,
@@ -176,6 +188,11 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
     full.update(DsmBreakdownJson(r.breakdown));
     WriteFileAtomic((dir / "report_by_class.csv").string(), BreakdownCsv(r.breakdown));
     WriteFileAtomic((dir / "report_edge_profile.csv").string(), EdgeProfileCsv(r.breakdown));
+  } else {
+    // An earlier comparison's breakdown would no longer match this report.
+    std::error_code ignored;
+    fs::remove(dir / "report_by_class.csv", ignored);
+    fs::remove(dir / "report_edge_profile.csv", ignored);
   }
   WriteFileAtomic((dir / "report.json").string(), full.dump(2) + "\n");
   char csv[512];

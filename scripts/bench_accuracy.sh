@@ -131,7 +131,7 @@ for name in sorted(os.listdir(out)):
         # accounts for (merge/dsm_breakdown.h), trained and dense-only.
         "mae_parts_m": mae_parts(d),
         "dense_mae_parts_m": mae_parts(d.get("dense") or {}),
-        # The mean signed error in bands of 0.5 m from the building outlines,
+        # The mean signed error in bands (0.5 m by default) from the building outlines,
         # roof side inwards and ground side outwards (building_edge_profile):
         # negative on the roof where roofs are eroded, positive beside them
         # where they are fattened.
@@ -175,7 +175,10 @@ lines += ["", f"Mean signed error by distance from building outlines, in bands o
           "|---|" + "---|" * (2 * bands)]
 for s in scenes:
     edge, dense = s["edge_bias_m"] or {}, s["dense_edge_bias_m"] or {}
-    cells = [f"{fmt((edge.get(side) or [None] * bands)[k], 1, 1, ' m')} ({fmt((dense.get(side) or [None] * bands)[k], 1)})"
+    def band(profile, side, k):
+        values = profile.get(side) or []
+        return values[k] if k < len(values) else None
+    cells = [f"{fmt(band(edge, side, k), 1, 1, ' m')} ({fmt(band(dense, side, k), 1)})"
              for side in ("roof", "beside") for k in range(bands)]
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
