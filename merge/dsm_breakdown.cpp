@@ -129,13 +129,14 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
       ++compared;
       const int code = ClassCodeOf(cls[p]);
       by_class[code].Add(e);
-      const float in = inside.at<float>(r, c), out = outside.at<float>(r, c);
-      if (code == options.building_class && in > 0 && in <= rim_cells) roof_rim.Add(e);
-      if (code != options.building_class && out > 0 && out <= rim_cells) beside.Add(e);
       if (code == options.building_class) {
+        const float in = inside.at<float>(r, c);
+        if (in > 0 && in <= rim_cells) roof_rim.Add(e);
         const int k = band_of(in);
         (k < options.edge_bands ? roof_bands[k] : roof_interior).Add(e);
       } else {
+        const float out = outside.at<float>(r, c);
+        if (out > 0 && out <= rim_cells) beside.Add(e);
         const int k = band_of(out);
         if (k < options.edge_bands) beside_bands[k].Add(e);
       }

@@ -53,7 +53,6 @@ struct DsmBreakdown {
   std::vector<DsmErrorGroup> roof_bands, beside_bands;
   DsmErrorGroup roof_interior;
   double edge_band_m = 0;
-  double BandFromM(std::size_t k) const { return static_cast<double>(k) * edge_band_m; }
   // The classes, then the roof rim and the band beside buildings: the order
   // of the report's rows.
   std::vector<DsmErrorGroup> Groups() const;

@@ -101,7 +101,7 @@ nlohmann::json GroupJson(const DsmErrorGroup& g) {
   return j;
 }
 
-// One CSV row of a group's figures, after the columns given in `head`.
+// The end of a CSV row: a group's figures from `cells` on.
 std::string GroupCsvFigures(const DsmErrorGroup& g) {
   char line[192];
   std::snprintf(line, sizeof(line), "%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", g.cells, g.share, g.mae_m, g.rmse_m,
@@ -125,12 +125,13 @@ struct EdgeRow {
   const DsmErrorGroup* group;
 };
 std::vector<EdgeRow> EdgeRows(const DsmBreakdown& b) {
+  const auto bound_m = [&](std::size_t k) { return static_cast<double>(k) * b.edge_band_m; };
   std::vector<EdgeRow> rows;
   for (std::size_t k = 0; k < b.roof_bands.size(); ++k)
-    rows.push_back({"roof", b.BandFromM(k), b.BandFromM(k + 1), &b.roof_bands[k]});
-  rows.push_back({"roof", b.BandFromM(b.roof_bands.size()), std::nullopt, &b.roof_interior});
+    rows.push_back({"roof", bound_m(k), bound_m(k + 1), &b.roof_bands[k]});
+  rows.push_back({"roof", bound_m(b.roof_bands.size()), std::nullopt, &b.roof_interior});
   for (std::size_t k = 0; k < b.beside_bands.size(); ++k)
-    rows.push_back({"beside", b.BandFromM(k), b.BandFromM(k + 1), &b.beside_bands[k]});
+    rows.push_back({"beside", bound_m(k), bound_m(k + 1), &b.beside_bands[k]});
   return rows;
 }
 

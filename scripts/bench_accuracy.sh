@@ -173,11 +173,11 @@ lines += ["", f"Mean signed error by distance from building outlines, in bands o
           "| scene | " + " | ".join(f"roof {k * band_m:g}-{(k + 1) * band_m:g} m" for k in range(bands)) + " | " +
           " | ".join(f"beside {k * band_m:g}-{(k + 1) * band_m:g} m" for k in range(bands)) + " |",
           "|---|" + "---|" * (2 * bands)]
+def band(profile, side, k):
+    values = profile.get(side) or []
+    return values[k] if k < len(values) else None
 for s in scenes:
     edge, dense = s["edge_bias_m"] or {}, s["dense_edge_bias_m"] or {}
-    def band(profile, side, k):
-        values = profile.get(side) or []
-        return values[k] if k < len(values) else None
     cells = [f"{fmt(band(edge, side, k), 1, 1, ' m')} ({fmt(band(dense, side, k), 1)})"
              for side in ("roof", "beside") for k in range(bands)]
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
