@@ -1,7 +1,10 @@
 // skyfall synth --out ROOT [...]: the built-in synthetic city.
 #include <spdlog/spdlog.h>
 
+#include <cstdint>
 #include <iostream>
+#include <memory>
+#include <vector>
 
 #include "apps/commands.h"
 #include "apps/console.h"
@@ -17,10 +20,12 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
   auto render_cameras = std::make_shared<std::string>();
   auto render_out = std::make_shared<std::string>();
   auto lighting_view = std::make_shared<int>(0);
+  auto draw = std::make_shared<std::uint64_t>(0);
   CLI::App* cmd = app.add_subcommand(
       "synth",
       "Write a procedural satellite city as a DFC2019-style tree (RGB crops with RPCs, truth "
       "DSM/CLS, Sat-NeRF JSONs) that `skyfall ingest` reads like real data");
+  std::vector<CLI::Option*> drawn;  // the options --draw chooses
   cmd->add_option("--out", *out, "Root folder of the tree to write");
   cmd->add_option("--render-cameras", *render_cameras,
                   "Instead of the tree: truth images of the same city for the cameras of this cameras.json "
@@ -29,34 +34,50 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--lighting-view", *lighting_view, "Truth images are lit as this image (0-based) of the first AOI")
       ->capture_default_str();
   cmd->add_option("--aoi", opts->aoi, "AOI name, NAME_NNN")->capture_default_str();
-  cmd->add_option("--seed", opts->seed, "Random seed; equal seeds give identical output")
-      ->capture_default_str();
+  drawn.push_back(cmd->add_option("--seed", opts->seed, "Random seed; equal seeds give identical output")
+      ->capture_default_str());
   cmd->add_option("--size-m", opts->size_m, "AOI side [m]")->capture_default_str();
   cmd->add_option("--gsd-m", opts->gsd_m, "Ground sampling distance [m]")->capture_default_str();
-  cmd->add_option("--views", opts->views, "Images per AOI")->capture_default_str();
-  cmd->add_option("--lat", opts->lat_deg, "City centre latitude [deg]")->capture_default_str();
-  cmd->add_option("--lon", opts->lon_deg, "City centre longitude [deg]")->capture_default_str();
+  drawn.push_back(cmd->add_option("--views", opts->views, "Images per AOI")->capture_default_str());
+  drawn.push_back(cmd->add_option("--lat", opts->lat_deg, "City centre latitude [deg]")->capture_default_str());
+  drawn.push_back(cmd->add_option("--lon", opts->lon_deg, "City centre longitude [deg]")->capture_default_str());
   cmd->add_option("--blocks-x", opts->blocks_x, "Adjacent AOIs along east")->capture_default_str();
   cmd->add_option("--blocks-y", opts->blocks_y, "Adjacent AOIs along north")->capture_default_str();
-  cmd->add_option("--min-off-nadir", opts->min_off_nadir_deg, "Smallest off-nadir angle of the views [deg]")
-      ->capture_default_str();
-  cmd->add_option("--max-off-nadir", opts->max_off_nadir_deg, "Largest off-nadir angle of the views [deg]")
-      ->capture_default_str();
-  cmd->add_option("--views-per-date", opts->views_per_date, "Images taken on one pass (same light)")
-      ->capture_default_str();
-  cmd->add_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)")->capture_default_str();
-  cmd->add_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)")->capture_default_str();
-  cmd->add_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]")->capture_default_str();
-  cmd->add_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)")
-      ->capture_default_str();
+  drawn.push_back(cmd->add_option("--min-off-nadir", opts->min_off_nadir_deg, "Smallest off-nadir angle of the views [deg]")
+      ->capture_default_str());
+  drawn.push_back(cmd->add_option("--max-off-nadir", opts->max_off_nadir_deg, "Largest off-nadir angle of the views [deg]")
+      ->capture_default_str());
+  drawn.push_back(cmd->add_option("--views-per-date", opts->views_per_date, "Images taken on one pass (same light)")
+      ->capture_default_str());
+  drawn.push_back(cmd->add_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)")->capture_default_str());
+  drawn.push_back(cmd->add_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)")->capture_default_str());
+  drawn.push_back(cmd->add_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]")->capture_default_str());
+  drawn.push_back(cmd->add_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)")
+      ->capture_default_str());
   cmd->add_option("--rpc-height-offset-m", opts->rpc_height_offset_m,
                   "Put the RPCs' HEIGHT_OFF this far from the scene (a stiff case) [m]")
       ->capture_default_str();
-  cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
-      ->capture_default_str();
-  cmd->callback([runner, opts, out, render_cameras, render_out, lighting_view] {
-    *runner = [opts, out, render_cameras, render_out, lighting_view] {
+  drawn.push_back(cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
+      ->capture_default_str());
+  CLI::Option* draw_option = cmd->add_option(
+      "--draw", *draw,
+      "Draw the scene at random instead (N >= 1; equal N, equal scene): seed, latitude, longitude, "
+      "off-nadir range, views, views per date, bands, bit depth, relief, tallest building and date contrast, "
+      "recorded in synth_report.json's options; for accuracy checks on scenes no setting was chosen on")
+      ->check(CLI::PositiveNumber);
+  for (CLI::Option* o : drawn) draw_option->excludes(o);
+  cmd->callback([runner, opts, out, render_cameras, render_out, lighting_view, draw] {
+    *runner = [opts, out, render_cameras, render_out, lighting_view, draw] {
       ConsoleProgress progress;
+      if (*draw > 0) {
+        *opts = synth::DrawSceneOptions(*draw, *opts);
+        spdlog::info(
+            "synth: draw {}: seed {}, lat {} lon {}, off-nadir {}-{} deg, {} views ({} per date), {} band(s) of {} "
+            "bits, relief {} m, buildings up to {} m, date contrast {}",
+            *draw, opts->seed, opts->lat_deg, opts->lon_deg, opts->min_off_nadir_deg, opts->max_off_nadir_deg,
+            opts->views, opts->views_per_date, opts->bands, opts->bit_depth, opts->relief_m, opts->max_building_m,
+            opts->date_contrast);
+      }
       if (!render_cameras->empty()) {
         if (render_out->empty()) throw Error("synth", "--render-out", "is needed with --render-cameras");
         const int n = synth::RenderTruthViews(*opts, ReadCameras(*render_cameras),

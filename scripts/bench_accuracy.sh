@@ -5,10 +5,14 @@
 # Writes OUT/bench_accuracy.json (one object per scene), OUT/bench_accuracy.md
 # (a table) and OUT/bench_accuracy.png (DSM MAE against run time).
 #
-# Usage: scripts/bench_accuracy.sh [--quick] [--scenes a,b,...] [OUT]
+# Usage: scripts/bench_accuracy.sh [--quick] [--scenes a,b,...] [--draw N [--draw-from K]] [OUT]
 #   --quick   synthetic scenes of 128 m instead of 256 m (about 4x faster;
 #             the figures are then not comparable with full runs)
 #   --scenes  a subset, by name (see SCENES below); default: all
+#   --draw    instead of the fixed scenes, N synthetic scenes drawn at random
+#             (`skyfall synth --draw K`, K = draw-from .. draw-from+N-1, named
+#             drawK): scenes no setting was chosen on; their options are in
+#             the JSON and the Markdown table
 # Reruns resume: finished runs are reused, so adding a scene costs one run.
 # SKYFALL_BIN: the skyfall binary to measure (default build/bin/skyfall; copy
 # it elsewhere to keep building while the benchmark runs). SKYFALL_RUN_ARGS:
@@ -18,12 +22,16 @@ cd "$(dirname "$0")/.."
 
 SIZE=256
 ONLY=""
+DRAW=0
+DRAW_FROM=1
 OUT=out/bench_accuracy
 while [ $# -gt 0 ]; do
   case "$1" in
     --quick) SIZE=128; shift ;;
     --scenes) ONLY=",$2,"; shift 2 ;;
-    -h|--help) sed -n 2,13p "$0"; exit 0 ;;
+    --draw) DRAW=$2; shift 2 ;;
+    --draw-from) DRAW_FROM=$2; shift 2 ;;
+    -h|--help) sed -n 2,17p "$0"; exit 0 ;;
     *) OUT=$1; shift ;;
   esac
 done
@@ -47,6 +55,15 @@ SCENES=(
   "syn_towers|false|--max-building-m 180"
   "syn_multidate|false|--date-contrast 3 --views-per-date 1"
 )
+if ! [[ "$DRAW" =~ ^[0-9]+$ && "$DRAW_FROM" =~ ^[1-9][0-9]*$ ]]; then
+  echo "bench_accuracy: --draw needs a count >= 0 and --draw-from a number >= 1, got '$DRAW' and '$DRAW_FROM'" >&2
+  exit 2
+fi
+FIXED=("${SCENES[@]}")  # what was tuned on stays marked, whichever scenes this run makes
+if [ "$DRAW" -gt 0 ]; then
+  SCENES=()
+  for ((k = DRAW_FROM; k < DRAW_FROM + DRAW; ++k)); do SCENES+=("draw$k|false|--draw $k"); done
+fi
 
 for entry in "${SCENES[@]}"; do
   IFS='|' read -r name tuned flags <<< "$entry"
@@ -77,7 +94,7 @@ for entry in "${SCENES[@]}"; do
 done
 
 TUNED=""
-for e in "${SCENES[@]}"; do
+for e in "${FIXED[@]}"; do
   IFS='|' read -r n t _ <<< "$e"
   if [ "$t" = true ]; then TUNED="$TUNED$n,"; fi
 done
@@ -86,6 +103,9 @@ import json, os, sys
 out, size = sys.argv[1], int(sys.argv[2])
 tuned = set(filter(None, sys.argv[3].split(",")))
 scenes = []
+def synth_options(name):
+    path = os.path.join(out, name, "input", "synth_report.json")
+    return json.load(open(path)).get("options") if os.path.isfile(path) else None
 for name in sorted(os.listdir(out)):
     summary_path = os.path.join(out, name, "run", "run_summary.json")
     if not os.path.isfile(summary_path):
@@ -139,6 +159,8 @@ for name in sorted(os.listdir(out)):
         "dense_edge_bias_m": edge_bias(d.get("dense") or {}),
         "tuned_on": name in tuned,
         "synthetic_size_m": None if name == "jax068" else size,
+        # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
+        "synth_options": synth_options(name),
     })
 doc = {"schema": "skyfall.bench_accuracy/1", "scenes": scenes}
 with open(os.path.join(out, "bench_accuracy.json.tmp"), "w") as f:
@@ -181,6 +203,17 @@ for s in scenes:
     cells = [f"{fmt(band(edge, side, k), 1, 1, ' m')} ({fmt(band(dense, side, k), 1)})"
              for side in ("roof", "beside") for k in range(bands)]
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
+described = [s for s in scenes if s["synth_options"]]
+if described:
+    lines += ["", "The synthetic scenes' options (`skyfall synth`; drawn scenes: `--draw K`):", "",
+              "| scene | seed | lat, lon | off-nadir | views (per date) | bands x bits | relief | tallest | date contrast |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for s in described:
+        o = s["synth_options"]
+        lines.append(f"| {s['scene']} | {o['seed']} | {o['lat_deg']:g}, {o['lon_deg']:g} | "
+                     f"{o['min_off_nadir_deg']:g}-{o['max_off_nadir_deg']:g} deg | {o['views']} ({o['views_per_date']}) | "
+                     f"{o['bands']} x {o['bit_depth']} | {o['relief_m']:g} m | {o['max_building_m']:g} m | "
+                     f"{o['date_contrast']:g} |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))
 PY

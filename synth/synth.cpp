@@ -5,6 +5,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <random>
+#include <array>
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
@@ -19,6 +22,26 @@ namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+
+// The options a scene was made with (synth_report.json's "options"), so
+// that a drawn scene can be described and made again.
+json SceneOptionsJson(const SynthOptions& o) {
+  return {{"seed", o.seed},
+          {"size_m", o.size_m},
+          {"gsd_m", o.gsd_m},
+          {"views", o.views},
+          {"views_per_date", o.views_per_date},
+          {"lat_deg", o.lat_deg},
+          {"lon_deg", o.lon_deg},
+          {"min_off_nadir_deg", o.min_off_nadir_deg},
+          {"max_off_nadir_deg", o.max_off_nadir_deg},
+          {"bit_depth", o.bit_depth},
+          {"bands", o.bands},
+          {"max_building_m", o.max_building_m},
+          {"relief_m", o.relief_m},
+          {"date_contrast", o.date_contrast},
+          {"rpc_height_offset_m", o.rpc_height_offset_m}};
+}
 
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kEarthRadiusM = 6371000.0;  // spherical Earth for the orbit geometry
@@ -303,6 +326,41 @@ void WriteSensorImage(const std::string& path, const RenderedView& img, const Sy
 
 }  // namespace
 
+namespace {
+
+// Uniform in [0, 1) from the generator's top 53 bits.
+double Unit(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+double Uniform(std::mt19937_64& rng, double lo, double hi) { return lo + (hi - lo) * Unit(rng); }
+template <typename T, std::size_t N>
+T Pick(std::mt19937_64& rng, const std::array<T, N>& values) {
+  return values[std::min(N - 1, static_cast<std::size_t>(Unit(rng) * N))];
+}
+// Drawn angles and lengths are kept to a tenth: the options read back the same from the report.
+double Tenth(double v) { return std::round(v * 10.0) / 10.0; }
+
+}  // namespace
+
+SynthOptions DrawSceneOptions(std::uint64_t draw, const SynthOptions& base) {
+  // The generator is seeded by the draw number; the city's own seed is drawn
+  // from it, offset so that it never meets the small seeds used for tuning.
+  std::mt19937_64 rng(0x5eedULL ^ (draw * 0x9E3779B97F4A7C15ULL));
+  SynthOptions o = base;
+  o.seed = 1000000 + (rng() % 1000000000ULL);
+  o.lat_deg = Tenth(Uniform(rng, -60.0, 60.0));
+  o.lon_deg = Tenth(Uniform(rng, -180.0, 180.0));
+  o.min_off_nadir_deg = Tenth(Uniform(rng, 0.0, 20.0));
+  o.max_off_nadir_deg = std::min(45.0, Tenth(o.min_off_nadir_deg + Uniform(rng, 10.0, 25.0)));
+  o.views = Pick(rng, std::array<int, 7>{3, 4, 6, 8, 10, 12, 16});
+  o.views_per_date = std::min(o.views, Pick(rng, std::array<int, 3>{1, 2, 3}));
+  o.bands = Unit(rng) < 1.0 / 3.0 ? 1 : 3;
+  o.bit_depth = Pick(rng, std::array<int, 5>{8, 11, 12, 14, 16});
+  o.relief_m = Unit(rng) < 0.5 ? 0.0 : Tenth(Uniform(rng, 10.0, 100.0));
+  o.max_building_m = Tenth(Uniform(rng, 15.0, 180.0));
+  o.date_contrast = Tenth(Uniform(rng, 0.5, 3.0));
+  o.Check();
+  return o;
+}
+
 void SynthOptions::Check() const {
   auto need = [](bool ok, const char* field, const std::string& value, const char* rule) {
     if (!ok) throw Error("synth", field, value + " is invalid: " + rule);
@@ -486,6 +544,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
   progress.End();
 
   json report = {{"seed", o.seed},
+                 {"options", SceneOptionsJson(o)},
                  {"epsg", r.epsg},
                  {"utm_origin_m", {r.utm_easting0_m, r.utm_northing0_m}},
                  {"buildings", r.city.buildings.size()},

@@ -49,6 +49,18 @@ struct SynthOptions {
   void Check() const;            // throws Error("synth", field, ...)
 };
 
+// Scene options drawn at random, for accuracy checks on scenes that no
+// setting was chosen on (`skyfall synth --draw`, scripts/bench_accuracy.sh
+// --draw). `base` gives what is not drawn (AOI name, size, GSD, blocks,
+// orbit, cars, margins); drawn: the city's seed, latitude (-60..60 deg) and
+// longitude, off-nadir range (smallest 0-20 deg, largest 10-25 deg more, at
+// most 45), views (3-16) and views per date (1-3), sensor (1 band in a
+// third of the draws; 8, 11, 12, 14 or 16 bits), relief (none in half of
+// the draws, else 10-100 m), tallest building (15-180 m) and date contrast
+// (0.5-3). Equal `draw` numbers give equal options on every platform (the
+// generator's bits are mapped by hand, not by std:: distributions).
+SynthOptions DrawSceneOptions(std::uint64_t draw, const SynthOptions& base);
+
 // One image as written, with what a test needs to check it.
 struct SynthView {
   std::string name;               // NAME_NNN_RGB

@@ -724,5 +724,57 @@ TEST(Synth, OptionsAreChecked) {
   EXPECT_THROW(o.Check(), Error);
 }
 
+// Drawn scenes must each be a valid scene, made again from the same number,
+// keep what is not drawn, and over many draws reach every part of the ranges
+// DrawSceneOptions documents. The share bounds are wide (400 draws: a
+// binomial share of 1/3 or 1/2 lies within +-0.1 with probability > 0.999).
+TEST(Synth, DrawnScenesAreValidRepeatableAndSpanTheirRanges) {
+  SynthOptions base;
+  base.aoi = "DRW_007";
+  base.size_m = 128;
+  int one_band = 0, flat = 0, south = 0, tall = 0, few_views = 0, sixteen_bits = 0, oblique = 0;
+  std::set<std::uint64_t> seeds;
+  const int draws = 400;
+  for (int d = 1; d <= draws; ++d) {
+    const SynthOptions o = DrawSceneOptions(d, base);
+    const SynthOptions again = DrawSceneOptions(d, base);
+    EXPECT_EQ(o.seed, again.seed);
+    EXPECT_EQ(o.lat_deg, again.lat_deg);
+    EXPECT_EQ(o.max_building_m, again.max_building_m);
+    EXPECT_NO_THROW(o.Check());
+    EXPECT_EQ(o.aoi, "DRW_007");
+    EXPECT_EQ(o.size_m, 128);
+    EXPECT_EQ(o.gsd_m, base.gsd_m);
+    EXPECT_GE(o.seed, 1000000u) << "drawn cities never reuse the small seeds the tuning cities have";
+    seeds.insert(o.seed);
+    EXPECT_LE(std::abs(o.lat_deg), 60.0);
+    EXPECT_GE(o.min_off_nadir_deg, 0.0);
+    EXPECT_LE(o.min_off_nadir_deg, 20.0);
+    EXPECT_GE(o.max_off_nadir_deg, std::min(45.0, o.min_off_nadir_deg + 10.0) - 0.05);
+    EXPECT_LE(o.max_off_nadir_deg, 45.0);
+    EXPECT_GE(o.views, 3);
+    EXPECT_LE(o.views, 16);
+    EXPECT_LE(o.views_per_date, o.views);
+    EXPECT_GE(o.max_building_m, 15.0);
+    EXPECT_LE(o.max_building_m, 180.0);
+    EXPECT_TRUE(o.relief_m == 0.0 || (o.relief_m >= 10.0 && o.relief_m <= 100.0)) << o.relief_m;
+    EXPECT_GE(o.date_contrast, 0.5);
+    EXPECT_LE(o.date_contrast, 3.0);
+    one_band += o.bands == 1;
+    flat += o.relief_m == 0.0;
+    south += o.lat_deg < 0;
+    tall += o.max_building_m >= 150.0;
+    few_views += o.views <= 4;
+    sixteen_bits += o.bit_depth == 16;
+    oblique += o.min_off_nadir_deg >= 15.0;
+  }
+  EXPECT_EQ(seeds.size(), static_cast<std::size_t>(draws));
+  EXPECT_NEAR(one_band / double(draws), 1.0 / 3.0, 0.1);
+  EXPECT_NEAR(flat / double(draws), 0.5, 0.1);
+  EXPECT_NEAR(south / double(draws), 0.5, 0.1);
+  for (int count : {tall, few_views, sixteen_bits, oblique}) EXPECT_GT(count, draws / 20);
+  EXPECT_NE(DrawSceneOptions(1, base).seed, DrawSceneOptions(2, base).seed);
+}
+
 }  // namespace
 }  // namespace skyfall::synth

@@ -414,6 +414,31 @@ TEST(Cli, ReportPlotsErrorAgainstRunTimeAcrossScenes) {
   EXPECT_NE(bad.err.find("broken.json"), std::string::npos) << bad.err;
 }
 
+// `synth --draw N` makes the same drawn scene every time, records its
+// options, and refuses the scene options it draws itself.
+TEST(Cli, SynthDrawRecordsItsOptionsAndRefusesTheOnesItDraws) {
+  const fs::path dir = ScratchDir("synth_draw");
+  auto options_of = [&](const std::string& name) {
+    const std::string root = (dir / name).string();
+    const CommandResult r = RunCommand(Skyfall() + " synth --out " + root + " --size-m 32 --draw 5", dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return nlohmann::json::parse(std::ifstream(root + "/synth_report.json")).at("options");
+  };
+  const nlohmann::json a = options_of("a"), b = options_of("b");
+  EXPECT_EQ(a, b);
+  EXPECT_GE(a.at("seed").get<std::uint64_t>(), 1000000u);
+  EXPECT_EQ(a.at("size_m").get<double>(), 32.0);
+  for (const char* drawn : {"--seed 3", "--lat 10", "--views 4", "--bands 1", "--relief-m 20"}) {
+    const CommandResult clash =
+        RunCommand(Skyfall() + " synth --out " + (dir / "c").string() + " --draw 5 " + drawn, dir);
+    EXPECT_NE(clash.exit_code, 0) << drawn;
+    EXPECT_NE(clash.err.find("--draw"), std::string::npos) << clash.err;
+  }
+  const CommandResult zero = RunCommand(Skyfall() + " synth --out " + (dir / "z").string() + " --draw 0", dir);
+  EXPECT_NE(zero.exit_code, 0);
+  EXPECT_FALSE(fs::exists(dir / "z" / "synth_report.json"));
+}
+
 TEST(Cli, TileWithoutImagesIsSkippedNotFatal) {
   const fs::path dir = ScratchDir("run");
   const std::string root = (dir / "city").string(), cat = (dir / "catalogs").string();
