@@ -728,20 +728,33 @@ std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& s
 
 std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& g, const std::vector<float>& surface_m,
                                            const std::vector<float>& terrain_m,
-                                           const std::vector<Eigen::Vector3d>& to_cameras, double tolerance_m,
+                                           const std::vector<Eigen::Vector3d>& to_cameras,
+                                           const std::vector<std::array<int, 2>>& pairs, double tolerance_m,
                                            double floor_m) {
   const std::size_t cells = static_cast<std::size_t>(g.nx) * g.ny;
   if (surface_m.size() != cells || terrain_m.size() != cells)
     throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
-  std::vector<std::uint8_t> seen_by(cells, 0);
-  for (const Eigen::Vector3d& to_camera : to_cameras) {
-    const std::vector<float> seen_above = VisibleAbove(g, surface_m, to_camera, floor_m);
-    for (std::size_t k = 0; k < cells; ++k)
-      if (terrain_m[k] + tolerance_m >= seen_above[k] && seen_by[k] < 2) ++seen_by[k];
+  const int views = static_cast<int>(to_cameras.size());
+  for (const auto& p : pairs)
+    if (p[0] < 0 || p[1] < 0 || p[0] >= views || p[1] >= views)
+      throw Error("dense", "pair", std::to_string(p[0]) + "-" + std::to_string(p[1]) + " names a view beyond the " +
+                                       std::to_string(views) + " given");
+  // Per view, the cells whose ground point it sees.
+  std::vector<std::vector<std::uint8_t>> sees(to_cameras.size());
+  for (int v = 0; v < views; ++v) {
+    const std::vector<float> seen_above = VisibleAbove(g, surface_m, to_cameras[v], floor_m);
+    sees[v].resize(cells);
+    for (std::size_t k = 0; k < cells; ++k) sees[v][k] = terrain_m[k] + tolerance_m >= seen_above[k] ? 1 : 0;
+  }
+  std::vector<std::uint8_t> seen_by_pair(cells, 0);
+  for (const auto& p : pairs) {
+    const std::vector<std::uint8_t>& a = sees[p[0]];
+    const std::vector<std::uint8_t>& b = sees[p[1]];
+    for (std::size_t k = 0; k < cells; ++k) seen_by_pair[k] |= a[k] & b[k];
   }
   std::vector<std::uint8_t> occluded(cells, 0);
   for (std::size_t k = 0; k < cells; ++k)
-    occluded[k] = !std::isfinite(surface_m[k]) && std::isfinite(terrain_m[k]) && seen_by[k] < 2 ? 1 : 0;
+    occluded[k] = !std::isfinite(surface_m[k]) && std::isfinite(terrain_m[k]) && !seen_by_pair[k] ? 1 : 0;
   return occluded;
 }
 
@@ -865,11 +878,13 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
   std::vector<Eigen::Vector3d> to_cameras;
   for (int v : used_views) to_cameras.push_back(views[v].camera.Centre() - centre);
+  std::vector<std::array<int, 2>> camera_pairs;  // pairs_used, as indices into to_cameras
+  for (const DensePair& p : result.pairs_used) camera_pairs.push_back({slot[p.a], slot[p.b]});
   std::size_t occluded_cells = 0;
   std::vector<std::uint8_t> fill_occluded;  // of the last fill_holes
   auto fill_holes = [&](std::vector<float>& heights) {
     const GroundModel model = GroundModelOf(heights, g.nx, g.ny, fill);
-    fill_occluded = OccludedAtGround(g, heights, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
+    fill_occluded = OccludedAtGround(g, heights, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
     occluded_cells = static_cast<std::size_t>(std::count(fill_occluded.begin(), fill_occluded.end(), 1));
     return FillHoles(heights, g.nx, g.ny, fill, model, &fill_occluded);
   };
@@ -916,7 +931,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   if (o.fill_holes) {
     const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
     const std::vector<std::uint8_t> occluded =
-        OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, o.visibility_tolerance_m, z_lo);
+        OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
     occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
     std::vector<std::uint8_t> from_coarse(cells, 0);
     if (o.coarse_factor > 1) {

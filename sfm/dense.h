@@ -190,12 +190,17 @@ std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>
                                 const Eigen::Vector3d& to_camera, double floor_m, int near_cells = 0);
 
 // Cells of `surface_m` (nx x ny, NaN = hole) whose ground point (the
-// terrain's height plus `tolerance_m`) fewer than two of the views (ENU
-// directions toward them) see past the measured surface: holes that no
-// image pair can measure, whatever the texture. 0 for measured cells.
+// terrain's height plus `tolerance_m`) no image pair sees past the measured
+// surface with both its views (`to_cameras`: ENU directions toward the
+// views; `pairs`: the pairs the sweep matches with, as indices into
+// `to_cameras`): holes that no pair can measure, whatever the texture. Two
+// views that each see a street between tall buildings but are too far apart
+// to be matched (or were not selected) do not make it measurable. 0 for
+// measured cells. Throws Error for a pair index out of range.
 std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& grid, const std::vector<float>& surface_m,
                                            const std::vector<float>& terrain_m,
-                                           const std::vector<Eigen::Vector3d>& to_cameras, double tolerance_m,
+                                           const std::vector<Eigen::Vector3d>& to_cameras,
+                                           const std::vector<std::array<int, 2>>& pairs, double tolerance_m,
                                            double floor_m);
 
 // Semi-global matching over a cost volume laid out cell-major

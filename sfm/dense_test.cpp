@@ -195,7 +195,7 @@ TEST(Dense, ABuildingHidesTheGroundBehindItFromObliqueViewsOnly) {
   EXPECT_FLOAT_EQ(VisibleAbove(g, band, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], 9.0f);
 }
 
-TEST(Dense, GroundNoPairSeesIsOccludedAndOpenHolesAreNot) {
+TEST(Dense, GroundNoMatchedPairSeesIsOccludedAndOpenHolesAreNot) {
   // 60 x 40 cells of 0.5 m, flat ground at 0 m; a 20 m block over columns
   // 20-39, rows 20-29; an empty strip south of it (rows 12-19) and an empty
   // patch in the open (columns 5-8, rows 5-8).
@@ -220,7 +220,8 @@ TEST(Dense, GroundNoPairSeesIsOccludedAndOpenHolesAreNot) {
   // Two northern views and one southern: the strip is seen by one view only
   // (but at its east end, where the north-north-eastern view looks past the
   // block's corner).
-  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, kTolM, -5.0);
+  const std::vector<std::array<int, 2>> pairs_of_three = {{0, 1}, {0, 2}, {1, 2}};
+  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, pairs_of_three, kTolM, -5.0);
   for (int j = 12; j < 20; ++j)
     for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, three)) << i << "," << j;
   EXPECT_FALSE(occluded(38, 12, three));
@@ -230,12 +231,22 @@ TEST(Dense, GroundNoPairSeesIsOccludedAndOpenHolesAreNot) {
     if (std::isfinite(surface[k])) {
       EXPECT_EQ(three[k], 0);
     }
-  // A second southern view makes a pair that sees the strip.
+  // A second southern view sees the strip too, but only a pair that is
+  // matched measures it: without the pair of the two southern views the
+  // strip stays occluded, with it the strip is seen.
   views.emplace_back(0.3, -1, 2);
-  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, kTolM, -5.0);
+  const std::vector<std::array<int, 2>> without_south_pair = {{0, 1}, {0, 2}, {1, 2}, {0, 3}, {1, 3}};
+  const std::vector<std::uint8_t> unmatched =
+      OccludedAtGround(g, surface, terrain, views, without_south_pair, kTolM, -5.0);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, unmatched)) << i << "," << j;
+  std::vector<std::array<int, 2>> all_pairs = without_south_pair;
+  all_pairs.push_back({2, 3});
+  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0);
   for (int j = 12; j < 20; ++j)
     for (int i = 21; i < 39; ++i) EXPECT_FALSE(occluded(i, j, four)) << i << "," << j;
-  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, kTolM, -5.0), Error);
+  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, all_pairs, kTolM, -5.0), Error);
+  EXPECT_THROW(OccludedAtGround(g, surface, terrain, views, {{0, 4}}, kTolM, -5.0), Error);
 }
 
 TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {
