@@ -25,7 +25,10 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
       "synth",
       "Write a procedural satellite city as a DFC2019-style tree (RGB crops with RPCs, truth "
       "DSM/CLS, Sat-NeRF JSONs) that `skyfall ingest` reads like real data");
-  std::vector<CLI::Option*> drawn;  // the options --draw chooses
+  std::vector<CLI::Option*> drawn;  // the options --draw chooses, refused beside it
+  auto drawn_option = [&](const std::string& name, auto& value, const std::string& help) {
+    drawn.push_back(cmd->add_option(name, value, help)->capture_default_str());
+  };
   cmd->add_option("--out", *out, "Root folder of the tree to write");
   cmd->add_option("--render-cameras", *render_cameras,
                   "Instead of the tree: truth images of the same city for the cameras of this cameras.json "
@@ -34,31 +37,25 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--lighting-view", *lighting_view, "Truth images are lit as this image (0-based) of the first AOI")
       ->capture_default_str();
   cmd->add_option("--aoi", opts->aoi, "AOI name, NAME_NNN")->capture_default_str();
-  drawn.push_back(cmd->add_option("--seed", opts->seed, "Random seed; equal seeds give identical output")
-      ->capture_default_str());
+  drawn_option("--seed", opts->seed, "Random seed; equal seeds give identical output");
   cmd->add_option("--size-m", opts->size_m, "AOI side [m]")->capture_default_str();
   cmd->add_option("--gsd-m", opts->gsd_m, "Ground sampling distance [m]")->capture_default_str();
-  drawn.push_back(cmd->add_option("--views", opts->views, "Images per AOI")->capture_default_str());
-  drawn.push_back(cmd->add_option("--lat", opts->lat_deg, "City centre latitude [deg]")->capture_default_str());
-  drawn.push_back(cmd->add_option("--lon", opts->lon_deg, "City centre longitude [deg]")->capture_default_str());
+  drawn_option("--views", opts->views, "Images per AOI");
+  drawn_option("--lat", opts->lat_deg, "City centre latitude [deg]");
+  drawn_option("--lon", opts->lon_deg, "City centre longitude [deg]");
   cmd->add_option("--blocks-x", opts->blocks_x, "Adjacent AOIs along east")->capture_default_str();
   cmd->add_option("--blocks-y", opts->blocks_y, "Adjacent AOIs along north")->capture_default_str();
-  drawn.push_back(cmd->add_option("--min-off-nadir", opts->min_off_nadir_deg, "Smallest off-nadir angle of the views [deg]")
-      ->capture_default_str());
-  drawn.push_back(cmd->add_option("--max-off-nadir", opts->max_off_nadir_deg, "Largest off-nadir angle of the views [deg]")
-      ->capture_default_str());
-  drawn.push_back(cmd->add_option("--views-per-date", opts->views_per_date, "Images taken on one pass (same light)")
-      ->capture_default_str());
-  drawn.push_back(cmd->add_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)")->capture_default_str());
-  drawn.push_back(cmd->add_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)")->capture_default_str());
-  drawn.push_back(cmd->add_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]")->capture_default_str());
-  drawn.push_back(cmd->add_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)")
-      ->capture_default_str());
+  drawn_option("--min-off-nadir", opts->min_off_nadir_deg, "Smallest off-nadir angle of the views [deg]");
+  drawn_option("--max-off-nadir", opts->max_off_nadir_deg, "Largest off-nadir angle of the views [deg]");
+  drawn_option("--views-per-date", opts->views_per_date, "Images taken on one pass (same light)");
+  drawn_option("--bit-depth", opts->bit_depth, "8 (Byte) or 11..16 (UInt16 digital numbers)");
+  drawn_option("--bands", opts->bands, "3 (RGB) or 1 (panchromatic)");
+  drawn_option("--max-building-m", opts->max_building_m, "Tallest building above ground [m]");
+  drawn_option("--relief-m", opts->relief_m, "Hills under the city, peak to peak [m] (slopes up to relief*pi/1000)");
   cmd->add_option("--rpc-height-offset-m", opts->rpc_height_offset_m,
                   "Put the RPCs' HEIGHT_OFF this far from the scene (a stiff case) [m]")
       ->capture_default_str();
-  drawn.push_back(cmd->add_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)")
-      ->capture_default_str());
+  drawn_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)");
   CLI::Option* draw_option = cmd->add_option(
       "--draw", *draw,
       "Draw the scene at random instead (N >= 1; equal N, equal scene): seed, latitude, longitude, "

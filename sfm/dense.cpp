@@ -884,7 +884,8 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   std::vector<std::uint8_t> fill_occluded;  // of the last fill_holes
   auto fill_holes = [&](std::vector<float>& heights) {
     const GroundModel model = GroundModelOf(heights, g.nx, g.ny, fill);
-    fill_occluded = OccludedAtGround(g, heights, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
+    fill_occluded =
+        OccludedAtGround(g, heights, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
     occluded_cells = static_cast<std::size_t>(std::count(fill_occluded.begin(), fill_occluded.end(), 1));
     return FillHoles(heights, g.nx, g.ny, fill, model, &fill_occluded);
   };

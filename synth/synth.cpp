@@ -1,13 +1,13 @@
 #include "synth/synth.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
 #include <random>
-#include <array>
-#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
@@ -323,10 +323,6 @@ void WriteSensorImage(const std::string& path, const RenderedView& img, const Sy
   for (std::size_t k = 0; k < values.size(); ++k) dn[k] = static_cast<std::uint16_t>(std::lround(offset + gain * values[k]));
   WriteUInt16Tiff(path, img.width_px, img.height_px, o.bands, dn.data(), write);
 }
-
-}  // namespace
-
-namespace {
 
 // Uniform in [0, 1) from the generator's top 53 bits.
 double Unit(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
