@@ -116,8 +116,10 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_radius_m", o.fill_radius_m);
   io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
   io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);
+  io("fill_edge_hides", o.fill_edge_hides);
   io("max_fill_reach_m", o.max_fill_reach_m);
   io("fill_ground_radius_m", o.fill_ground_radius_m);
+  io("fill_ground_max_rise_m", o.fill_ground_max_rise_m);
   io("fill_ground_tolerance_m", o.fill_ground_tolerance_m);
   io("visibility_pass", o.visibility_pass);
   io("visibility_tolerance_m", o.visibility_tolerance_m);

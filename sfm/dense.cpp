@@ -54,6 +54,7 @@ void DenseOptions::Check() const {
   if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
   positive(fill_ground_radius_m, "fill_ground_radius_m");
   if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
+  if (!(fill_ground_max_rise_m >= 0)) throw Error("dense", "fill_ground_max_rise_m", "must be >= 0 (0 = off)");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
   if (visibility_near_cells < -1)
     throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
@@ -695,7 +696,7 @@ std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_c
 }  // namespace
 
 std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
-                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells) {
+                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells, bool edge_hides) {
   if (surface_m.size() != static_cast<std::size_t>(g.nx) * g.ny)
     throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
   const float lowest = -std::numeric_limits<float>::infinity();
@@ -716,7 +717,10 @@ std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& s
         const double drop = t * rise;
         if (top - drop <= best || top - drop < floor_m) break;  // nothing further can hide the cell
         const int a = static_cast<int>(std::lround(i + t * step_i)), b = static_cast<int>(std::lround(j + t * step_j));
-        if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) break;
+        if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) {
+          if (edge_hides) best = static_cast<float>(top - drop);
+          break;
+        }
         const float h = surface_m[g.Index(a, b)];
         if (std::isfinite(h)) best = std::max(best, static_cast<float>(h - drop));
       }
@@ -730,7 +734,7 @@ std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& g, const std::vecto
                                            const std::vector<float>& terrain_m,
                                            const std::vector<Eigen::Vector3d>& to_cameras,
                                            const std::vector<std::array<int, 2>>& pairs, double tolerance_m,
-                                           double floor_m) {
+                                           double floor_m, bool edge_hides) {
   const std::size_t cells = static_cast<std::size_t>(g.nx) * g.ny;
   if (surface_m.size() != cells || terrain_m.size() != cells)
     throw Error("dense", "surface", "size " + std::to_string(surface_m.size()) + " is not nx*ny");
@@ -742,7 +746,8 @@ std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& g, const std::vecto
   // Per view, the cells whose ground point it sees.
   std::vector<std::vector<std::uint8_t>> sees(to_cameras.size());
   for (int v = 0; v < views; ++v) {
-    const std::vector<float> seen_above = VisibleAbove(g, surface_m, to_cameras[v], floor_m);
+    const std::vector<float> seen_above =
+        VisibleAbove(g, surface_m, to_cameras[v], floor_m, 0, edge_hides);
     sees[v].resize(cells);
     for (std::size_t k = 0; k < cells; ++k) sees[v][k] = terrain_m[k] + tolerance_m >= seen_above[k] ? 1 : 0;
   }
@@ -876,6 +881,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   fill.roof_rim_occluded = o.fill_roof_rim_occluded;
   fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
+  fill.ground_max_rise_m = static_cast<float>(o.fill_ground_max_rise_m);
   std::vector<Eigen::Vector3d> to_cameras;
   for (int v : used_views) to_cameras.push_back(views[v].camera.Centre() - centre);
   std::vector<std::array<int, 2>> camera_pairs;  // pairs_used, as indices into to_cameras
@@ -885,7 +891,8 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   auto fill_holes = [&](std::vector<float>& heights) {
     const GroundModel model = GroundModelOf(heights, g.nx, g.ny, fill);
     fill_occluded =
-        OccludedAtGround(g, heights, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
+        OccludedAtGround(g, heights, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo,
+                         o.fill_edge_hides);
     occluded_cells = static_cast<std::size_t>(std::count(fill_occluded.begin(), fill_occluded.end(), 1));
     return FillHoles(heights, g.nx, g.ny, fill, model, &fill_occluded);
   };
@@ -932,7 +939,8 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   if (o.fill_holes) {
     const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
     const std::vector<std::uint8_t> occluded =
-        OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo);
+        OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo,
+                         o.fill_edge_hides);
     occluded_cells = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
     std::vector<std::uint8_t> from_coarse(cells, 0);
     if (o.coarse_factor > 1) {
@@ -955,7 +963,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     pull.min_step_m = static_cast<float>(o.step_pull_min_m);
     pull.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
     // The ground surface alone (GroundModelOf's ground_m), of the filled heights.
-    step_pulled = PullStepsToGround(g.height_m, GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells), g.nx,
+    step_pulled = PullStepsToGround(g.height_m, GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells, fill.ground_max_rise_m), g.nx,
                                     g.ny, pull, &g.filled);
   }
 

@@ -45,6 +45,12 @@ struct DenseOptions {
   // terrain plus the lowest height above it within fill_radius_m (doubled
   // until something is in reach). Filled cells are flagged.
   bool fill_holes = true;
+  // Whether ground whose ray toward a view leaves the grid counts as hidden
+  // from that view (as if the grid's highest surface stood just outside):
+  // the city goes on beyond the grid, and a street near the edge seen only
+  // through the edge was taken for seen ground and filled from the roofs
+  // beside it (docs/benchmarks.md, "Hidden ground").
+  bool fill_edge_hides = true;
   // Before filling, holes get a second chance at a coarser scale: a sweep
   // on a grid of coarse_factor x cell_m, with windows as many cells wide, on
   // images blurred to that cell. A weakly textured surface (a tiled roof
@@ -102,6 +108,11 @@ struct DenseOptions {
   // (larger than half the widest building): it keeps planes and smooth
   // terrain and removes buildings and trees.
   double fill_ground_radius_m = 30.0;
+  // [m] Where the ground surface stands more than this above the opening of
+  // twice fill_ground_radius_m, its squares held roofs only (the ground
+  // hidden between tall buildings): no ground there, and the terrain model
+  // spans it from the ground measured further away. 0 = off.
+  double fill_ground_max_rise_m = 10.0;
   // [m] A measured cell at most this far above the ground surface is ground
   // (it shapes the terrain model).
   double fill_ground_tolerance_m = 1.0;
@@ -185,9 +196,12 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::
 // `surface_m` (nx x ny, NaN = unknown, ignored) along the ray, less the
 // ray's rise to it. -infinity where nothing hides the cell; the march stops
 // once the ray is below `floor_m` (heights below it are never asked). The
-// first `near_cells` cells along the ray hide nothing.
+// first `near_cells` cells along the ray hide nothing. With
+// `edge_hides`, a ray that leaves the grid is taken to pass the grid's
+// highest surface just outside: what stands beyond the grid is unknown.
 std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>& surface_m,
-                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells = 0);
+                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells = 0,
+                                bool edge_hides = false);
 
 // Cells of `surface_m` (nx x ny, NaN = hole) whose ground point (the
 // terrain's height plus `tolerance_m`) no image pair sees past the measured
@@ -196,12 +210,14 @@ std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>
 // `to_cameras`): holes that no pair can measure, whatever the texture. Two
 // views that each see a street between tall buildings but are too far apart
 // to be matched (or were not selected) do not make it measurable. 0 for
-// measured cells. Throws Error for a pair index out of range.
+// measured cells. With `edge_hides`, a view whose ray leaves the grid
+// below its highest surface does not see the point (VisibleAbove). Throws
+// Error for a pair index out of range.
 std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& grid, const std::vector<float>& surface_m,
                                            const std::vector<float>& terrain_m,
                                            const std::vector<Eigen::Vector3d>& to_cameras,
                                            const std::vector<std::array<int, 2>>& pairs, double tolerance_m,
-                                           double floor_m);
+                                           double floor_m, bool edge_hides);
 
 // Semi-global matching over a cost volume laid out cell-major
 // (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over

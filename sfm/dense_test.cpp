@@ -193,6 +193,14 @@ TEST(Dense, ABuildingHidesTheGroundBehindItFromObliqueViewsOnly) {
     for (int i = 20; i < 22; ++i) band[g.Index(i, b)] = 10.0f;
   EXPECT_LE(VisibleAbove(g, band, Eigen::Vector3d(1, 0, 1), -5.0, 2)[g.Index(19, j)], -1.0f);
   EXPECT_FLOAT_EQ(VisibleAbove(g, band, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], 9.0f);
+  // With the edge hiding, a ray leaving the grid (east of column 39) passes
+  // the grid's highest surface (10 m) just outside: the ground east of the
+  // block is seen above 10 - (40 - i); west of it the block decides first.
+  const std::vector<float> edge = VisibleAbove(g, surface, Eigen::Vector3d(1, 0, 1), -5.0, 0, true);
+  for (int i = 30; i < 40; ++i) EXPECT_FLOAT_EQ(edge[g.Index(i, j)], static_cast<float>(i - 30)) << i;
+  for (int i = 5; i < 25; ++i) EXPECT_FLOAT_EQ(edge[g.Index(i, j)], east[g.Index(i, j)]) << i;
+  for (float h : VisibleAbove(g, surface, Eigen::Vector3d(0, 0, 1), -5.0, 0, true))
+    EXPECT_TRUE(std::isinf(h) && h < 0);
 }
 
 TEST(Dense, GroundNoMatchedPairSeesIsOccludedAndOpenHolesAreNot) {
@@ -221,7 +229,7 @@ TEST(Dense, GroundNoMatchedPairSeesIsOccludedAndOpenHolesAreNot) {
   // (but at its east end, where the north-north-eastern view looks past the
   // block's corner).
   const std::vector<std::array<int, 2>> pairs_of_three = {{0, 1}, {0, 2}, {1, 2}};
-  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, pairs_of_three, kTolM, -5.0);
+  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, pairs_of_three, kTolM, -5.0, false);
   for (int j = 12; j < 20; ++j)
     for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, three)) << i << "," << j;
   EXPECT_FALSE(occluded(38, 12, three));
@@ -237,16 +245,25 @@ TEST(Dense, GroundNoMatchedPairSeesIsOccludedAndOpenHolesAreNot) {
   views.emplace_back(0.3, -1, 2);
   const std::vector<std::array<int, 2>> without_south_pair = {{0, 1}, {0, 2}, {1, 2}, {0, 3}, {1, 3}};
   const std::vector<std::uint8_t> unmatched =
-      OccludedAtGround(g, surface, terrain, views, without_south_pair, kTolM, -5.0);
+      OccludedAtGround(g, surface, terrain, views, without_south_pair, kTolM, -5.0, false);
   for (int j = 12; j < 20; ++j)
     for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, unmatched)) << i << "," << j;
   std::vector<std::array<int, 2>> all_pairs = without_south_pair;
   all_pairs.push_back({2, 3});
-  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0);
+  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0, false);
   for (int j = 12; j < 20; ++j)
     for (int i = 21; i < 39; ++i) EXPECT_FALSE(occluded(i, j, four)) << i << "," << j;
-  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, all_pairs, kTolM, -5.0), Error);
-  EXPECT_THROW(OccludedAtGround(g, surface, terrain, views, {{0, 4}}, kTolM, -5.0), Error);
+  // With the edge hiding, the southern views' rays leave the grid within
+  // 13-17 m of the strip, below the block's 20 m: beyond the grid anything
+  // up to that could stand, and the strip's southern half is occluded again;
+  // the open patch stays seen by the northern pair.
+  const std::vector<std::uint8_t> edge = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0, true);
+  for (int j = 12; j < 17; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, edge)) << i << "," << j;
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) EXPECT_FALSE(occluded(i, j, edge)) << i << "," << j;
+  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, all_pairs, kTolM, -5.0, false), Error);
+  EXPECT_THROW(OccludedAtGround(g, surface, terrain, views, {{0, 4}}, kTolM, -5.0, false), Error);
 }
 
 TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {

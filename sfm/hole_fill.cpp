@@ -179,9 +179,11 @@ Lerp BlockLerp(double x, int block, int blocks) {
 
 }  // namespace
 
-std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells) {
+std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells, float max_rise_m) {
   CheckGrid(h, nx, ny);
   if (radius_cells < 1) throw Error("dense", "ground radius", std::to_string(radius_cells) + " cells must be >= 1");
+  if (!(max_rise_m >= 0))
+    throw Error("dense", "fill_ground_max_rise_m", std::to_string(max_rise_m) + " must be >= 0 (0 = off)");
   // A flat square opening that must lie within the grid keeps a plane only
   // where the squares fit: near an uphill edge it drops to the plane's
   // height 2r downhill. Opening the heights less their trend plane leaves
@@ -208,6 +210,16 @@ std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, in
     detrended[k] = h[k] - trend_m[k];
   }
   std::vector<float> opened = Opening(detrended, nx, ny, radius_cells, WindowEdge::kShift);
+  if (max_rise_m > 0) {
+    // Where the ground is hidden (streets between tall buildings seen
+    // obliquely), a square of the opening can hold roofs only, and the
+    // opening then takes the lowest roof for ground. The opening of twice
+    // the radius reaches ground seen further away; where the narrow one
+    // stands more than max_rise_m above it, no ground was measured in reach.
+    const std::vector<float> wide = Opening(detrended, nx, ny, 2 * radius_cells, WindowEdge::kShift);
+    for (std::size_t k = 0; k < h.size(); ++k)
+      if (!(opened[k] - wide[k] <= max_rise_m)) opened[k] = kNan;
+  }
   for (std::size_t k = 0; k < h.size(); ++k) opened[k] += trend_m[k];
   return opened;
 }
@@ -246,7 +258,20 @@ std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<f
       known[m] = 1;
     }
   if (std::find(known.begin(), known.end(), 1) == known.end()) return std::vector<float>(h.size(), kNan);
+  // Blocks without ground follow the plane through the known centres, plus
+  // the harmonic interpolation of what the known ones leave: a hidden
+  // stretch of a hillside keeps the hill's slope instead of levelling out.
+  std::vector<std::size_t> known_blocks;
+  for (std::size_t m = 0; m < known.size(); ++m)
+    if (known[m]) known_blocks.push_back(m);
+  std::vector<float> centre_m(centre.begin(), centre.end());
+  const std::optional<CellPlane> block_trend = FitPlane(centre_m, bx, known_blocks);
+  auto trend_at = [&](std::size_t m) {
+    return block_trend ? block_trend->At(static_cast<double>(m % bx), static_cast<double>(m / bx)) : 0.0;
+  };
+  for (std::size_t m = 0; m < centre.size(); ++m) centre[m] -= trend_at(m);
   HarmonicFill(centre, known, bx, by);
+  for (std::size_t m = 0; m < centre.size(); ++m) centre[m] += trend_at(m);
   std::vector<float> terrain(h.size());
   for (int j = 0; j < ny; ++j) {
     const Lerp v = BlockLerp(j, block, by);
@@ -263,7 +288,7 @@ std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<f
 
 GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const HoleFillOptions& o) {
   GroundModel model;
-  model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells);
+  model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells, o.ground_max_rise_m);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
   model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, WindowEdge::kClip);
   return model;

@@ -25,6 +25,7 @@ struct HoleFillOptions {
   int max_reach_cells = 40;         // cells further than this from every measured cell stay NaN
   int ground_radius_cells = 60;     // radius of the ground surface's opening (GroundSurface)
   float ground_tolerance_m = 1.0f;  // measured cells this close above the ground surface are ground
+  float ground_max_rise_m = 0.0f;   // GroundSurface's max_rise_m: 0 = off
   int terrain_block_cells = 8;      // block side of the terrain model (TerrainModel)
   // A seen hole (one piece of connected hole cells) whose rim of measured
   // cells lies at least this share higher than roof_rim_min_m above the
@@ -75,15 +76,20 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny
 // square minima) of the heights less their trend plane, plus that plane. It
 // keeps planes exactly (up to the grid's edges) and smooth terrain, and
 // removes what is narrower than the square (buildings, trees). NaN where no
-// measured cell is within reach.
-std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int ny, int radius_cells);
+// measured cell is within reach, and, when max_rise_m > 0, where it stands
+// more than max_rise_m above the opening of twice the radius: there the
+// squares held raised surfaces only (0 = off).
+std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int ny, int radius_cells,
+                                 float max_rise_m);
 
 
 // A terrain model under the whole grid, holes included: the ground cells
 // (measured, within `ground_tolerance_m` of `ground_surface`) are grouped in
 // blocks of terrain_block_cells; each block's plane (least squares, or the
 // median of fewer than 3 cells) gives its value at the block's centre,
-// blocks without ground take the harmonic interpolation of the others, and
+// blocks without ground take the plane through the known centres plus the
+// harmonic interpolation of what that plane leaves of them (a hidden
+// stretch of a hillside keeps the hill's slope), and
 // cells interpolate the block centres bilinearly (linearly extended over the
 // outer half blocks). Exact on planes; NaN everywhere when no cell is ground.
 // Unlike the opening, it does not flatten across a wide hole.

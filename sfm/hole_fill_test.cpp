@@ -207,10 +207,10 @@ TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
   EXPECT_GT(roof_without_mark, 20 * 40);  // what visibility buys: most of the strip
   // The ground surface keeps the plane under the building and removes it,
   // also within its radius of the uphill edge.
-  const std::vector<float> ground = GroundSurface(measured, nx, ny, 60);
+  const std::vector<float> ground = GroundSurface(measured, nx, ny, 60, 0.0f);
   EXPECT_NEAR(ground[35 * nx + 80], plane(80), kTol);
   EXPECT_NEAR(ground[10 * nx + 150], plane(150), kTol);
-  EXPECT_THROW(GroundSurface(measured, nx, ny, 0), Error);
+  EXPECT_THROW(GroundSurface(measured, nx, ny, 0, 0.0f), Error);
 }
 
 TEST(HoleFill, TheTerrainModelSpansWideHolesOnAPlane) {
@@ -237,6 +237,56 @@ TEST(HoleFill, TheTerrainModelSpansWideHolesOnAPlane) {
   std::vector<float> no_ground(h.size(), nan);
   const GroundModel empty = GroundModelOf(no_ground, nx, ny, FillOptions());
   for (float t : empty.terrain_m) EXPECT_TRUE(std::isnan(t));
+}
+
+TEST(HoleFill, TheTerrainModelKeepsTheSlopeAcrossHiddenGround) {
+  // Ground rising 0.1 m per cell east, measured over the western half only
+  // (the eastern half hidden, say, between tall buildings): the terrain
+  // model goes on up the slope instead of levelling out at the last
+  // measured height.
+  const int nx = 200, ny = 40;
+  const float nan = std::nanf("");
+  auto plane = [](int i) { return 2.0f + 0.1f * i; };
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) h[static_cast<std::size_t>(j) * nx + i] = i < 100 ? plane(i) : nan;
+  const GroundModel model = GroundModelOf(h, nx, ny, FillOptions());
+  // Tolerance: float rounding of block plane fits and the harmonic fill's
+  // convergence threshold, as for the plane with a hole.
+  constexpr float kTol = 1e-3f;
+  for (int i = 0; i < nx; i += 7) EXPECT_NEAR(model.terrain_m[static_cast<std::size_t>(20) * nx + i], plane(i), kTol) << i;
+}
+
+TEST(HoleFill, SquaresThatHoldOnlyRoofsGiveNoGround) {
+  // Flat ground at 0 m measured west of column 120 and east of column 360;
+  // between them 20 m roofs, 40 cells wide, between 10-cell streets that
+  // no view matched (NaN): the ground is hidden there. Within the 60-cell
+  // radius of the opening around column 240 there are only roofs, and the
+  // opening takes them for ground; the opening of twice the radius reaches
+  // the measured ground, and with a 10 m rise allowed the ground surface is
+  // empty there and the terrain model spans it from the ground beside it.
+  const int nx = 480, ny = 60;
+  const float nan = std::nanf("");
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool built = i >= 120 && i < 360;
+      h[static_cast<std::size_t>(j) * nx + i] = !built ? 0.0f : ((i - 120) % 50 < 40 ? 20.0f : nan);
+    }
+  HoleFillOptions plain = FillOptions(), rise = FillOptions();
+  rise.ground_max_rise_m = 10.0f;
+  const GroundModel roofs = GroundModelOf(h, nx, ny, plain);
+  const GroundModel ground = GroundModelOf(h, nx, ny, rise);
+  // Tolerance: float rounding of heights of 20 m and the fits' convergence.
+  constexpr float kTol = 1e-3f;
+  const std::size_t west = static_cast<std::size_t>(30) * nx + 20, middle = static_cast<std::size_t>(30) * nx + 240;
+  EXPECT_NEAR(roofs.ground_m[west], 0.0f, kTol);
+  EXPECT_NEAR(ground.ground_m[west], 0.0f, kTol);
+  EXPECT_NEAR(roofs.ground_m[middle], 20.0f, kTol);
+  EXPECT_TRUE(std::isnan(ground.ground_m[middle]));
+  EXPECT_NEAR(roofs.terrain_m[middle], 20.0f, kTol);
+  EXPECT_NEAR(ground.terrain_m[middle], 0.0f, kTol);
+  EXPECT_THROW(GroundSurface(h, nx, ny, 60, -1.0f), Error);
 }
 
 TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
