@@ -55,6 +55,8 @@ void DenseOptions::Check() const {
   positive(fill_ground_radius_m, "fill_ground_radius_m");
   if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
   if (!(fill_ground_max_rise_m >= 0)) throw Error("dense", "fill_ground_max_rise_m", "must be >= 0 (0 = off)");
+  if (!(floating_patch_max_m2 >= 0)) throw Error("dense", "floating_patch_max_m2", "must be >= 0 (0 = off)");
+  if (!(floating_patch_min_rise_m >= 0)) throw Error("dense", "floating_patch_min_rise_m", "must be >= 0");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
   if (visibility_near_cells < -1)
     throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
@@ -934,10 +936,15 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   std::size_t measured = 0;
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
   occluded_cells = 0;
-  std::size_t coarse_cells = 0;
+  std::size_t coarse_cells = 0, floating_cells = 0;
   g.filled.assign(cells, 0);
   if (o.fill_holes) {
     const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
+    FloatingPatchOptions floating;
+    floating.max_cells = static_cast<int>(std::lround(o.floating_patch_max_m2 / (o.cell_m * o.cell_m)));
+    floating.min_rise_m = static_cast<float>(o.floating_patch_min_rise_m);
+    floating_cells = RemoveFloatingPatches(g.height_m, g.nx, g.ny, model.terrain_m, floating);
+    measured -= floating_cells;
     const std::vector<std::uint8_t> occluded =
         OccludedAtGround(g, g.height_m, model.terrain_m, to_cameras, camera_pairs, o.visibility_tolerance_m, z_lo,
                          o.fill_edge_hides);
@@ -1006,6 +1013,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(low_cost) / static_cast<double>(cells);
   r.metrics["rejected_speckle_fraction"] = static_cast<double>(speckles) / static_cast<double>(cells);
   r.metrics["coarse_fraction"] = static_cast<double>(coarse_cells) / static_cast<double>(cells);
+  r.metrics["floating_removed_fraction"] = static_cast<double>(floating_cells) / static_cast<double>(cells);
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);

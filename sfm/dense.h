@@ -51,6 +51,13 @@ struct DenseOptions {
   // through the edge was taken for seen ground and filled from the roofs
   // beside it (docs/benchmarks.md, "Hidden ground").
   bool fill_edge_hides = true;
+  // Before filling, small patches of matched cells (under
+  // floating_patch_max_m2) standing wholly more than floating_patch_min_rise_m
+  // above the terrain model are made holes (RemoveFloatingPatches): matches
+  // in the air above hidden streets, on what two views see behind the point.
+  // 0 = off.
+  double floating_patch_max_m2 = 25.0;
+  double floating_patch_min_rise_m = 20.0;
   // Before filling, holes get a second chance at a coarser scale: a sweep
   // on a grid of coarse_factor x cell_m, with windows as many cells wide, on
   // images blurred to that cell. A weakly textured surface (a tiled roof

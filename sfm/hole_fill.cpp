@@ -413,6 +413,48 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   return filled;
 }
 
+std::size_t RemoveFloatingPatches(std::vector<float>& h, int nx, int ny, const std::vector<float>& terrain,
+                                  const FloatingPatchOptions& o) {
+  CheckGrid(h, nx, ny);
+  if (terrain.size() != h.size()) throw Error("dense", "terrain", "size differs from the height grid's");
+  if (o.max_cells < 0)
+    throw Error("dense", "floating_patch_max_m2", std::to_string(o.max_cells) + " cells must be >= 0 (0 = off)");
+  if (!(o.min_rise_m >= 0)) throw Error("dense", "floating_patch_min_rise_m", std::to_string(o.min_rise_m) + " must be >= 0");
+  if (o.max_cells == 0) return 0;
+  std::vector<std::uint8_t> visited(h.size(), 0);
+  std::vector<std::size_t> stack, members;
+  std::size_t removed = 0;
+  for (std::size_t seed = 0; seed < h.size(); ++seed) {
+    if (visited[seed] || !std::isfinite(h[seed])) continue;
+    visited[seed] = 1;
+    stack.assign(1, seed);
+    members.clear();
+    bool floating = true;
+    while (!stack.empty()) {
+      const std::size_t k = stack.back();
+      stack.pop_back();
+      members.push_back(k);
+      // NaN terrain compares false: no terrain, no evidence of floating.
+      floating = floating && h[k] > terrain[k] + o.min_rise_m;
+      const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
+      const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
+      for (int d = 0; d < 4; ++d) {
+        const int a = i + di[d], b = j + dj[d];
+        if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+        const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+        if (!visited[n] && std::isfinite(h[n]) && std::abs(h[n] - h[k]) < o.smooth_step_m) {
+          visited[n] = 1;
+          stack.push_back(n);
+        }
+      }
+    }
+    if (!floating || members.size() >= static_cast<std::size_t>(o.max_cells)) continue;
+    for (std::size_t k : members) h[k] = kNan;
+    removed += members.size();
+  }
+  return removed;
+}
+
 std::size_t PullStepsToGround(std::vector<float>& h, const std::vector<float>& ground, int nx, int ny,
                               const StepPullOptions& o, const std::vector<std::uint8_t>* filled) {
   CheckGrid(h, nx, ny);

@@ -96,6 +96,23 @@ std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int
 std::vector<float> TerrainModel(const std::vector<float>& height_m, const std::vector<float>& ground_surface, int nx,
                                 int ny, const HoleFillOptions& options);
 
+// Small patches of matched cells that float high above the terrain: where
+// the ground is hidden (a street between tall buildings), the only heights
+// a pair can score are in the air above it, and a few cells match there on
+// what the two views see behind the point (two walls). Each piece of
+// 4-connected measured cells whose neighbours differ by less than
+// `smooth_step_m`, smaller than `max_cells` and all of it more than
+// `min_rise_m` above `terrain_m`, is made a hole (NaN). Returns how many
+// cells were removed. A tall structure is seldom so small and so alone: a
+// roof matched in fragments keeps them when they lie lower than the rise.
+struct FloatingPatchOptions {
+  int max_cells = 0;  // 0 = off
+  float min_rise_m = 20.0f;
+  float smooth_step_m = 1.0f;
+};
+std::size_t RemoveFloatingPatches(std::vector<float>& height_m, int nx, int ny, const std::vector<float>& terrain_m,
+                                  const FloatingPatchOptions& options);
+
 // Windows fatten what they straddle: beside a roof's edge the roof's
 // texture fills most of a ground cell's window, so the roof's height spills
 // a cell or so onto the ground. Each cell of `height_m` whose next

@@ -338,6 +338,44 @@ TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
 // every side, with a 3 m rooftop unit fattened the same way: the roof's
 // edge moves back onto its true outline; the unit, which stands on the
 // roof, not on the ground, keeps its cells.
+TEST(FloatingPatch, SmallPatchesHighAboveTheTerrainGoAndRoofFragmentsStay) {
+  // Terrain at 0 m; on a 60 x 40 grid: a 3 x 3 patch matched 30 m up in the
+  // air (goes), a 3 x 3 patch 15 m up (below the 20 m rise: stays), a
+  // 12 x 12 roof at 30 m (too large: stays), a ramp of 30 cells rising
+  // 0.9 m per cell from 0 to 26 m (not wholly above the rise: stays), and
+  // measured ground.
+  const int nx = 60, ny = 40;
+  const float nan = std::nanf("");
+  std::vector<float> h(static_cast<std::size_t>(nx) * ny, nan);
+  const std::vector<float> terrain(h.size(), 0.0f);
+  auto fill = [&](int i0, int j0, int side, float z) {
+    for (int j = j0; j < j0 + side; ++j)
+      for (int i = i0; i < i0 + side; ++i) h[static_cast<std::size_t>(j) * nx + i] = z;
+  };
+  auto at = [&](int i, int j) { return h[static_cast<std::size_t>(j) * nx + i]; };
+  fill(2, 2, 3, 30.0f);
+  fill(10, 2, 3, 15.0f);
+  fill(20, 2, 12, 30.0f);
+  for (int i = 0; i < 30; ++i) h[static_cast<std::size_t>(16) * nx + i] = 0.9f * static_cast<float>(i);
+  fill(2, 20, 15, 0.0f);
+  FloatingPatchOptions o;
+  o.max_cells = 100;
+  std::vector<float> off = h;
+  EXPECT_EQ(RemoveFloatingPatches(off, nx, ny, terrain, FloatingPatchOptions{}), 0u);  // max_cells 0: off
+  EXPECT_EQ(RemoveFloatingPatches(h, nx, ny, terrain, o), 9u);
+  EXPECT_TRUE(std::isnan(at(3, 3)));
+  EXPECT_EQ(at(11, 3), 15.0f);
+  EXPECT_EQ(at(25, 5), 30.0f);
+  EXPECT_EQ(at(29, 16), 0.9f * 29.0f);
+  EXPECT_EQ(at(5, 25), 0.0f);
+  // Without a terrain there is nothing to float above.
+  std::vector<float> again = off;
+  EXPECT_EQ(RemoveFloatingPatches(again, nx, ny, std::vector<float>(h.size(), nan), o), 0u);
+  o.max_cells = -1;
+  EXPECT_THROW(RemoveFloatingPatches(again, nx, ny, terrain, o), Error);
+  EXPECT_THROW(RemoveFloatingPatches(again, nx, ny, std::vector<float>(3, 0.0f), FloatingPatchOptions{}), Error);
+}
+
 TEST(StepPull, StepsOntoTheGroundMoveBackOneCellAndStepsOntoARoofStay) {
   const int nx = 80, ny = 80;
   auto index = [&](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
