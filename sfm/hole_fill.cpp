@@ -86,6 +86,18 @@ void CheckGrid(const std::vector<float>& h, int nx, int ny) {
     throw Error("dense", "height grid", "size " + std::to_string(h.size()) + " is not nx*ny");
 }
 
+// Calls visit(n) for each of the 4 grid neighbours n of cell k.
+template <typename Visit>
+void ForEachNeighbour4(std::size_t k, int nx, int ny, Visit visit) {
+  const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
+  const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
+  for (int d = 0; d < 4; ++d) {
+    const int a = i + di[d], b = j + dj[d];
+    if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+    visit(static_cast<std::size_t>(b) * nx + a);
+  }
+}
+
 // A plane z = c0 + c1 * (i - ci) + c2 * (j - cj) in cell coordinates,
 // centred on the cells it was fitted to (so the normal equations stay well
 // conditioned far from the grid's origin).
@@ -323,14 +335,9 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
       const std::size_t k = stack.back();
       stack.pop_back();
       members.push_back(k);
-      const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
-      const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
-      for (int d = 0; d < 4; ++d) {
-        const int a = i + di[d], b = j + dj[d];
-        if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-        const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+      ForEachNeighbour4(k, nx, ny, [&](std::size_t n) {
         if (std::isfinite(h[n])) {
-          if (rim_of[n] == id) continue;
+          if (rim_of[n] == id) return;
           rim_of[n] = id;
           ++rim;
           raised += above[n] > o.roof_rim_min_m ? 1 : 0;
@@ -338,7 +345,7 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
           visited[n] = 1;
           stack.push_back(n);
         }
-      }
+      });
     }
     if (rim > 0 && raised >= o.roof_rim_fraction * rim)
       for (std::size_t k : members) roof_hole[k] = 1;
@@ -436,17 +443,12 @@ std::size_t RemoveFloatingPatches(std::vector<float>& h, int nx, int ny, const s
       members.push_back(k);
       // NaN terrain compares false: no terrain, no evidence of floating.
       floating = floating && h[k] > terrain[k] + o.min_rise_m;
-      const int i = static_cast<int>(k % nx), j = static_cast<int>(k / nx);
-      const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
-      for (int d = 0; d < 4; ++d) {
-        const int a = i + di[d], b = j + dj[d];
-        if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-        const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+      ForEachNeighbour4(k, nx, ny, [&](std::size_t n) {
         if (!visited[n] && std::isfinite(h[n]) && std::abs(h[n] - h[k]) < o.smooth_step_m) {
           visited[n] = 1;
           stack.push_back(n);
         }
-      }
+      });
     }
     if (!floating || members.size() >= static_cast<std::size_t>(o.max_cells)) continue;
     for (std::size_t k : members) h[k] = kNan;
