@@ -970,8 +970,9 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     pull.min_step_m = static_cast<float>(o.step_pull_min_m);
     pull.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
     // The ground surface alone (GroundModelOf's ground_m), of the filled heights.
-    step_pulled = PullStepsToGround(g.height_m, GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells, fill.ground_max_rise_m), g.nx,
-                                    g.ny, pull, &g.filled);
+    const std::vector<float> ground =
+        GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells, fill.ground_max_rise_m);
+    step_pulled = PullStepsToGround(g.height_m, ground, g.nx, g.ny, pull, &g.filled);
   }
 
   // Colour from the most nadir view that sees the cell.

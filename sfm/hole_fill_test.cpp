@@ -334,10 +334,6 @@ TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
   EXPECT_THROW(FillHoles(grid, 3, 2, FillOptions(), GroundModelOf(grid, 3, 2, FillOptions()), &wrong_mask), Error);
 }
 
-// A 20 m square roof 10 m above flat ground at 2 m, fattened by one cell on
-// every side, with a 3 m rooftop unit fattened the same way: the roof's
-// edge moves back onto its true outline; the unit, which stands on the
-// roof, not on the ground, keeps its cells.
 TEST(FloatingPatch, SmallPatchesHighAboveTheTerrainGoAndRoofFragmentsStay) {
   // Terrain at 0 m; on a 60 x 40 grid: a 3 x 3 patch matched 30 m up in the
   // air (goes), a 3 x 3 patch 15 m up (below the 20 m rise: stays), a
@@ -376,6 +372,10 @@ TEST(FloatingPatch, SmallPatchesHighAboveTheTerrainGoAndRoofFragmentsStay) {
   EXPECT_THROW(RemoveFloatingPatches(again, nx, ny, std::vector<float>(3, 0.0f), FloatingPatchOptions{}), Error);
 }
 
+// A 20 m square roof 10 m above flat ground at 2 m, fattened by one cell on
+// every side, with a 3 m rooftop unit fattened the same way: the roof's
+// edge moves back onto its true outline; the unit, which stands on the
+// roof, not on the ground, keeps its cells.
 TEST(StepPull, StepsOntoTheGroundMoveBackOneCellAndStepsOntoARoofStay) {
   const int nx = 80, ny = 80;
   auto index = [&](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
