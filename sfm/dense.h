@@ -107,6 +107,12 @@ struct DenseOptions {
   // and the occluded-ground rule alone would fill it with the terrain
   // (HoleFillOptions::roof_rim_occluded).
   bool fill_roof_rim_occluded = true;
+  // A seen hole cell with nothing measured within fill_radius_m, whose
+  // lowest measured neighbour further out is raised, takes the ground
+  // (HoleFillOptions::far_raised_takes_ground): a street between tall
+  // buildings, seen along its length but matched by no pair, took the
+  // roofs' height (docs/benchmarks.md, "Streets far from measured ground").
+  bool fill_far_raised_ground = true;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.

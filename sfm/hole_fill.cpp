@@ -412,7 +412,9 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
         open = true;
         continue;
       }
-      h[k] = ground ? model.terrain_m[k] : base[k] + low[k];
+      const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && r > o.radius_cells &&
+                              low[k] > o.roof_rim_min_m;
+      h[k] = ground ? model.terrain_m[k] : far_raised ? base[k] : base[k] + low[k];
       filled[k] = 1;
     }
     if (!open || r >= o.max_reach_cells) break;

@@ -37,6 +37,12 @@ struct HoleFillOptions {
   // ground is hidden behind the roof around it then takes the roof, not the
   // terrain. Its cells wait for the roof to come within reach.
   bool roof_rim_occluded = false;
+  // A seen hole cell (not a roof's hole) with nothing measured within
+  // radius_cells, whose lowest measured neighbour further out is raised,
+  // takes the ground: a street between tall buildings that the views see
+  // along its length but no pair matched is far from any measured ground,
+  // and the nearest measured heights are the roofs on either side.
+  bool far_raised_takes_ground = false;
 };
 
 // The ground under a height grid: its opening (GroundSurface), which tells

@@ -171,6 +171,41 @@ TEST(HoleFill, AnOccludedHoleRingedByRoofTakesTheRoofAndAStripBesideAWallTheGrou
   EXPECT_NEAR(off.h[static_cast<std::size_t>(20) * Scene::nx + 131], 0.0f, kTol);
 }
 
+TEST(HoleFill, AStreetFarFromItsMeasuredGroundTakesTheGroundNotTheRoofsBesideIt) {
+  // Two 40 m roofs (columns 0-19 and 61-79) and the street between them,
+  // which no pair matched (rows 0-54); its ground is measured only from row
+  // 55 on. The views see the street along its length (nothing occluded).
+  // Its rim is 71% roof, so it is no roof's hole; its middle has nothing
+  // within the first reach (10 cells), and the first thing a wider reach
+  // finds is a roof.
+  const int nx = 80, ny = 80;
+  auto street = [](int i, int j) { return i >= 20 && i <= 60 && j < 55; };
+  std::vector<float> scene(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i)
+      scene[static_cast<std::size_t>(j) * nx + i] = street(i, j) ? std::nanf("") : j < 55 ? 40.0f : 0.0f;
+  HoleFillOptions o = FillOptions();
+  o.far_raised_takes_ground = true;
+  std::vector<float> on = scene, off = scene;
+  Fill(on, nx, ny, o);
+  o.far_raised_takes_ground = false;
+  Fill(off, nx, ny, o);
+  // Tolerance: float rounding of the ground's plane fit over ~40 m.
+  constexpr float kTol = 1e-3f;
+  auto at = [&](const std::vector<float>& h, int i, int j) { return h[static_cast<std::size_t>(j) * nx + i]; };
+  for (int j = 0; j < 15; ++j)  // beyond reach 40 of the measured ground
+    for (int i = 31; i <= 49; ++i) {  // more than 10 cells from either roof
+      EXPECT_NEAR(at(on, i, j), 0.0f, kTol) << i << "," << j;
+      EXPECT_NEAR(at(off, i, j), 40.0f, kTol) << i << "," << j;  // off: the lowest in reach, a roof
+    }
+  // Within the first reach of a roof the roof is taken either way (what a
+  // window-wide unmatched band beside a roof most often is).
+  for (int j = 0; j < 15; ++j) {
+    EXPECT_NEAR(at(on, 22, j), 40.0f, kTol) << j;
+    EXPECT_NEAR(at(on, 58, j), 40.0f, kTol) << j;
+  }
+}
+
 TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
   // A 30% slope rising east (0.5 m cells: 0.15 m per cell) and a 40 m tall
   // building whose south wall hides a 20-cell strip of ground that runs to
