@@ -71,7 +71,9 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // them from a roof would put roofs in courtyards; a hole with only roof in
 // reach (inside a roof) takes the roof, and so does a hole whose rim is
 // mostly roof (roof_rim_fraction), from the roof cells in reach, though
-// the ground beyond the roof's edge is nearer. Heights are measured above the
+// the ground beyond the roof's edge is nearer; with far_raised_takes_ground
+// a cell that found only roof beyond radius_cells (not in a roof's hole)
+// takes the ground. Heights are measured above the
 // ground, so on a slope a hole is filled at its own ground level, not at
 // the downhill one.
 std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options,
