@@ -938,9 +938,11 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   for (float h : g.height_m) measured += std::isfinite(h) ? 1 : 0;
   occluded_cells = 0;
   std::size_t coarse_cells = 0, floating_cells = 0;
+  int terrain_trend_terms = 0;
   g.filled.assign(cells, 0);
   if (o.fill_holes) {
     const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
+    terrain_trend_terms = model.terrain_trend_terms;
     FloatingPatchOptions floating;
     floating.max_cells = static_cast<int>(std::lround(o.floating_patch_max_m2 / (o.cell_m * o.cell_m)));
     floating.min_rise_m = static_cast<float>(o.floating_patch_min_rise_m);
@@ -1017,6 +1019,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["coarse_fraction"] = static_cast<double>(coarse_cells) / static_cast<double>(cells);
   r.metrics["floating_removed_fraction"] = static_cast<double>(floating_cells) / static_cast<double>(cells);
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
+  r.metrics["terrain_trend_terms"] = terrain_trend_terms;
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);
   r.metrics["step_pulled_fraction"] = static_cast<double>(step_pulled) / static_cast<double>(cells);

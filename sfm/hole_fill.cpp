@@ -189,6 +189,91 @@ Lerp BlockLerp(double x, int block, int blocks) {
   return {b, u - b};
 }
 
+// A polynomial trend over a grid of blocks, in coordinates scaled to
+// [-1, 1] across the grid: 1, a, b (a plane) and a^2, ab, b^2 (quadratic).
+struct BlockTrend {
+  int bx = 1, by = 1;
+  Eigen::VectorXd c;  // empty: no trend (0 everywhere)
+  static Eigen::VectorXd Basis(int terms, double a, double b) {
+    Eigen::VectorXd x(terms);
+    x.head<3>() << 1.0, a, b;
+    if (terms == 6) x.tail<3>() << a * a, a * b, b * b;
+    return x;
+  }
+  Eigen::VectorXd BasisAt(int terms, std::size_t m) const {
+    const double a = 2.0 * (static_cast<double>(m % bx) + 0.5) / bx - 1.0;
+    const double b = 2.0 * (static_cast<double>(m / bx) + 0.5) / by - 1.0;
+    return Basis(terms, a, b);
+  }
+  double At(std::size_t m) const { return c.size() ? BasisAt(static_cast<int>(c.size()), m).dot(c) : 0.0; }
+};
+
+// Least-squares fit of `terms` coefficients to value[m] over `blocks`;
+// empty when the blocks do not determine them (too few, or all on a line).
+Eigen::VectorXd FitBlockTrend(const BlockTrend& grid, int terms, const std::vector<double>& value,
+                              const std::vector<std::size_t>& blocks) {
+  // A plane through 3 blocks is what the model did before the quadratic;
+  // a quadratic wants twice its terms, so that one block cannot bend it.
+  const std::size_t least = terms == 3 ? 3 : 2 * static_cast<std::size_t>(terms);
+  if (blocks.size() < least) return {};
+  Eigen::MatrixXd design(blocks.size(), terms);
+  Eigen::VectorXd rhs(blocks.size());
+  for (std::size_t r = 0; r < blocks.size(); ++r) {
+    design.row(r) = grid.BasisAt(terms, blocks[r]).transpose();
+    rhs[r] = value[blocks[r]];
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design.rows(), design.cols());
+  constexpr double kRankThreshold = 1e-6;  // relative to the largest pivot: the coordinates are O(1)
+  qr.setThreshold(kRankThreshold);
+  qr.compute(design);
+  if (qr.rank() < terms) return {};
+  return qr.solve(rhs);
+}
+
+// The trend of the known blocks' values: a plane, or a quadratic surface
+// where it predicts better. What the trend decides is the terrain where no
+// ground was measured (the harmonic fill of the residual levels out away
+// from the known blocks), so the two are judged on that: each of
+// kFolds x kFolds squares of the block grid predicted from the known blocks
+// outside it (spatial cross-validation), summing absolute errors. A hill's
+// curvature makes a plane miss a hidden downhill corner by metres to tens
+// of metres; a quadratic that only fits the known blocks better bends away
+// beyond them and loses this test. Held-out squares of a quarter of the
+// grid (2 x 2) were too harsh: an L of three quadrants did not predict the
+// fourth's curvature on a hill scene where the quadratic was right.
+BlockTrend ChooseBlockTrend(const std::vector<double>& value, const std::vector<std::size_t>& known, int bx, int by) {
+  BlockTrend trend;
+  trend.bx = bx;
+  trend.by = by;
+  constexpr int kFolds = 4;  // per side: a held-out square is a block or two of a 256 m city tile
+  auto fold = [&](std::size_t m) {
+    return (kFolds * static_cast<int>(m % bx)) / bx + kFolds * ((kFolds * static_cast<int>(m / bx)) / by);
+  };
+  auto cross_validated = [&](int terms) {
+    double error = 0;
+    bool tested = false;
+    for (int q = 0; q < kFolds * kFolds; ++q) {
+      std::vector<std::size_t> fit, held;
+      for (std::size_t m : known) (fold(m) == q ? held : fit).push_back(m);
+      if (held.empty()) continue;
+      BlockTrend part = trend;
+      part.c = FitBlockTrend(trend, terms, value, fit);
+      if (!part.c.size()) return std::numeric_limits<double>::infinity();
+      for (std::size_t m : held) error += std::abs(part.At(m) - value[m]);
+      tested = true;
+    }
+    return tested ? error : std::numeric_limits<double>::infinity();
+  };
+  trend.c = FitBlockTrend(trend, 3, value, known);
+  if (!trend.c.size()) return trend;
+  constexpr int kQuadraticTerms = 6;
+  if (cross_validated(kQuadraticTerms) < cross_validated(3)) {
+    Eigen::VectorXd quadratic = FitBlockTrend(trend, kQuadraticTerms, value, known);
+    if (quadratic.size()) trend.c = quadratic;
+  }
+  return trend;
+}
+
 }  // namespace
 
 std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, int radius_cells, float max_rise_m) {
@@ -237,7 +322,7 @@ std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, in
 }
 
 std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<float>& ground, int nx, int ny,
-                                const HoleFillOptions& o) {
+                                const HoleFillOptions& o, int* trend_terms) {
   CheckGrid(h, nx, ny);
   if (ground.size() != h.size()) throw Error("dense", "ground surface", "size differs from the height grid's");
   const int block = o.terrain_block_cells;
@@ -270,17 +355,15 @@ std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<f
       known[m] = 1;
     }
   if (std::find(known.begin(), known.end(), 1) == known.end()) return std::vector<float>(h.size(), kNan);
-  // Blocks without ground follow the plane through the known centres, plus
-  // the harmonic interpolation of what the known ones leave: a hidden
-  // stretch of a hillside keeps the hill's slope instead of levelling out.
+  // Blocks without ground follow the trend of the known centres, plus the
+  // harmonic interpolation of what the known ones leave: a hidden stretch
+  // of a hillside keeps the hill's slope instead of levelling out.
   std::vector<std::size_t> known_blocks;
   for (std::size_t m = 0; m < known.size(); ++m)
     if (known[m]) known_blocks.push_back(m);
-  std::vector<float> centre_m(centre.begin(), centre.end());
-  const std::optional<CellPlane> block_trend = FitPlane(centre_m, bx, known_blocks);
-  auto trend_at = [&](std::size_t m) {
-    return block_trend ? block_trend->At(static_cast<double>(m % bx), static_cast<double>(m / bx)) : 0.0;
-  };
+  const BlockTrend block_trend = ChooseBlockTrend(centre, known_blocks, bx, by);
+  if (trend_terms) *trend_terms = static_cast<int>(block_trend.c.size());
+  auto trend_at = [&](std::size_t m) { return block_trend.At(m); };
   for (std::size_t m = 0; m < centre.size(); ++m) centre[m] -= trend_at(m);
   HarmonicFill(centre, known, bx, by);
   for (std::size_t m = 0; m < centre.size(); ++m) centre[m] += trend_at(m);
@@ -301,7 +384,7 @@ std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<f
 GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const HoleFillOptions& o) {
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells, o.ground_max_rise_m);
-  model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o);
+  model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o, &model.terrain_trend_terms);
   model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, WindowEdge::kClip);
   return model;
 }
@@ -414,7 +497,10 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
       }
       const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && r > o.radius_cells &&
                               low[k] > o.roof_rim_min_m;
-      h[k] = ground ? model.terrain_m[k] : far_raised ? base[k] : base[k] + low[k];
+      // The far-raised cell's ground is the terrain model, which keeps a
+      // hillside's slope; the plain opening there is the lowest roof in reach.
+      const float far_ground = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
+      h[k] = ground ? model.terrain_m[k] : far_raised ? far_ground : base[k] + low[k];
       filled[k] = 1;
     }
     if (!open || r >= o.max_reach_cells) break;

@@ -55,6 +55,7 @@ struct HoleFillOptions {
 // JAX_068 and the other scenes were the same either way.
 struct GroundModel {
   std::vector<float> ground_m, terrain_m, seen_hole_base_m;
+  int terrain_trend_terms = 0;  // the terrain's trend: 3 a plane, 6 a quadratic, 0 none
 };
 GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options);
 
@@ -95,14 +96,17 @@ std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int
 // (measured, within `ground_tolerance_m` of `ground_surface`) are grouped in
 // blocks of terrain_block_cells; each block's plane (least squares, or the
 // median of fewer than 3 cells) gives its value at the block's centre,
-// blocks without ground take the plane through the known centres plus the
-// harmonic interpolation of what that plane leaves of them (a hidden
-// stretch of a hillside keeps the hill's slope), and
+// blocks without ground take the trend of the known centres plus the
+// harmonic interpolation of what that trend leaves of them (a hidden
+// stretch of a hillside keeps the hill's slope and curvature), and
 // cells interpolate the block centres bilinearly (linearly extended over the
 // outer half blocks). Exact on planes; NaN everywhere when no cell is ground.
-// Unlike the opening, it does not flatten across a wide hole.
+// Unlike the opening, it does not flatten across a wide hole. The trend is
+// a plane, or a quadratic surface where that predicts the known blocks
+// better from each other (4 x 4 spatial folds); `trend_terms`, when given,
+// receives which (3 or 6; 0 with no trend).
 std::vector<float> TerrainModel(const std::vector<float>& height_m, const std::vector<float>& ground_surface, int nx,
-                                int ny, const HoleFillOptions& options);
+                                int ny, const HoleFillOptions& options, int* trend_terms = nullptr);
 
 // Small patches of matched cells that float high above the terrain: where
 // the ground is hidden (a street between tall buildings), the only heights
