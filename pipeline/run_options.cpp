@@ -113,6 +113,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("support_radius_cells", o.support_radius_cells);
   io("support_grey_sigma", o.support_grey_sigma);
   io("step_cost_margin", o.step_cost_margin);
+  io("decide_filled_sides", o.decide_filled_sides);
   io("fill_radius_m", o.fill_radius_m);
   io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
   io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);

@@ -695,6 +695,82 @@ std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_c
   return changed;
 }
 
+// The view slots ordered most nadir first: the reference view of
+// SupportWeightedCost's weights.
+std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
+                            const Eigen::Vector3d& centre) {
+  std::vector<int> order(used_views.size());
+  std::iota(order.begin(), order.end(), 0);
+  auto up = [&](int k) { return (views[used_views[k]].camera.Centre() - centre).normalized().z(); };
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return up(a) > up(b); });
+  return order;
+}
+
+// DenseOptions::decide_filled_sides: each filled cell (`candidates`) is
+// scored (SupportWeightedCost) at the ground (`terrain_m`) and at a raised
+// height: its fill where that stands more than step_min_m above the
+// ground, else the lowest measured height raised that much within
+// `reach_cells` (then 4 x reach_cells) of it. The cell takes the other side
+// where that side's cost is at most max_cost and step_cost_margin below its
+// fill's, and where a cell filled at the ground has no measured ground
+// within step_reach_cells: there the roof's side wins by the windows'
+// fattening, as beside any step. A side no view can score decides nothing.
+// Views count where they see the point past the measured surface
+// (`measured_m`; holes hide nothing), near cells excepted as in the
+// visibility pass. Returns how many cells changed side.
+std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
+                              const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                              const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
+                              int reach_cells, std::vector<float>& height_m, Progress& progress) {
+  const HeightGrid& g = s.grid;
+  const float step_min = static_cast<float>(s.o.step_min_m);
+  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
+  // The measured heights raised above the ground, and their lowest within
+  // the two reaches.
+  std::vector<float> raised(measured_m.size(), kNan);
+  for (std::size_t k = 0; k < raised.size(); ++k)
+    if (measured_m[k] > terrain_m[k] + step_min) raised[k] = measured_m[k];
+  const std::vector<float> raised_near = MinFilter(raised, g.nx, g.ny, reach_cells, WindowEdge::kClip);
+  // Measured ground within the step's reach: beside it a roof hypothesis
+  // is the windows' fattening again.
+  std::vector<float> ground_cells(measured_m.size(), kNan);
+  for (std::size_t k = 0; k < ground_cells.size(); ++k)
+    if (std::abs(measured_m[k] - terrain_m[k]) <= step_min) ground_cells[k] = 0.0f;
+  const std::vector<float> ground_near =
+      MinFilter(ground_cells, g.nx, g.ny, s.o.step_reach_cells, WindowEdge::kClip);
+  const std::vector<float> raised_far = MinFilter(raised, g.nx, g.ny, 4 * reach_cells, WindowEdge::kClip);
+  const std::vector<std::vector<float>> seen_above =
+      SeenAbove(g, measured_m, to_cameras, s.z_lo, s.o.visibility_tolerance_m,
+                s.o.visibility_near_cells >= 0 ? s.o.visibility_near_cells : s.o.window_cells / 2);
+  progress.Begin("dense: deciding filled cells between ground and roof", g.ny);
+  std::atomic<int> rows_done{0};
+  std::atomic<std::size_t> changed{0};
+  tbb::enumerable_thread_specific<SupportScratch> scratch;
+  const std::vector<float> before = height_m;
+  tbb::parallel_for(0, g.ny, [&](int j) {
+    SupportScratch& t = scratch.local();
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!candidates[k] || !std::isfinite(terrain_m[k]) || !std::isfinite(before[k])) continue;
+      const bool filled_raised = before[k] > terrain_m[k] + step_min;
+      if (!filled_raised && std::isfinite(ground_near[k])) continue;
+      const float ground = terrain_m[k];
+      const float roof = filled_raised ? before[k] : std::isfinite(raised_near[k]) ? raised_near[k] : raised_far[k];
+      if (!std::isfinite(roof)) continue;
+      const float cost_ground = SupportWeightedCost(s, &seen_above, nadir_first, i, j, ground, t);
+      const float cost_roof = SupportWeightedCost(s, &seen_above, nadir_first, i, j, roof, t);
+      if (!std::isfinite(cost_ground) || !std::isfinite(cost_roof)) continue;
+      const float other = filled_raised ? cost_ground : cost_roof, own = filled_raised ? cost_roof : cost_ground;
+      if (other > max_cost || own - other < margin) continue;
+      height_m[k] = filled_raised ? ground : roof;
+      ++changed;
+    }
+    progress.Advance(++rows_done, "");
+  });
+  progress.End();
+  return changed;
+}
+
 }  // namespace
 
 std::vector<float> VisibleAbove(const HeightGrid& g, const std::vector<float>& surface_m,
@@ -924,13 +1000,9 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     first = std::move(second);
   }
   std::size_t step_changed = 0;
-  if (o.refine_steps) {
-    std::vector<int> nadir_first(grey.size());
-    std::iota(nadir_first.begin(), nadir_first.end(), 0);
-    auto up = [&](int k) { return (views[used_views[k]].camera.Centre() - centre).normalized().z(); };
-    std::stable_sort(nadir_first.begin(), nadir_first.end(), [&](int a, int b) { return up(a) > up(b); });
-    step_changed = RefineSteps(sweep, o.visibility_pass ? &to_cameras : nullptr, nadir_first, first.height_m, progress);
-  }
+  if (o.refine_steps)
+    step_changed = RefineSteps(sweep, o.visibility_pass ? &to_cameras : nullptr, NadirFirst(views, used_views, centre),
+                               first.height_m, progress);
   g.height_m = std::move(first.height_m);
   g.cost = std::move(first.cost);
   const std::size_t low_cost = first.low_cost, speckles = first.speckles;
@@ -939,6 +1011,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   occluded_cells = 0;
   std::size_t coarse_cells = 0, floating_cells = 0;
   int terrain_trend_terms = 0;
+  std::size_t filled_sides_changed = 0;
   g.filled.assign(cells, 0);
   if (o.fill_holes) {
     const GroundModel model = GroundModelOf(g.height_m, g.nx, g.ny, fill);
@@ -962,7 +1035,14 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
           ++coarse_cells;
         }
     }
+    const std::vector<float> measured_m = g.height_m;  // coarse heights included: they are a surface
     g.filled = FillHoles(g.height_m, g.nx, g.ny, fill, model, &occluded);
+    if (o.decide_filled_sides) {
+      std::vector<std::uint8_t> candidates = g.filled;
+      for (std::size_t k = 0; k < cells; ++k) candidates[k] &= from_coarse[k] ? 0 : 1;
+      filled_sides_changed = DecideFilledSides(sweep, to_cameras, NadirFirst(views, used_views, centre), measured_m,
+                                               model.terrain_m, candidates, fill.radius_cells, g.height_m, progress);
+    }
     // Coarse heights count as filled: not measured at the grid's own scale.
     for (std::size_t k = 0; k < cells; ++k) g.filled[k] |= from_coarse[k];
   }
@@ -1020,6 +1100,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   r.metrics["floating_removed_fraction"] = static_cast<double>(floating_cells) / static_cast<double>(cells);
   r.metrics["occluded_fraction"] = static_cast<double>(occluded_cells) / static_cast<double>(cells);
   r.metrics["terrain_trend_terms"] = terrain_trend_terms;
+  r.metrics["filled_sides_changed_fraction"] = static_cast<double>(filled_sides_changed) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
   r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);
   r.metrics["step_pulled_fraction"] = static_cast<double>(step_pulled) / static_cast<double>(cells);

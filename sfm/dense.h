@@ -84,6 +84,17 @@ struct DenseOptions {
   int support_radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
   double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
   double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
+  // After filling, each filled cell (not from the coarse sweep) is scored
+  // at the ground (the terrain model) and at a roof (its fill where raised,
+  // else the lowest raised measured height in reach) with the same
+  // adaptive support weights, and takes the other side where that matches
+  // clearly better (step_min_m, step_cost_margin, max_cost); a cell filled
+  // at the ground with measured ground within step_reach_cells keeps it
+  // (beside a step the roof wins by fattening). The fill rules decide from
+  // geometry alone: holes in roofs that join the unmatched streets beside
+  // them took the terrain (docs/benchmarks.md, "Filled cells decided by
+  // the views").
+  bool decide_filled_sides = true;
   // After filling, steps onto the ground move back by one cell where the
   // windows fattened them (PullStepsToGround): a cell whose next
   // step_pull_run_cells cells in one of 8 directions all lie more than
