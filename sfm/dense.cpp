@@ -726,11 +726,12 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
   const float step_min = static_cast<float>(s.o.step_min_m);
   const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
   // The measured heights raised above the ground, and their lowest within
-  // the two reaches.
+  // the two reaches (the fill's first and largest, 5 and 20 m by default).
   std::vector<float> raised(measured_m.size(), kNan);
   for (std::size_t k = 0; k < raised.size(); ++k)
     if (measured_m[k] > terrain_m[k] + step_min) raised[k] = measured_m[k];
   const std::vector<float> raised_near = MinFilter(raised, g.nx, g.ny, reach_cells, WindowEdge::kClip);
+  const std::vector<float> raised_far = MinFilter(raised, g.nx, g.ny, 4 * reach_cells, WindowEdge::kClip);
   // Measured ground within the step's reach: beside it a roof hypothesis
   // is the windows' fattening again.
   std::vector<float> ground_cells(measured_m.size(), kNan);
@@ -738,7 +739,6 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
     if (std::abs(measured_m[k] - terrain_m[k]) <= step_min) ground_cells[k] = 0.0f;
   const std::vector<float> ground_near =
       MinFilter(ground_cells, g.nx, g.ny, s.o.step_reach_cells, WindowEdge::kClip);
-  const std::vector<float> raised_far = MinFilter(raised, g.nx, g.ny, 4 * reach_cells, WindowEdge::kClip);
   const std::vector<std::vector<float>> seen_above =
       SeenAbove(g, measured_m, to_cameras, s.z_lo, s.o.visibility_tolerance_m,
                 s.o.visibility_near_cells >= 0 ? s.o.visibility_near_cells : s.o.window_cells / 2);
