@@ -62,16 +62,19 @@ struct TileSpec {
   int col = 0, row = 0;
   TileGrid grid;           // the city's grid (for ownership at merge)
   GroundBox core;          // owned by this tile
-  GroundBox extent;        // core + overlap margin, clipped to the city bounds
+  // What the tile reconstructs: its core grown by the overlap margin towards
+  // its neighbours, and the city's bounds grown by the same margin at the
+  // city's edge (tiling.cpp: PlanTiles).
+  GroundBox extent;
   GeodeticPoint enu_origin;       // the city's shared frame
   double min_height_m = 0, max_height_m = 0;  // ellipsoidal
   std::vector<TileImage> images;
-  // The part of the core the tile reconstructs (a city smaller than a tile
-  // clips its core to the tile's extent).
+  // The part of the core within the city (a city smaller than a tile clips
+  // its core): the core cut to the extent less its margin.
   GroundBox ReconstructedCore() const {
     GroundBox b = core;
-    b.min_m = b.min_m.cwiseMax(extent.min_m);
-    b.max_m = b.max_m.cwiseMin(extent.max_m);
+    b.min_m = b.min_m.cwiseMax((extent.min_m.array() + grid.overlap_m).matrix());
+    b.max_m = b.max_m.cwiseMin((extent.max_m.array() - grid.overlap_m).matrix());
     return b;
   }
 };

@@ -112,11 +112,17 @@ DenseClouds DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs) {
     const fs::path spec_path = fs::path(dir) / "tile.json";
     const std::optional<TileSpec> spec =
         fs::exists(spec_path) ? std::optional<TileSpec>(ReadTileSpec(spec_path.string())) : std::nullopt;
+    // The cells of the margin beyond the city render too (they cover the
+    // AOI's border cells) but are not counted: the figures are the city's.
+    const std::optional<GroundBox> city_part =
+        spec ? std::optional<GroundBox>(spec->ReconstructedCore()) : std::nullopt;
     for (std::size_t k = 0; k < cells.points.size(); ++k) {
       if (spec && spec->grid.Owner(cells.points[k].x(), cells.points[k].y()) != Eigen::Vector2i(spec->col, spec->row))
         continue;
-      ++out.cells;
-      out.filled += cells.filled[k];
+      if (!city_part || city_part->Contains(cells.points[k].x(), cells.points[k].y())) {
+        ++out.cells;
+        out.filled += cells.filled[k];
+      }
       std::array<float, 3 * kShCoeffsPerChannel> sh{};
       for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(cells.colours[k][c]));
       for (GaussianCloud* cloud : {&out.all, &out.measured}) {

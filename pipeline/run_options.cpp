@@ -117,6 +117,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_radius_m", o.fill_radius_m);
   io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
   io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);
+  io("fill_roof_enclosed", o.fill_roof_enclosed);
   io("fill_far_raised_ground", o.fill_far_raised_ground);
   io("fill_edge_hides", o.fill_edge_hides);
   io("floating_patch_max_m2", o.floating_patch_max_m2);

@@ -957,6 +957,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   fill.max_reach_cells = cells_of(o.max_fill_reach_m);
   fill.roof_rim_fraction = static_cast<float>(o.fill_roof_rim_fraction);
   fill.roof_rim_occluded = o.fill_roof_rim_occluded;
+  fill.roof_enclosed = o.fill_roof_enclosed;
   fill.far_raised_takes_ground = o.fill_far_raised_ground;
   fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);

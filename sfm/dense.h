@@ -118,6 +118,10 @@ struct DenseOptions {
   // and the occluded-ground rule alone would fill it with the terrain
   // (HoleFillOptions::roof_rim_occluded).
   bool fill_roof_rim_occluded = true;
+  // A hole cell enclosed by roof on all sides (HoleFillOptions::roof_enclosed)
+  // takes the roof even where its piece of holes reaches hidden ground
+  // beyond the roof's edge.
+  bool fill_roof_enclosed = true;
   // A seen hole cell with nothing measured within fill_radius_m, whose
   // lowest measured neighbour further out is raised, takes the ground
   // (HoleFillOptions::far_raised_takes_ground): a street between tall

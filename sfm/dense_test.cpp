@@ -568,7 +568,7 @@ TEST(Dense, AStreetBetweenRoofsIsNotHiddenByItsOwnFilling) {
 }
 
 // A 20 m roof, textured but for a plain patch 2 m inside its east edge:
-// no window there correlates, and with the rim rule off the fill takes the
+// no window there correlates, and with the rim and enclosure rules off the fill takes the
 // ground within reach beyond the edge for the patch. Scored at the ground
 // and at the roof with adaptive support weights (whose window reaches the
 // roof's texture around the patch), the patch matches the roof clearly
@@ -598,6 +598,7 @@ TEST(Dense, FilledCellsTakeTheSideTheViewsMatchBetter) {
     DenseOptions o;
     o.coarse_factor = 1;             // the patch stays a hole
     o.fill_roof_rim_fraction = 0.0;  // and the fill takes the ground within reach
+    o.fill_roof_enclosed = false;    // (the patch is enclosed by roof)
     o.decide_filled_sides = decide;
     const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;

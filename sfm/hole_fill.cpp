@@ -8,6 +8,8 @@
 #include <optional>
 #include <string>
 
+#include <tbb/parallel_for.h>
+
 #include "core/error.h"
 #include "core/stats.h"
 
@@ -436,6 +438,50 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
   return roof_hole;
 }
 
+// Per cell, 1 where a hole cell is enclosed by a roof: marching from it
+// along each of the 8 grid directions, every ray meets a measured cell
+// within `reach_cells`, and all but one of those first cells lie more than
+// roof_rim_min_m above the ground (`above`). Unlike RoofHoles' pieces, this
+// does not depend on what the hole connects to: a roof's hole joined
+// through hidden cells to the ground behind a tower beyond the roof's edge
+// is one piece with a rim mostly of ground, yet its cells inside the roof
+// are enclosed. A street between two roofs is not: its rays along the street
+// meet the ground, or nothing within reach.
+std::vector<std::uint8_t> EnclosedByRoof(const std::vector<float>& h, const std::vector<float>& above,
+                                         const std::vector<std::uint8_t>* occluded, int nx, int ny,
+                                         const HoleFillOptions& o) {
+  std::vector<std::uint8_t> enclosed(h.size(), 0);
+  if (!o.roof_enclosed) return enclosed;
+  constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+  constexpr int kGroundAllowed = 1;  // one ray may leave through a gap in the roof's rim
+  const int reach = o.max_reach_cells;
+  tbb::parallel_for(0, ny, [&](int j) {
+    for (int i = 0; i < nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      if (std::isfinite(h[k]) || !(o.roof_rim_occluded || !(occluded && (*occluded)[k]))) continue;
+      int ground = 0;
+      bool all_met = true;
+      for (const auto& d : kDirections) {
+        bool met = false;
+        for (int t = 1; t <= reach && !met; ++t) {
+          const int a = i + t * d[0], b = j + t * d[1];
+          if (a < 0 || b < 0 || a >= nx || b >= ny) break;
+          const std::size_t n = static_cast<std::size_t>(b) * nx + a;
+          if (!std::isfinite(h[n])) continue;
+          met = true;
+          ground += above[n] > o.roof_rim_min_m ? 0 : 1;
+        }
+        if (!met || ground > kGroundAllowed) {
+          all_met = false;
+          break;
+        }
+      }
+      enclosed[k] = all_met ? 1 : 0;
+    }
+  });
+  return enclosed;
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
@@ -465,7 +511,9 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   }
   // A roof's holes are filled from the raised cells alone; the raised
   // cells' minimum is only taken when there is such a hole.
-  const std::vector<std::uint8_t> roof_hole = RoofHoles(h, above, occluded, nx, ny, o);
+  std::vector<std::uint8_t> roof_hole = RoofHoles(h, above, occluded, nx, ny, o);
+  const std::vector<std::uint8_t> enclosed = EnclosedByRoof(h, above, occluded, nx, ny, o);
+  for (std::size_t k = 0; k < h.size(); ++k) roof_hole[k] |= enclosed[k];
   std::vector<float> above_raised;
   if (std::find(roof_hole.begin(), roof_hole.end(), 1) != roof_hole.end()) {
     above_raised.assign(h.size(), kNan);

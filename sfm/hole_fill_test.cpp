@@ -171,6 +171,53 @@ TEST(HoleFill, AnOccludedHoleRingedByRoofTakesTheRoofAndAStripBesideAWallTheGrou
   EXPECT_NEAR(off.h[static_cast<std::size_t>(20) * Scene::nx + 131], 0.0f, kTol);
 }
 
+TEST(HoleFill, AHoleEnclosedByRoofTakesTheRoofThoughItsPieceReachesHiddenGround) {
+  // A 30 m roof at 20 m (columns 20-79, rows 10-69) on measured ground at 0,
+  // a hole in it (columns 40-69, rows 25-54) and a gap through its east
+  // edge (rows 38-41) into a strip of ground hidden behind a tower further
+  // east (columns 80-119; the tower, 100 m, from column 120). All hole cells
+  // are occluded. Hole, gap and strip are one piece, whose rim is about 75%
+  // raised: not a roof's hole by its rim.
+  const int nx = 140, ny = 80;
+  auto roof = [](int i, int j) { return i >= 20 && i <= 79 && j >= 10 && j <= 69; };
+  auto hole = [](int i, int j) { return i >= 40 && i <= 69 && j >= 25 && j <= 54; };
+  auto gap = [](int i, int j) { return i >= 70 && i <= 79 && j >= 38 && j <= 41; };
+  auto strip = [](int i, int j) { return i >= 80 && i <= 119 && j >= 10 && j <= 69; };
+  std::vector<float> scene(static_cast<std::size_t>(nx) * ny);
+  std::vector<std::uint8_t> occluded(scene.size(), 0);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      const bool unmatched = hole(i, j) || gap(i, j) || strip(i, j);
+      scene[k] = unmatched ? std::nanf("") : i >= 120 ? 100.0f : roof(i, j) ? 20.0f : 0.0f;
+      occluded[k] = unmatched ? 1 : 0;
+    }
+  HoleFillOptions o = FillOptions();
+  o.roof_rim_occluded = true;
+  std::vector<float> on = scene, off = scene;
+  o.roof_enclosed = true;
+  Fill(on, nx, ny, o, &occluded);
+  o.roof_enclosed = false;
+  Fill(off, nx, ny, o, &occluded);
+  // Tolerance: float rounding of the terrain's plane fit over ~70 m.
+  constexpr float kTol = 1e-3f;
+  auto at = [&](const std::vector<float>& h, int i, int j) { return h[static_cast<std::size_t>(j) * nx + i]; };
+  int roof_cells = 0;
+  for (int j = 25; j <= 54; ++j)
+    for (int i = 40; i <= 69; ++i) {
+      EXPECT_NEAR(at(off, i, j), 0.0f, kTol) << i << "," << j;  // by the piece's rim: the terrain
+      // Rows in line with the gap look east through it and the hidden strip,
+      // and meet the tower only beyond the reach (40 cells): not enclosed.
+      if (j >= 38 && j <= 41) continue;
+      EXPECT_NEAR(at(on, i, j), 20.0f, kTol) << i << "," << j;
+      ++roof_cells;
+    }
+  EXPECT_EQ(roof_cells, 30 * 26);
+  // The hidden strip's rays meet the ground north and south: it stays ground.
+  for (int j = 10; j <= 69; j += 7)
+    for (int i = 80; i <= 119; i += 6) EXPECT_NEAR(at(on, i, j), 0.0f, kTol) << i << "," << j;
+}
+
 TEST(HoleFill, AStreetFarFromItsMeasuredGroundTakesTheGroundNotTheRoofsBesideIt) {
   // Two 40 m roofs (columns 0-19 and 61-79) and the street between them,
   // which no pair matched (rows 0-54); its ground is measured only from row

@@ -212,6 +212,14 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
     min_h = std::min(min_h, a.min_height_m);
     max_h = std::max(max_h, a.max_height_m);
   }
+  // The margin reaches beyond the city's bounds too: what stands just
+  // outside (a tower hiding roofs and streets inside from some views) is
+  // reconstructed rather than left for training to explain with the roofs it
+  // hides. Outer sides start from the bounds, so that a one-tile city's
+  // cells keep the bounds' lattice.
+  GroundBox reach = plan.bounds;
+  reach.min_m.array() -= g.overlap_m;
+  reach.max_m.array() += g.overlap_m;
   for (int row = 0; row < g.rows; ++row) {
     for (int col = 0; col < g.cols; ++col) {
       TileSpec t;
@@ -225,7 +233,11 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
       GroundBox grown = t.core;
       grown.min_m.array() -= g.overlap_m;
       grown.max_m.array() += g.overlap_m;
-      t.extent = Intersect(grown, plan.bounds);
+      if (col == 0) grown.min_m.x() = reach.min_m.x();
+      if (row == 0) grown.min_m.y() = reach.min_m.y();
+      if (col == g.cols - 1) grown.max_m.x() = reach.max_m.x();
+      if (row == g.rows - 1) grown.max_m.y() = reach.max_m.y();
+      t.extent = Intersect(grown, reach);
       t.enu_origin = plan.enu_origin;
       t.min_height_m = min_h;
       t.max_height_m = max_h;

@@ -13,7 +13,8 @@ namespace skyfall {
 
 struct TilingOptions {
   double tile_m = 256.0;      // [m] side of a tile core
-  // [m] margin reconstructed around each core. 8 m: an inner tile
+  // [m] margin reconstructed around each core, and beyond the city's bounds
+  // at its edge. 8 m: an inner tile
   // reconstructs 1.13x its core (1.27x at 16 m). With the merge's seam lines
   // (merge/ownership.h), the merged DSM's mean height step where tiles meet
   // was at most 0.51 m on four cities (1.17 m at the 16 m default before

@@ -61,11 +61,19 @@ TEST(Tiling, CoresPartitionTheAoiAndExtentsOverlapByTheMargin) {
     }
   }
   for (const TileSpec& t : plan.tiles) {
-    // Margin: the extent reaches overlap_m beyond the core, except at the AOI edge.
+    // Margin: the extent reaches overlap_m beyond the core towards the
+    // neighbouring tile, and overlap_m beyond the AOI's bounds at its edge
+    // (what stands just outside the AOI is reconstructed too).
+    const double m = o.overlap_m;
+    constexpr double kTol = 1e-9;  // [m] the same sums in another order
+    EXPECT_NEAR(t.extent.min_m.x(), t.col == 0 ? plan.bounds.min_m.x() - m : t.core.min_m.x() - m, kTol) << t.id;
+    EXPECT_NEAR(t.extent.max_m.x(), t.col == 1 ? plan.bounds.max_m.x() + m : t.core.max_m.x() + m, kTol) << t.id;
+    EXPECT_NEAR(t.extent.min_m.y(), t.row == 0 ? plan.bounds.min_m.y() - m : t.core.min_m.y() - m, kTol) << t.id;
+    EXPECT_NEAR(t.extent.max_m.y(), t.row == 1 ? plan.bounds.max_m.y() + m : t.core.max_m.y() + m, kTol) << t.id;
     // (2 m: the AOI's bounding box in the ENU frame is ~1.5 m wider than its
     // 256 m UTM square, rotated by the grid convergence.)
-    EXPECT_NEAR(t.extent.Width(), 128.0 + 16.0, 2.0) << t.id;
-    EXPECT_NEAR(t.extent.Height(), 128.0 + 16.0, 2.0) << t.id;
+    EXPECT_NEAR(t.extent.Width(), 128.0 + 2 * m, 2.0) << t.id;
+    EXPECT_NEAR(t.extent.Height(), 128.0 + 2 * m, 2.0) << t.id;
     // Every JAX_068 crop covers the whole AOI, so every image sees every tile.
     EXPECT_EQ(t.images.size(), jax.images.size()) << t.id;
   }
