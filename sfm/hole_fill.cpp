@@ -393,8 +393,15 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
 
 namespace {
 
+// Whether cell k can be part of a roof's hole: a hole (NaN in `h`), and not
+// `occluded` unless roof_rim_occluded.
+bool RoofHoleCandidate(const std::vector<float>& h, const std::vector<std::uint8_t>* occluded,
+                       const HoleFillOptions& o, std::size_t k) {
+  return !std::isfinite(h[k]) && (o.roof_rim_occluded || !(occluded && (*occluded)[k]));
+}
+
 // Per cell, 1 where it belongs to a roof's hole: a piece of 4-connected
-// hole cells (NaN in `h`; not `occluded` unless roof_rim_occluded) of which at least
+// hole cells (RoofHoleCandidate) of which at least
 // roof_rim_fraction of the measured cells bordering it lie more than
 // roof_rim_min_m above the ground (`above`). Each piece is walked once, each
 // of its rim cells counted once. All 0 when the rule is off.
@@ -403,9 +410,7 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
                                     const HoleFillOptions& o) {
   std::vector<std::uint8_t> roof_hole(h.size(), 0);
   if (o.roof_rim_fraction <= 0) return roof_hole;
-  auto hole = [&](std::size_t k) {
-    return !std::isfinite(h[k]) && (o.roof_rim_occluded || !(occluded && (*occluded)[k]));
-  };
+  auto hole = [&](std::size_t k) { return RoofHoleCandidate(h, occluded, o, k); };
   std::vector<std::uint8_t> visited(h.size(), 0);
   std::vector<int> rim_of(h.size(), -1);  // the piece (its seed) a rim cell was last counted for
   std::vector<std::size_t> stack, members;
@@ -438,27 +443,27 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
   return roof_hole;
 }
 
-// Per cell, 1 where a hole cell is enclosed by a roof: marching from it
-// along each of the 8 grid directions, every ray meets a measured cell
-// within `reach_cells`, and all but one of those first cells lie more than
+// Marks in `roof_hole` each further candidate cell (RoofHoleCandidate)
+// enclosed by a roof: marching from it along each of the 8 grid directions,
+// every ray meets a measured cell within max_reach_cells, and all but one
+// of those first cells lie more than
 // roof_rim_min_m above the ground (`above`). Unlike RoofHoles' pieces, this
 // does not depend on what the hole connects to: a roof's hole joined
 // through hidden cells to the ground behind a tower beyond the roof's edge
 // is one piece with a rim mostly of ground, yet its cells inside the roof
 // are enclosed. A street between two roofs is not: its rays along the street
 // meet the ground, or nothing within reach.
-std::vector<std::uint8_t> EnclosedByRoof(const std::vector<float>& h, const std::vector<float>& above,
-                                         const std::vector<std::uint8_t>* occluded, int nx, int ny,
-                                         const HoleFillOptions& o) {
-  std::vector<std::uint8_t> enclosed(h.size(), 0);
-  if (!o.roof_enclosed) return enclosed;
+void MarkEnclosedByRoof(const std::vector<float>& h, const std::vector<float>& above,
+                        const std::vector<std::uint8_t>* occluded, int nx, int ny, const HoleFillOptions& o,
+                        std::vector<std::uint8_t>& roof_hole) {
+  if (!o.roof_enclosed) return;
   constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
   constexpr int kGroundAllowed = 1;  // one ray may leave through a gap in the roof's rim
   const int reach = o.max_reach_cells;
   tbb::parallel_for(0, ny, [&](int j) {
     for (int i = 0; i < nx; ++i) {
       const std::size_t k = static_cast<std::size_t>(j) * nx + i;
-      if (std::isfinite(h[k]) || !(o.roof_rim_occluded || !(occluded && (*occluded)[k]))) continue;
+      if (roof_hole[k] || !RoofHoleCandidate(h, occluded, o, k)) continue;
       int ground = 0;
       bool all_met = true;
       for (const auto& d : kDirections) {
@@ -476,10 +481,9 @@ std::vector<std::uint8_t> EnclosedByRoof(const std::vector<float>& h, const std:
           break;
         }
       }
-      enclosed[k] = all_met ? 1 : 0;
+      if (all_met) roof_hole[k] = 1;  // each row writes only its own cells
     }
   });
-  return enclosed;
 }
 
 }  // namespace
@@ -512,8 +516,7 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   // A roof's holes are filled from the raised cells alone; the raised
   // cells' minimum is only taken when there is such a hole.
   std::vector<std::uint8_t> roof_hole = RoofHoles(h, above, occluded, nx, ny, o);
-  const std::vector<std::uint8_t> enclosed = EnclosedByRoof(h, above, occluded, nx, ny, o);
-  for (std::size_t k = 0; k < h.size(); ++k) roof_hole[k] |= enclosed[k];
+  MarkEnclosedByRoof(h, above, occluded, nx, ny, o, roof_hole);
   std::vector<float> above_raised;
   if (std::find(roof_hole.begin(), roof_hole.end(), 1) != roof_hole.end()) {
     above_raised.assign(h.size(), kNan);

@@ -39,7 +39,7 @@ struct HoleFillOptions {
   bool roof_rim_occluded = false;
   // A hole cell enclosed by roof (each of the 8 rays from it meets a measured
   // cell within max_reach_cells, all but one of them raised) is a roof's
-  // hole whatever its piece's rim (EnclosedByRoof in hole_fill.cpp).
+  // hole whatever its piece's rim (MarkEnclosedByRoof in hole_fill.cpp).
   bool roof_enclosed = false;
   // A seen hole cell (not a roof's hole) with nothing measured within
   // radius_cells, whose lowest measured neighbour further out is raised,
