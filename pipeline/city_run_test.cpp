@@ -114,6 +114,18 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_GE(idu["facade_ratio"].get<double>(), 0.0);
     // The tile's merged scene is the synthesis stage's exactly when it ran.
     EXPECT_EQ(fs::exists(city_dir / "tiles" / t["tile"].get<std::string>() / "idu" / "scene.ply"), idu["on"].get<bool>());
+    // Each held-out view (2 of each AOI's 4; a tile sees one AOI's or both)
+    // is scored and its render, image and difference are written beside
+    // the tile's scene.
+    const fs::path splat_dir = city_dir / "tiles" / t["tile"].get<std::string>() / "splat";
+    const json held_out = ReadJson(splat_dir / "train_report.json")["held_out"];
+    EXPECT_TRUE(held_out.size() == 2u || held_out.size() == 4u) << t.dump();
+    for (const auto& h : held_out) {
+      EXPECT_TRUE(h["psnr_db"].is_number()) << h.dump();
+      EXPECT_TRUE(h["best_embedding_psnr_db"].is_number()) << h.dump();
+      ASSERT_EQ(h["images"].size(), 3u);
+      for (const auto& image : h["images"]) EXPECT_TRUE(fs::exists(splat_dir / image.get<std::string>())) << image;
+    }
   }
   EXPECT_GE(report["decisions"]["lod_levels"]["levels"].get<int>(), 2);
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));

@@ -35,6 +35,43 @@ nlohmann::json StepMsJson(const StepProfile& p) {
   return j;
 }
 
+nlohmann::json FiniteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+// Per held-out view: its scores and the images written for it.
+nlohmann::json HeldOutJson(const std::vector<HeldOutRender>& renders) {
+  nlohmann::json views = nlohmann::json::array();
+  for (const HeldOutRender& r : renders)
+    views.push_back({{"name", r.name},
+                     {"psnr_db", FiniteOrNull(r.psnr_db)},
+                     {"fitted_psnr_db", FiniteOrNull(r.fitted_psnr_db)},
+                     {"best_embedding_psnr_db", FiniteOrNull(r.best_embedding_psnr_db)},
+                     {"best_embedding_view", r.best_embedding_view.empty() ? nlohmann::json() : nlohmann::json(r.best_embedding_view)},
+                     {"images", {"heldout/" + r.name + "_render.png", "heldout/" + r.name + "_image.png",
+                                 "heldout/" + r.name + "_error.png"}}});
+  return views;
+}
+
+// A held-out view's render beside its image, and their difference (mean
+// absolute difference over the channels, 0.25 of the unit range and more
+// white), for a user to see where the model and the view disagree.
+void WriteHeldOutImages(const std::vector<HeldOutRender>& renders, const fs::path& dir) {
+  if (renders.empty()) return;
+  fs::create_directories(dir);
+  constexpr float kErrorFullScale = 0.25f;
+  for (const HeldOutRender& r : renders) {
+    const int w = r.width_px, h = r.height_px;
+    WriteUnitPng((dir / (r.name + "_render.png")).string(), w, h, 3, r.rgb);
+    WriteUnitPng((dir / (r.name + "_image.png")).string(), w, h, 3, r.target);
+    std::vector<float> error(static_cast<std::size_t>(w) * h);
+    for (std::size_t p = 0; p < error.size(); ++p) {
+      float sum = 0;
+      for (int c = 0; c < 3; ++c) sum += std::abs(r.rgb[3 * p + c] - r.target[3 * p + c]);
+      error[p] = sum / (3.0f * kErrorFullScale);
+    }
+    WriteUnitPng((dir / (r.name + "_error.png")).string(), w, h, 1, error);
+  }
+}
+
 std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views,
                             const std::string& appearance_reason) {
   nlohmann::json series = nlohmann::json::array();
@@ -42,7 +79,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
     series.push_back({{"iteration", s.iteration},
                       {"elapsed_s", s.seconds},
                       {"loss", std::isfinite(s.loss) ? nlohmann::json(s.loss) : nlohmann::json()},
-                      {"psnr_test_db", std::isfinite(s.psnr_test_db) ? nlohmann::json(s.psnr_test_db) : nlohmann::json()},
+                      {"psnr_test_db", FiniteOrNull(s.psnr_test_db)},
                       {"gaussians", s.gaussians}});
   }
   const nlohmann::json doc = {
@@ -62,6 +99,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"appearance", {{"reason", appearance_reason},
                       {"model", o.appearance.enabled ? nlohmann::json(o.appearance.model) : nlohmann::json()},
                       {"fused_image", r.appearance_image.empty() ? nlohmann::json() : nlohmann::json(r.appearance_image)}}},
+      {"held_out", HeldOutJson(r.held_out)},
       {"step_ms", StepMsJson(r.profile)},
       {"simd_path", SimdPathName(ActiveSimdPath())},
       {"series", series}};
@@ -343,6 +381,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),
                                 surface.get());
   WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);
+  WriteHeldOutImages(result.train.held_out, fs::path(out_dir) / "heldout");
   WriteFileAtomic((fs::path(out_dir) / "train_report.json").string(),
                   TrainReportJson(result.train, options, stage.downscale, views.size(), decided.appearance_reason));
   return result;

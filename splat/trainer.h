@@ -164,10 +164,27 @@ struct StepProfile {
   std::vector<std::pair<std::string, double>> MeanMsByPhase() const;
 };
 
+// A held-out view as the trained model renders it (with the embedding its
+// date chooses), and its scores: what the held-out PSNR averages.
+struct HeldOutRender {
+  std::string name;
+  int width_px = 0, height_px = 0;
+  std::vector<float> rgb;     // the render, 3 per pixel in [0, 1]
+  std::vector<float> target;  // the view's own image
+  double psnr_db = 0;
+  double fitted_psnr_db = 0;  // colours fitted on the left half, scored on the right
+  // Sat-NeRF's protocol: the view rendered with each training view's
+  // embedding, scored with the best (chosen against the view's own pixels;
+  // without the appearance model, psnr_db).
+  double best_embedding_psnr_db = 0;
+  std::string best_embedding_view;  // whose embedding that was (empty without the model)
+};
+
 struct TrainResult {
   GaussianCloud cloud;      // plain 3DGS; with appearance, fused for `appearance_image`
   std::string appearance_image;  // the view whose appearance was fused (empty without the model)
   std::vector<TrainSample> series;
+  std::vector<HeldOutRender> held_out;  // after the last step
   int start_iteration = 0;  // > 0 when resumed from a checkpoint
   StepProfile profile;
   StageReport report;

@@ -294,6 +294,37 @@ TEST(Trainer, AppearanceModelAbsorbsPerDateBrightness) {
   EXPECT_NE(modelled.appearance_image, f.views[1].name) << "a held-out view has no embedding to fuse";
 }
 
+TEST(Trainer, HeldOutScoresNameTheTrainingEmbeddingThatMatchesTheView) {
+  // Per-view gains as above, but the held-out view (1) shares view 0's gain
+  // and no date: its metadata choose the mean embedding, while Sat-NeRF's
+  // protocol (every training embedding tried on the view's pixels) must
+  // find view 0's and score at least as well as the mean.
+  Fixture f = MakeFixture(4);
+  const float gains[] = {0.6f, 0.6f, 1.3f, 0.9f, 1.2f};
+  for (size_t v = 0; v < f.views.size(); ++v) {
+    if (v != 1) f.views[v].acquisition_time = "2016-0" + std::to_string(v + 1) + "-01T00:00:00Z";
+    for (float& c : f.views[v].rgb) c = std::min(1.0f, c * gains[v]);
+  }
+  NullProgress progress;
+  TrainOptions o = ShortRun(150);
+  o.densify_from = o.iterations + 1;
+  o.lambda_opacity = 0;
+  o.appearance.enabled = true;
+  const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);
+  ASSERT_EQ(r.held_out.size(), 1u);
+  const HeldOutRender& h = r.held_out[0];
+  std::printf("[figures] held-out view with view 0's gain: %.2f dB with the mean embedding, %.2f dB with %s's, "
+              "%.2f dB fitted on half\n", h.psnr_db, h.best_embedding_psnr_db, h.best_embedding_view.c_str(),
+              h.fitted_psnr_db);
+  EXPECT_EQ(h.name, f.views[1].name);
+  EXPECT_EQ(h.best_embedding_view, f.views[0].name);
+  EXPECT_GT(h.best_embedding_psnr_db, h.psnr_db);
+  EXPECT_NEAR(h.psnr_db, r.series.back().psnr_test_db, 1e-9) << "the series' last point scores the same render";
+  EXPECT_NEAR(r.report.metrics.at("psnr_test_best_embedding_db"), h.best_embedding_psnr_db, 1e-12);
+  ASSERT_EQ(h.rgb.size(), f.views[1].rgb.size());
+  EXPECT_EQ(h.target, f.views[1].rgb);
+}
+
 TEST(Trainer, UnknownAppearanceImageIsRefusedBeforeTraining) {
   const Fixture f = MakeFixture(4);
   TrainOptions o = ShortRun(10);
