@@ -127,6 +127,13 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
       for (const auto& image : h["images"]) EXPECT_TRUE(fs::exists(splat_dir / image.get<std::string>())) << image;
     }
   }
+  // The report page links each tile's held-out renders.
+  {
+    std::ifstream page_in(dir / "out" / "report.html");
+    const std::string page((std::istreambuf_iterator<char>(page_in)), {});
+    EXPECT_NE(page.find("held-out views (PSNR)"), std::string::npos);
+    EXPECT_NE(page.find("SYN_001/tiles/SYN_001_c0_r0/splat/heldout/"), std::string::npos);
+  }
   EXPECT_GE(report["decisions"]["lod_levels"]["levels"].get<int>(), 2);
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));
   EXPECT_EQ(ReadJson(city_dir / "run_config.json"), report["options"]);

@@ -139,15 +139,41 @@ std::string Decisions(const json& decisions) {
   return text;
 }
 
-std::string TileTable(const json& report) {
+// A tile's held-out views: each one's PSNR with links to its render, its
+// image and their difference (splat/heldout/); empty without any.
+std::string HeldOutViews(const fs::path& splat_dir, const fs::path& out_dir) {
+  const fs::path train_report = splat_dir / "train_report.json";
+  if (!fs::exists(train_report)) return "";
+  json report;
+  try {
+    report = json::parse(std::ifstream(train_report));
+  } catch (const json::exception&) {
+    return "<span class=muted>(unreadable train_report.json)</span>";
+  }
+  std::string html;
+  for (const json& v : report.value("held_out", json::array())) {
+    html += HtmlEscape(v.value("name", "?")) + ": " + Number(v, "psnr_db", 1) + " dB ";
+    const json images = v.value("images", json::array());
+    const char* labels[] = {"render", "image", "difference"};
+    for (std::size_t k = 0; k < images.size() && k < 3; ++k)
+      if (images[k].is_string()) html += Link(splat_dir / images[k].get<std::string>(), out_dir, labels[k]);
+    html += "<br>";
+  }
+  return html;
+}
+
+std::string TileTable(const json& report, const fs::path& city_dir, const fs::path& out_dir) {
   std::string html =
-      "<table><tr><th>tile</th><th>status</th><th>time [s]</th><th>peak memory [MB]</th><th>decisions</th></tr>";
+      "<table><tr><th>tile</th><th>status</th><th>time [s]</th><th>peak memory [MB]</th><th>decisions</th>"
+      "<th>held-out views (PSNR)</th></tr>";
   for (const json& t : report.value("tiles", json::array())) {
     const std::string status = t.value("status", "failed");
-    html += "<tr>" + Cell(HtmlEscape(t.value("tile", "?"))) + "<td class=" + HtmlEscape(status) + ">" +
+    const std::string tile = t.value("tile", "?");
+    html += "<tr>" + Cell(HtmlEscape(tile)) + "<td class=" + HtmlEscape(status) + ">" +
             HtmlEscape(status) + (t.value("message", "").empty() ? "" : ": " + HtmlEscape(t.value("message", ""))) +
             "</td>" + Cell(Number(t, "seconds", 1), true) + Cell(Number(t, "peak_rss_mb", 0), true) +
-            Cell(Decisions(t.value("decisions", json::object()))) + "</tr>";
+            Cell(Decisions(t.value("decisions", json::object()))) +
+            Cell(HeldOutViews(city_dir / "tiles" / tile / "splat", out_dir)) + "</tr>";
   }
   return html + "</table>";
 }
@@ -197,7 +223,7 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
   }
   html += "<h3>Automatic decisions of the city</h3><p>" + Decisions(report.value("decisions", json::object())) + "</p>";
   html += "<h3>Stages</h3>" + StageTable(report);
-  html += "<h3>Tiles</h3>" + TileTable(report);
+  html += "<h3>Tiles</h3>" + TileTable(report, city_dir, out_dir);
   return html;
 }
 
