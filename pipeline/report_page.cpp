@@ -55,7 +55,7 @@ std::string EmbeddedPng(const fs::path& png, const std::string& alt) {
 std::string Link(const fs::path& target, const fs::path& out_dir, const std::string& text) {
   if (!fs::exists(target)) return "";
   const std::string href = fs::relative(fs::absolute(target), fs::absolute(out_dir)).generic_string();
-  return "<a href=\"" + HtmlEscape(href) + "\">" + HtmlEscape(text) + "</a> ";
+  return "<a href=\"" + HtmlEscape(UrlPath(href)) + "\">" + HtmlEscape(text) + "</a> ";
 }
 
 std::string DsmTable(const json& report) {
@@ -151,13 +151,17 @@ std::string HeldOutViews(const fs::path& splat_dir, const fs::path& out_dir) {
     return "<span class=muted>(unreadable train_report.json)</span>";
   }
   std::string html;
-  for (const json& v : report.value("held_out", json::array())) {
-    html += HtmlEscape(v.value("name", "?")) + ": " + Number(v, "psnr_db", 1) + " dB ";
-    const json images = v.value("images", json::array());
-    const char* labels[] = {"render", "image", "difference"};
-    for (std::size_t k = 0; k < images.size() && k < 3; ++k)
-      if (images[k].is_string()) html += Link(splat_dir / images[k].get<std::string>(), out_dir, labels[k]);
-    html += "<br>";
+  try {  // a report of another version: what cannot be read is left out, the page stands
+    for (const json& v : report.value("held_out", json::array())) {
+      html += HtmlEscape(v.value("name", "?")) + ": " + Number(v, "psnr_db", 1) + " dB ";
+      const json images = v.value("images", json::array());
+      const char* labels[] = {"render", "image", "difference"};
+      for (std::size_t k = 0; k < images.size() && k < 3; ++k)
+        if (images[k].is_string()) html += Link(splat_dir / images[k].get<std::string>(), out_dir, labels[k]);
+      html += "<br>";
+    }
+  } catch (const json::exception&) {
+    html += "<span class=muted>(unexpected held_out in train_report.json)</span>";
   }
   return html;
 }
@@ -228,6 +232,16 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
 }
 
 }  // namespace
+
+std::string UrlPath(const std::string& path) {
+  std::string out;
+  for (const unsigned char ch : path) {
+    const bool unreserved = (ch >= 'A' && ch <= 'Z') || (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') ||
+                            ch == '-' || ch == '.' || ch == '_' || ch == '~' || ch == '/';
+    out += unreserved ? std::string(1, static_cast<char>(ch)) : fmt::format("%{:02X}", ch);
+  }
+  return out;
+}
 
 std::string Base64(const std::string& bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";

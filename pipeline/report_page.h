@@ -20,4 +20,9 @@ std::string Base64(const std::string& bytes);
 // Text made safe inside HTML elements and attribute values.
 std::string HtmlEscape(const std::string& text);
 
+// A relative path as a URL path: bytes other than RFC 3986's unreserved
+// characters and '/' percent-encoded (users' image names may hold spaces,
+// '#' or '%', which would end or garble a link).
+std::string UrlPath(const std::string& path);
+
 }  // namespace skyfall

@@ -174,6 +174,7 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("init_points", o.init_points);
   io("init_spacing_m", o.init_spacing_m);
   io("init_facade_step_m", o.init_facade_step_m);
+  io("mask_beyond_reconstruction", o.mask_beyond_reconstruction);
   io("surface_filled_weight", o.anchor.filled_weight);
   io("surface_step_weight", o.anchor.step_weight);
   io("surface_step_reach_m", o.anchor.step_reach_m);

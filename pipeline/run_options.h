@@ -63,6 +63,10 @@ struct TrainStageOptions {
   // where neighbouring cells differ by this much (FacadePoints); 0 = none.
   double init_facade_step_m = 0.0;
   AnchorWeightOptions anchor;  // per dense cell, the surface anchor's confidence
+  // With a dense start, each view's pixels that see past the tile's dense
+  // heights (a crop's fringe beyond the extent) are left out of the loss and
+  // the scores (MaskBeyondReconstruction, stage_jobs.h).
+  bool mask_beyond_reconstruction = true;
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).

@@ -300,6 +300,36 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
   return r;
 }
 
+double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const RasterOptions& raster,
+                                std::vector<TrainView>* views) {
+  if (cells.points.empty()) return 0.0;
+  std::vector<Eigen::Vector3f> points, colours, walls, wall_colours;
+  ThinToGrid(spacing_m, cells.points, cells.colours, {}, {}, &points, &colours);
+  std::vector<int> wall_normals;
+  FacadePoints(cells.points, cells.colours, cells.cell_m, spacing_m, spacing_m, &walls, &wall_colours, &wall_normals);
+  points.insert(points.end(), walls.begin(), walls.end());
+  colours.insert(colours.end(), wall_colours.begin(), wall_colours.end());
+  // Blobs as wide as the spacing, nearly opaque: a closed surface wherever
+  // the heights reach, fading within about a spacing beyond their edge.
+  GaussianCloud cover = InitializeFromPoints(points, colours, spacing_m, 1);
+  constexpr float kOpaqueLogit = 4.6f;  // opacity 0.99
+  for (float& logit : cover.opacity_logits) logit = kOpaqueLogit;
+  constexpr float kCoveredAlpha = 0.5f;
+  std::size_t with_data = 0, masked = 0;
+  for (TrainView& v : *views) {
+    const RenderOutput<float> r = RenderGaussians(cover, v.camera, raster);
+    for (std::size_t p = 0; p < v.valid.size(); ++p) {
+      if (!v.valid[p]) continue;
+      ++with_data;
+      if (r.alpha[p] < kCoveredAlpha) {
+        v.valid[p] = 0;
+        ++masked;
+      }
+    }
+  }
+  return with_data ? static_cast<double>(masked) / static_cast<double>(with_data) : 0.0;
+}
+
 TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sfm_dir, const std::string& out_dir,
                            Progress& progress) {
   stage.Check();
@@ -317,8 +347,9 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   std::unique_ptr<SurfaceDepthPrior> surface;  // the dense heights, to anchor training to
   std::vector<Eigen::Vector3f> facades, facade_colours;
   std::vector<int> facade_normals;
+  DenseCells dense;
   if (decided.dense_start) {
-    const DenseCells dense = ReadDenseCells(dense_path.string());
+    dense = ReadDenseCells(dense_path.string());
     if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
                                                     AnchorCellWeights(dense, stage.anchor));
@@ -330,7 +361,9 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == "on" || (stage.densify == "auto" && !decided.dense_start);
   if (!decided.densify) options.densify_from = options.iterations + 1;  // never reached
-  const std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
+  std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
+  if (stage.mask_beyond_reconstruction)
+    decided.masked_beyond_fraction = MaskBeyondReconstruction(dense, stage.init_spacing_m, options.raster, &views);
   progress.Info(fmt::format(
       "splat train: {} views ({} held out), {} initial points ({}), {} iterations, densification {}", views.size(),
       std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }), points.size(),
@@ -360,6 +393,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
                            {"init_spacing_m", stage.init_spacing_m},
                            {"init_facade_step_m", stage.init_facade_step_m},
+                           {"mask_beyond_reconstruction", stage.mask_beyond_reconstruction},
                            {"densify", decided.densify},
                            {"surface_anchor", decided.surface_anchor ? nlohmann::json({options.lambda_surface_depth,
                                                                                       options.lambda_surface_alpha,
@@ -382,6 +416,10 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                                 surface.get());
   WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);
   WriteHeldOutImages(result.train.held_out, fs::path(out_dir) / "heldout");
+  for (HeldOutRender& r : result.train.held_out) {  // written: the tile's later stages need only the scores
+    std::vector<float>().swap(r.rgb);
+    std::vector<float>().swap(r.target);
+  }
   WriteFileAtomic((fs::path(out_dir) / "train_report.json").string(),
                   TrainReportJson(result.train, options, stage.downscale, views.size(), decided.appearance_reason));
   return result;
@@ -403,7 +441,9 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
     fs::remove(fs::path(out_dir) / "idu_report.json");
     return result;
   }
-  const std::vector<TrainView> views = LoadTrainViews(sfm_dir, train.downscale);
+  std::vector<TrainView> views = LoadTrainViews(sfm_dir, train.downscale);
+  if (train.mask_beyond_reconstruction)  // as the reconstruction was trained and scored
+    MaskBeyondReconstruction(dense, train.init_spacing_m, train.optimizer.raster, &views);
   const GaussianCloud scene = ReadGaussiansPly(scene_ply);
   std::vector<TrainView> satellite_train;
   for (const TrainView& v : views)

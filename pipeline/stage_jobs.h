@@ -43,6 +43,17 @@ DenseCells ReadDenseCells(const std::string& dense_ply);
 // is 1 (no weighting).
 std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& options);
 
+// Masks out of each view's `valid` the pixels that see past the tile's
+// dense heights: a crop's fringe beyond the extent (off-nadir views and tall
+// buildings widen it). No Gaussian of the tile explains them; trained on,
+// they pull the extent's edge Gaussians outwards, and scored, they measure
+// the crop, not the model. The cells (thinned to `spacing_m`) and the walls
+// between them are rendered opaque into each view; pixels they leave
+// uncovered (alpha < 0.5) are masked. Returns the share of the pixels with
+// data that were masked (0 without cells).
+double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const RasterOptions& raster,
+                                std::vector<TrainView>* views);
+
 // True when `sfm_dir` holds a finished dense stage with the same options
 // over the same extent.
 bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m);
@@ -54,6 +65,7 @@ struct TrainDecisions {
   bool appearance = false;
   std::string appearance_reason;
   bool surface_anchor = false;  // training anchored to the dense heights (needs a dense start)
+  double masked_beyond_fraction = 0;  // share of the views' pixels with data seeing past the dense heights
 };
 
 struct TrainJobResult {

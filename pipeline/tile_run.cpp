@@ -168,6 +168,12 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
       {"why", trained.decisions.surface_anchor ? "dense start: training holds to the dense heights"
                                                : trained.decisions.dense_start ? "train.lambda_surface_* are 0"
                                                                                : "no dense heights to hold to"}};
+  decisions["mask_beyond_reconstruction"] = {
+      {"on", options.train.mask_beyond_reconstruction && trained.decisions.dense_start},
+      {"masked_fraction", trained.decisions.masked_beyond_fraction},
+      {"why", !options.train.mask_beyond_reconstruction ? "train.mask_beyond_reconstruction is false"
+              : trained.decisions.dense_start ? "dense start: pixels seeing past the dense heights are not trained on or scored"
+                                              : "no dense heights to tell the tile's pixels from the rest"}};
   StageReport splat = trained.train.report;
   splat.stage = "splat";
   splat.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());

@@ -11,6 +11,7 @@
 #include "pipeline/stage_jobs.h"
 #include "splat/dataset.h"
 #include "splat/depth_prior.h"
+#include "splat/losses.h"
 #include "splat/orbit.h"
 #include "tiler/raster.h"
 
@@ -64,21 +65,6 @@ int WriteEvalOrbitCameras(const std::string& tile_dir, const EvalOrbitOptions& o
   }
   WriteFileAtomic(out_json, OrbitCamerasJson(views, spec.enu_origin));
   return static_cast<int>(views.size());
-}
-
-double MaskedPsnr(const std::vector<float>& a, const std::vector<float>& b, const std::vector<std::uint8_t>& mask) {
-  double se = 0;
-  std::size_t n = 0;
-  for (std::size_t p = 0; p < mask.size(); ++p) {
-    if (!mask[p]) continue;
-    for (int c = 0; c < 3; ++c) {
-      const double d = static_cast<double>(a[3 * p + c]) - b[3 * p + c];
-      se += d * d;
-    }
-    n += 3;
-  }
-  if (n == 0) return NAN;
-  return 10.0 * std::log10(1.0 / std::max(se / n, 1e-12));
 }
 
 double MaskedSsim(const std::vector<float>& a, const std::vector<float>& b, const std::vector<std::uint8_t>& mask,

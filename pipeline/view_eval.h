@@ -48,10 +48,9 @@ ViewComparison CompareViews(const std::string& cameras_json, const std::string& 
                             const std::vector<std::string>& render_dirs, const std::string& out_dir, Progress& progress);
 
 // Mean SSIM (Gaussian window, sigma 1.5 px, the usual constants for [0, 1]
-// images) and PSNR over the pixels where `mask` is non-zero; RGB, 3 floats
-// per pixel. NaN when the mask is empty.
+// images) over the pixels where `mask` is non-zero; RGB, 3 floats per pixel.
+// NaN when the mask is empty. (PSNR over a mask: MaskedPsnr, splat/losses.h.)
 double MaskedSsim(const std::vector<float>& a, const std::vector<float>& b, const std::vector<std::uint8_t>& mask,
                   int width_px, int height_px);
-double MaskedPsnr(const std::vector<float>& a, const std::vector<float>& b, const std::vector<std::uint8_t>& mask);
 
 }  // namespace skyfall

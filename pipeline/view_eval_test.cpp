@@ -5,6 +5,8 @@
 #include <cmath>
 #include <random>
 
+#include "splat/losses.h"
+
 namespace skyfall {
 namespace {
 

@@ -370,6 +370,24 @@ double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
 }
 
+double MaskedPsnr(const std::vector<float>& rgb, const std::vector<float>& target,
+                  const std::vector<std::uint8_t>& valid) {
+  if (valid.empty()) return Psnr(rgb, target);
+  RequireSameSize(rgb.size(), target.size(), "masked psnr");
+  RequireSameSize(rgb.size(), 3 * valid.size(), "masked psnr (valid, size)");
+  double se = 0;
+  std::size_t n = 0;
+  for (std::size_t p = 0; p < valid.size(); ++p) {
+    if (!valid[p]) continue;
+    for (std::size_t k = 3 * p; k < 3 * p + 3; ++k) se += (static_cast<double>(rgb[k]) - target[k]) * (static_cast<double>(rgb[k]) - target[k]);
+    n += 3;
+  }
+  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+  const double mse = se / static_cast<double>(n);
+  if (std::isnan(mse)) return mse;
+  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // as Psnr
+}
+
 double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>& target, int width_px,
                       int height_px, const std::vector<std::uint8_t>& valid) {
   const std::size_t pixels = static_cast<std::size_t>(width_px) * static_cast<std::size_t>(height_px);

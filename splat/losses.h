@@ -113,6 +113,12 @@ double SurfaceHeightLoss(const std::vector<float>& z_m, const std::vector<float>
 template <typename T>
 double Psnr(const std::vector<T>& x, const std::vector<T>& target);
 
+// The same over the pixels where `valid` (1 per pixel of 3 channels; empty:
+// every pixel) is non-zero: a view's pixels without data (nodata, zero fill,
+// a crop beyond the image) are not scored. NaN when no pixel is valid.
+double MaskedPsnr(const std::vector<float>& rgb, const std::vector<float>& target,
+                  const std::vector<std::uint8_t>& valid);
+
 // Least-squares line b = gain * a + offset through pairs (a, b): one colour
 // channel of an image mapped onto another's.
 struct LineFit {

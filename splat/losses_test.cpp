@@ -273,6 +273,22 @@ TEST(Losses, PsnrOfKnownError) {
   EXPECT_TRUE(std::isnan(Psnr(c, b)));  // not the 100 dB of identical images
 }
 
+// Pixels without data do not count: a view whose crop runs past its image
+// (zeros there) scores as its data does.
+TEST(Losses, MaskedPsnrLeavesPixelsWithoutDataOut) {
+  std::vector<float> render(3 * 10, 0.5f), target(3 * 10, 0.6f);
+  EXPECT_NEAR(MaskedPsnr(render, target, {}), Psnr(render, target), 1e-12);  // no mask: every pixel
+  std::vector<std::uint8_t> valid(10, 1);
+  for (int p = 7; p < 10; ++p) {
+    valid[p] = 0;
+    for (int c = 0; c < 3; ++c) target[3 * p + c] = 0.0f;  // zero fill beyond the image
+  }
+  EXPECT_NEAR(MaskedPsnr(render, target, valid), 20.0, 1e-4);  // MSE 0.01 on the valid pixels
+  EXPECT_LT(Psnr(render, target), 15.0);                       // the zero fill counted: MSE 0.082
+  EXPECT_TRUE(std::isnan(MaskedPsnr(render, target, std::vector<std::uint8_t>(10, 0))));
+  EXPECT_THROW(MaskedPsnr(render, target, std::vector<std::uint8_t>(9, 1)), Error);
+}
+
 // A render that is the truth seen through a per-channel gain and offset (a
 // different date) scores as perfect once the affine is fitted on the left
 // half; an error confined to the left half does not count; one on the right

@@ -459,7 +459,7 @@ std::vector<ColourAffine<float>> AffineFor(const GaussianCloud& c, const Appeara
 
 double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
                 const AppearanceState& appearance, const std::vector<ColourAffine<float>>& affine) {
-  return Psnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb);
+  return MaskedPsnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb, v.valid);
 }
 
 // Adds the geometry and opacity gradients of an extra view (a pseudo or
@@ -577,7 +577,7 @@ double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& vi
 double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                    const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date = true) {
   return MeanHeldOutScore(c, views, raster, appearance, train_ids, by_date,
-                          [](const std::vector<float>& rgb, const TrainView& v) { return Psnr(rgb, v.rgb); });
+                          [](const std::vector<float>& rgb, const TrainView& v) { return MaskedPsnr(rgb, v.rgb, v.valid); });
 }
 
 // Sat-NeRF's test protocol: `v` rendered with every training view's
@@ -585,10 +585,10 @@ double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, 
 void BestTrainingEmbedding(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
                            const AppearanceState& appearance, const std::vector<TrainView>& views,
                            const std::vector<int>& train_ids, HeldOutRender* r) {
-  r->best_embedding_psnr_db = -std::numeric_limits<double>::infinity();
+  r->best_embedding_psnr_db = std::numeric_limits<double>::quiet_NaN();
   for (int j : train_ids) {
     const double psnr = ViewPsnr(c, v, raster, appearance, AffineFor(c, appearance, appearance.model.image_embeddings.col(j)));
-    if (psnr > r->best_embedding_psnr_db) {
+    if (std::isnan(r->best_embedding_psnr_db) || psnr > r->best_embedding_psnr_db) {  // a NaN render never wins
       r->best_embedding_psnr_db = psnr;
       r->best_embedding_view = views[j].name;
     }
@@ -611,7 +611,7 @@ std::vector<HeldOutRender> HeldOutRenders(const GaussianCloud& c, const std::vec
                      r.height_px = v.camera.height_px;
                      r.rgb = rgb;
                      r.target = v.rgb;
-                     r.psnr_db = Psnr(rgb, v.rgb);
+                     r.psnr_db = MaskedPsnr(rgb, v.rgb, v.valid);
                      r.fitted_psnr_db = HalfFittedPsnr(rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
                      r.best_embedding_psnr_db = r.psnr_db;
                      if (appearance.enabled) BestTrainingEmbedding(c, v, raster, appearance, views, train_ids, &r);
@@ -1103,9 +1103,11 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     double fitted = 0;
     for (const HeldOutRender& r : result.held_out) fitted += r.fitted_psnr_db;
     result.report.metrics["psnr_test_fitted_db"] = fitted / static_cast<double>(result.held_out.size());
-    double best = 0;
-    for (const HeldOutRender& r : result.held_out) best += r.best_embedding_psnr_db;
-    result.report.metrics["psnr_test_best_embedding_db"] = best / static_cast<double>(result.held_out.size());
+    if (appearance.enabled) {  // without the model there is no embedding to choose: psnr_test_db
+      double best = 0;
+      for (const HeldOutRender& r : result.held_out) best += r.best_embedding_psnr_db;
+      result.report.metrics["psnr_test_best_embedding_db"] = best / static_cast<double>(result.held_out.size());
+    }
   } else {
     result.report.metrics["psnr_test_fitted_db"] = std::numeric_limits<double>::quiet_NaN();
   }

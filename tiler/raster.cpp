@@ -194,7 +194,9 @@ void WriteUnitPng(const std::string& path, int width_px, int height_px, int band
                   PngCompression compression) {
   std::vector<std::uint8_t> bytes(values.size());
   for (std::size_t k = 0; k < bytes.size(); ++k)
-    bytes[k] = static_cast<std::uint8_t>(std::clamp(values[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+    bytes[k] = std::isfinite(values[k])  // NaN (a broken render) as black, not undefined
+                   ? static_cast<std::uint8_t>(std::clamp(values[k], 0.0f, 1.0f) * 255.0f + 0.5f)
+                   : 0;
   WriteBytePng(path, width_px, height_px, bands, bytes.data(), compression);
 }
 
