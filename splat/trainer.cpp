@@ -540,12 +540,6 @@ double ViewDepthLoss(const RenderOutput<float>& r, const TrainView& view, double
   return loss;
 }
 
-// Held-out views have no embedding of their own. With the appearance model
-// they are rendered with the embedding their acquisition metadata choose
-// (EmbeddingForDate: the same day's, else the nearest sun's), or with the
-// mean training embedding (`by_date` false: the figure before that choice,
-// kept for comparison). Each is scored by `score(render, view)`; returns
-// the mean over the held-out views (NaN: none).
 // The training views as EmbeddingForDate reads them.
 std::vector<EmbeddingSource> EmbeddingSources(const std::vector<TrainView>& views, const std::vector<int>& train_ids) {
   std::vector<EmbeddingSource> sources;
@@ -553,6 +547,25 @@ std::vector<EmbeddingSource> EmbeddingSources(const std::vector<TrainView>& view
   return sources;
 }
 
+// Held-out views have no embedding of their own. With the appearance model
+// a held-out view is rendered with the embedding its acquisition metadata
+// choose (EmbeddingForDate: the same day's, else the nearest sun's), or
+// with the mean training embedding (`by_date` false: the figure before that
+// choice, kept for comparison).
+RenderOutput<float> RenderHeldOut(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
+                                  const AppearanceState& appearance, const std::vector<EmbeddingSource>& sources,
+                                  bool by_date) {
+  if (!appearance.enabled) return RenderGaussians<float>(c, v.camera, raster, nullptr);
+  // Without a date or sun, EmbeddingForDate gives the mean.
+  const std::vector<ColourAffine<float>> affine =
+      AffineFor(c, appearance,
+                by_date ? EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun)
+                        : EmbeddingForDate(appearance.model, sources, "", SunDirection()));
+  return RenderGaussians(c, v.camera, raster, &affine);
+}
+
+// The mean of `score(render, view)` over the held-out views (NaN: none),
+// each rendered by RenderHeldOut.
 template <typename Score>
 double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
                         const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date,
@@ -562,13 +575,7 @@ double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& vi
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
-    std::vector<ColourAffine<float>> affine;
-    if (appearance.enabled)  // without a date or sun, EmbeddingForDate gives the mean
-      affine = AffineFor(c, appearance,
-                         by_date ? EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun)
-                                 : EmbeddingForDate(appearance.model, sources, "", SunDirection()));
-    const RenderOutput<float> r = RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr);
-    sum += score(r.rgb, v);
+    sum += score(RenderHeldOut(c, v, raster, appearance, sources, by_date).rgb, v);
     ++n;
   }
   return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
@@ -602,22 +609,22 @@ void BestTrainingEmbedding(const GaussianCloud& c, const TrainView& v, const Ras
 std::vector<HeldOutRender> HeldOutRenders(const GaussianCloud& c, const std::vector<TrainView>& views,
                                           const RasterOptions& raster, const AppearanceState& appearance,
                                           const std::vector<int>& train_ids) {
+  const std::vector<EmbeddingSource> sources = EmbeddingSources(views, train_ids);
   std::vector<HeldOutRender> renders;
-  MeanHeldOutScore(c, views, raster, appearance, train_ids, true,
-                   [&](const std::vector<float>& rgb, const TrainView& v) {
-                     HeldOutRender r;
-                     r.name = v.name;
-                     r.width_px = v.camera.width_px;
-                     r.height_px = v.camera.height_px;
-                     r.rgb = rgb;
-                     r.target = v.rgb;
-                     r.psnr_db = MaskedPsnr(rgb, v.rgb, v.valid);
-                     r.fitted_psnr_db = HalfFittedPsnr(rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
-                     r.best_embedding_psnr_db = r.psnr_db;
-                     if (appearance.enabled) BestTrainingEmbedding(c, v, raster, appearance, views, train_ids, &r);
-                     renders.push_back(std::move(r));
-                     return 0.0;
-                   });
+  for (const TrainView& v : views) {
+    if (!v.held_out) continue;
+    HeldOutRender r;
+    r.name = v.name;
+    r.width_px = v.camera.width_px;
+    r.height_px = v.camera.height_px;
+    r.rgb = RenderHeldOut(c, v, raster, appearance, sources, true).rgb;
+    r.target = v.rgb;
+    r.psnr_db = MaskedPsnr(r.rgb, v.rgb, v.valid);
+    r.fitted_psnr_db = HalfFittedPsnr(r.rgb, v.rgb, v.camera.width_px, v.camera.height_px, v.valid);
+    r.best_embedding_psnr_db = r.psnr_db;
+    if (appearance.enabled) BestTrainingEmbedding(c, v, raster, appearance, views, train_ids, &r);
+    renders.push_back(std::move(r));
+  }
   return renders;
 }
 
@@ -1099,18 +1106,16 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   result.report.metrics["nonfinite_gradient_steps"] = static_cast<double>(nonfinite_steps);
   result.report.metrics["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians);
   result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
-  if (!result.held_out.empty()) {
-    double fitted = 0;
-    for (const HeldOutRender& r : result.held_out) fitted += r.fitted_psnr_db;
-    result.report.metrics["psnr_test_fitted_db"] = fitted / static_cast<double>(result.held_out.size());
-    if (appearance.enabled) {  // without the model there is no embedding to choose: psnr_test_db
-      double best = 0;
-      for (const HeldOutRender& r : result.held_out) best += r.best_embedding_psnr_db;
-      result.report.metrics["psnr_test_best_embedding_db"] = best / static_cast<double>(result.held_out.size());
-    }
-  } else {
-    result.report.metrics["psnr_test_fitted_db"] = std::numeric_limits<double>::quiet_NaN();
-  }
+  auto mean_over_held_out = [&](double HeldOutRender::*figure) {
+    double sum = 0;
+    for (const HeldOutRender& r : result.held_out) sum += r.*figure;
+    return result.held_out.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                   : sum / static_cast<double>(result.held_out.size());
+  };
+  result.report.metrics["psnr_test_fitted_db"] = mean_over_held_out(&HeldOutRender::fitted_psnr_db);
+  // Without the model there is no embedding to choose: psnr_test_db is the figure.
+  if (appearance.enabled && !result.held_out.empty())
+    result.report.metrics["psnr_test_best_embedding_db"] = mean_over_held_out(&HeldOutRender::best_embedding_psnr_db);
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
   const bool any_held_out = std::any_of(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; });
   if (appearance.enabled && any_held_out) {
