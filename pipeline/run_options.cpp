@@ -119,6 +119,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);
   io("fill_roof_enclosed", o.fill_roof_enclosed);
   io("fill_far_raised_ground", o.fill_far_raised_ground);
+  io("fill_seen_ground_terrain", o.fill_seen_ground_terrain);
   io("fill_edge_hides", o.fill_edge_hides);
   io("floating_patch_max_m2", o.floating_patch_max_m2);
   io("floating_patch_min_rise_m", o.floating_patch_min_rise_m);

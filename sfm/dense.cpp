@@ -959,6 +959,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
   fill.roof_rim_occluded = o.fill_roof_rim_occluded;
   fill.roof_enclosed = o.fill_roof_enclosed;
   fill.far_raised_takes_ground = o.fill_far_raised_ground;
+  fill.seen_ground_takes_terrain = o.fill_seen_ground_terrain;
   fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
   fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
   fill.ground_max_rise_m = static_cast<float>(o.fill_ground_max_rise_m);

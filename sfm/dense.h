@@ -128,6 +128,12 @@ struct DenseOptions {
   // buildings, seen along its length but matched by no pair, took the
   // roofs' height (docs/benchmarks.md, "Streets far from measured ground").
   bool fill_far_raised_ground = true;
+  // A seen hole cell whose lowest measured neighbour in reach is ground
+  // takes the terrain model (HoleFillOptions::seen_ground_takes_terrain):
+  // on a hillside with little ground measured between tall buildings, the
+  // plain opening it took before stood metres above the ground downhill
+  // (docs/benchmarks.md, "Seen holes at the ground take the terrain").
+  bool fill_seen_ground_terrain = true;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it
   // would only add Gaussians to train.

@@ -546,12 +546,14 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
         open = true;
         continue;
       }
+      const bool seen_ground = !ground && !raised_in_reach && low[k] <= o.roof_rim_min_m;
       const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && r > o.radius_cells &&
                               low[k] > o.roof_rim_min_m;
       // The far-raised cell's ground is the terrain model, which keeps a
       // hillside's slope; the plain opening there is the lowest roof in reach.
-      const float far_ground = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
-      h[k] = ground ? model.terrain_m[k] : far_raised ? far_ground : base[k] + low[k];
+      const float terrain_or_base = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
+      const bool takes_terrain = far_raised || (o.seen_ground_takes_terrain && seen_ground);
+      h[k] = ground ? model.terrain_m[k] : takes_terrain ? terrain_or_base : base[k] + low[k];
       filled[k] = 1;
     }
     if (!open || r >= o.max_reach_cells) break;

@@ -253,6 +253,38 @@ TEST(HoleFill, AStreetFarFromItsMeasuredGroundTakesTheGroundNotTheRoofsBesideIt)
   }
 }
 
+TEST(HoleFill, ASeenHoleOnAHillsideTakesTheGroundOnTheSlope) {
+  // A 30% slope rising east (0.15 m per 0.5 m cell) measured only east of
+  // column 80; the views see the western part but no pair matched it. The
+  // lowest height in reach of each hole cell is ground, so the hole is
+  // ground: with seen_ground_takes_terrain it takes the terrain model, the
+  // slope carried on; without, the plain opening there, which is the lowest
+  // ground within the ground radius but the highest such low within it
+  // again: the ground at column 80, metres above the hole's own.
+  const int nx = 160, ny = 40;
+  auto plane = [](int i) { return 0.15f * i; };
+  std::vector<float> scene(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) scene[static_cast<std::size_t>(j) * nx + i] = i < 80 ? std::nanf("") : plane(i);
+  HoleFillOptions o = FillOptions();
+  o.seen_ground_takes_terrain = true;
+  std::vector<float> on = scene, off = scene;
+  const std::vector<std::uint8_t> filled = Fill(on, nx, ny, o);
+  o.seen_ground_takes_terrain = false;
+  Fill(off, nx, ny, o);
+  // Tolerance: float rounding of the terrain's plane fits and trend over ~24 m.
+  constexpr float kTol = 1e-3f;
+  auto at = [&](const std::vector<float>& h, int i, int j) { return h[static_cast<std::size_t>(j) * nx + i]; };
+  for (int j = 0; j < ny; j += 3)
+    for (int i = 40; i < 80; ++i) {  // within the largest reach (40 cells) of the measured ground
+      EXPECT_EQ(filled[static_cast<std::size_t>(j) * nx + i], 1) << i << "," << j;
+      EXPECT_NEAR(at(on, i, j), plane(i), kTol) << i << "," << j;
+      // Off: the ground at column 80 and beyond, at least 1 m above the slope 7 cells away.
+      if (i <= 73) EXPECT_GT(at(off, i, j), plane(i) + 1.0f) << i << "," << j;
+    }
+  EXPECT_TRUE(std::isnan(at(on, 39, 0)));  // beyond reach: nothing to fill from
+}
+
 TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
   // A 30% slope rising east (0.5 m cells: 0.15 m per cell) and a 40 m tall
   // building whose south wall hides a 20-cell strip of ground that runs to
