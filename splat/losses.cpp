@@ -360,14 +360,22 @@ double PearsonDepthLoss(const std::vector<T>& depth, const std::vector<T>& prior
   return 1.0 - std::abs(r);
 }
 
+namespace {
+
+// PSNR of images in [0, 1] from their mean squared error.
+double PsnrOfMse(double mse) {
+  if (std::isnan(mse)) return mse;                    // a non-finite image has no PSNR (not 100 dB)
+  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
+}
+
+}  // namespace
+
 template <typename T>
 double Psnr(const std::vector<T>& x, const std::vector<T>& target) {
   RequireSameSize(x.size(), target.size(), "psnr");
   double mse = 0;
   for (size_t k = 0; k < x.size(); ++k) mse += (static_cast<double>(x[k]) - target[k]) * (static_cast<double>(x[k]) - target[k]);
-  mse /= std::max<size_t>(1, x.size());
-  if (std::isnan(mse)) return mse;                    // a non-finite image has no PSNR (not 100 dB)
-  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // identical images: capped at 100 dB
+  return PsnrOfMse(mse / static_cast<double>(std::max<size_t>(1, x.size())));
 }
 
 double MaskedPsnr(const std::vector<float>& rgb, const std::vector<float>& target,
@@ -383,9 +391,7 @@ double MaskedPsnr(const std::vector<float>& rgb, const std::vector<float>& targe
     n += 3;
   }
   if (n == 0) return std::numeric_limits<double>::quiet_NaN();
-  const double mse = se / static_cast<double>(n);
-  if (std::isnan(mse)) return mse;
-  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // as Psnr
+  return PsnrOfMse(se / static_cast<double>(n));
 }
 
 double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>& target, int width_px,

@@ -564,27 +564,19 @@ RenderOutput<float> RenderHeldOut(const GaussianCloud& c, const TrainView& v, co
   return RenderGaussians(c, v.camera, raster, &affine);
 }
 
-// The mean of `score(render, view)` over the held-out views (NaN: none),
-// each rendered by RenderHeldOut.
-template <typename Score>
-double MeanHeldOutScore(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
-                        const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date,
-                        const Score& score) {
+// The mean PSNR of the held-out views (NaN: none), each rendered by
+// RenderHeldOut and scored over its pixels with data.
+double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
+                   const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date = true) {
   const std::vector<EmbeddingSource> sources = EmbeddingSources(views, train_ids);
   double sum = 0;
   int n = 0;
   for (const TrainView& v : views) {
     if (!v.held_out) continue;
-    sum += score(RenderHeldOut(c, v, raster, appearance, sources, by_date).rgb, v);
+    sum += MaskedPsnr(RenderHeldOut(c, v, raster, appearance, sources, by_date).rgb, v.rgb, v.valid);
     ++n;
   }
   return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
-}
-
-double HeldOutPsnr(const GaussianCloud& c, const std::vector<TrainView>& views, const RasterOptions& raster,
-                   const AppearanceState& appearance, const std::vector<int>& train_ids, bool by_date = true) {
-  return MeanHeldOutScore(c, views, raster, appearance, train_ids, by_date,
-                          [](const std::vector<float>& rgb, const TrainView& v) { return MaskedPsnr(rgb, v.rgb, v.valid); });
 }
 
 // Sat-NeRF's test protocol: `v` rendered with every training view's
