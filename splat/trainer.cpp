@@ -620,6 +620,14 @@ std::vector<HeldOutRender> HeldOutRenders(const GaussianCloud& c, const std::vec
   return renders;
 }
 
+// The mean of one figure over the held-out renders (NaN: none).
+double MeanOverHeldOut(const std::vector<HeldOutRender>& renders, double HeldOutRender::*figure) {
+  if (renders.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double sum = 0;
+  for (const HeldOutRender& r : renders) sum += r.*figure;
+  return sum / static_cast<double>(renders.size());
+}
+
 // How many held-out views each rule of EmbeddingForDate chose for, by
 // report metric name.
 std::map<std::string, double> HeldOutEmbeddingRules(const std::vector<TrainView>& views,
@@ -955,6 +963,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
   std::size_t nonfinite_gaussians = 0, nonfinite_steps = 0;  // DropNonFiniteGradients, this run
   PhaseClock phase(&result.profile);
+  bool held_out_rendered = false;
   for (int it = start + 1; it <= o.iterations; ++it) {
     ++result.profile.steps;
     phase.Lap(kBookkeeping);  // the end of the previous step
@@ -1069,7 +1078,13 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       s.iteration = it;
       s.seconds = previous_seconds + clock.Seconds();
       s.loss = loss_sum / std::max(1, loss_count);
-      s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
+      if (it == o.iterations) {  // the report's renders are the last point's: rendered once
+        result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
+        held_out_rendered = true;
+        s.psnr_test_db = MeanOverHeldOut(result.held_out, &HeldOutRender::psnr_db);
+      } else {
+        s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
+      }
       s.gaussians = cloud.size();
       result.series.push_back(s);
       loss_sum = 0;
@@ -1097,17 +1112,13 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
   result.report.metrics["nonfinite_gradient_steps"] = static_cast<double>(nonfinite_steps);
   result.report.metrics["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians);
-  result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
-  auto mean_over_held_out = [&](double HeldOutRender::*figure) {
-    double sum = 0;
-    for (const HeldOutRender& r : result.held_out) sum += r.*figure;
-    return result.held_out.empty() ? std::numeric_limits<double>::quiet_NaN()
-                                   : sum / static_cast<double>(result.held_out.size());
-  };
-  result.report.metrics["psnr_test_fitted_db"] = mean_over_held_out(&HeldOutRender::fitted_psnr_db);
+  // A run resumed from its last checkpoint has no step left to render them.
+  if (!held_out_rendered) result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
+  result.report.metrics["psnr_test_fitted_db"] = MeanOverHeldOut(result.held_out, &HeldOutRender::fitted_psnr_db);
   // Without the model there is no embedding to choose: psnr_test_db is the figure.
   if (appearance.enabled && !result.held_out.empty())
-    result.report.metrics["psnr_test_best_embedding_db"] = mean_over_held_out(&HeldOutRender::best_embedding_psnr_db);
+    result.report.metrics["psnr_test_best_embedding_db"] =
+        MeanOverHeldOut(result.held_out, &HeldOutRender::best_embedding_psnr_db);
   result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
   const bool any_held_out = std::any_of(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; });
   if (appearance.enabled && any_held_out) {

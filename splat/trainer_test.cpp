@@ -225,6 +225,32 @@ TEST(Trainer, KilledRunResumesBitIdentically) {
   EXPECT_EQ(resumed.series.size(), straight.series.size());
 }
 
+// The held-out renders are made at the last step; a run killed after its
+// last checkpoint and restarted has no step left and must still make them.
+TEST(Trainer, ARunResumedAfterItsLastCheckpointStillRendersItsHeldOutViews) {
+  const Fixture f = MakeFixture(4);
+  NullProgress progress;
+  TrainOptions o = ShortRun(40);
+  o.appearance.enabled = true;
+  const TrainResult straight = TrainGaussians(o, f.init, f.views, "", progress);
+  ASSERT_EQ(straight.held_out.size(), 1u);
+  const fs::path ck = ScratchDir("ck_last");
+  struct Killer : Progress {
+    int at = 0;
+    void Advance(std::size_t done, std::string_view) override {
+      if (static_cast<int>(done) == at) throw std::runtime_error("killed");
+    }
+  } killer;
+  killer.at = o.iterations;
+  EXPECT_THROW(TrainGaussians(o, f.init, f.views, ck.string(), killer), std::runtime_error);
+  const TrainResult resumed = TrainGaussians(o, f.init, f.views, ck.string(), progress);
+  EXPECT_EQ(resumed.start_iteration, o.iterations);
+  ASSERT_EQ(resumed.held_out.size(), 1u);
+  EXPECT_EQ(resumed.held_out[0].rgb, straight.held_out[0].rgb);
+  EXPECT_EQ(resumed.held_out[0].psnr_db, straight.held_out[0].psnr_db);
+  EXPECT_EQ(resumed.series.back().psnr_test_db, straight.series.back().psnr_test_db);
+}
+
 // Centres scattered a quarter metre off the surface: the surface-height
 // term brings them back while photometric training alone leaves them off.
 TEST(Trainer, SurfaceHeightTermHoldsCentresOnTheSurface) {
