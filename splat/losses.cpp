@@ -429,8 +429,7 @@ double HalfFittedPsnr(const std::vector<float>& render, const std::vector<float>
       }
     }
   if (scored == 0) return std::numeric_limits<double>::quiet_NaN();
-  mse /= 3 * scored;
-  return mse > 0 ? -10.0 * std::log10(mse) : 100.0;  // as Psnr: identical halves capped at 100 dB
+  return PsnrOfMse(mse / (3 * scored));
 }
 
 template <typename T>

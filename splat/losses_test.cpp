@@ -292,7 +292,8 @@ TEST(Losses, MaskedPsnrLeavesPixelsWithoutDataOut) {
 // A render that is the truth seen through a per-channel gain and offset (a
 // different date) scores as perfect once the affine is fitted on the left
 // half; an error confined to the left half does not count; one on the right
-// half does, at its known MSE; an all-masked half gives NaN.
+// half does, at its known MSE; an all-masked half, or a non-finite
+// render, gives NaN.
 TEST(Losses, HalfFittedPsnrFitsTheLeftHalfAndScoresTheRight) {
   const int w = 8, h = 4;
   std::vector<float> truth(3 * w * h), render(truth.size());
@@ -316,6 +317,9 @@ TEST(Losses, HalfFittedPsnrFitsTheLeftHalfAndScoresTheRight) {
     for (int x = 0; x < w / 2; ++x) valid[y * w + x] = 0;
   EXPECT_TRUE(std::isnan(HalfFittedPsnr(render, truth, w, h, valid)));
   EXPECT_THROW(HalfFittedPsnr(render, truth, w + 1, h), Error);
+  std::vector<float> broken = render;
+  broken[3 * 1] = std::numeric_limits<float>::quiet_NaN();  // a non-finite pixel in the fitting half
+  EXPECT_TRUE(std::isnan(HalfFittedPsnr(broken, truth, w, h)));  // not the 100 dB of a perfect fit
 }
 
 }  // namespace

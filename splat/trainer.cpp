@@ -450,16 +450,19 @@ Checkpoint LoadCheckpoint(const std::string& path) {
   return ck;
 }
 
-// The colour transforms for `embedding`, or none without the appearance model.
-std::vector<ColourAffine<float>> AffineFor(const GaussianCloud& c, const AppearanceState& appearance,
-                                           const Eigen::VectorXf& embedding) {
-  if (!appearance.enabled) return {};
-  return EvaluateAppearance(appearance.model, embedding, c);
+// `camera`'s render of `c` through the colour transforms of `embedding`;
+// without the appearance model, the plain render (`embedding` unused).
+RenderOutput<float> RenderWithEmbedding(const GaussianCloud& c, const PinholeCamera& camera,
+                                        const RasterOptions& raster, const AppearanceState& appearance,
+                                        const Eigen::VectorXf& embedding) {
+  if (!appearance.enabled) return RenderGaussians<float>(c, camera, raster, nullptr);
+  const std::vector<ColourAffine<float>> affine = EvaluateAppearance(appearance.model, embedding, c);
+  return RenderGaussians(c, camera, raster, &affine);
 }
 
 double ViewPsnr(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
-                const AppearanceState& appearance, const std::vector<ColourAffine<float>>& affine) {
-  return MaskedPsnr(RenderGaussians(c, v.camera, raster, appearance.enabled ? &affine : nullptr).rgb, v.rgb, v.valid);
+                const AppearanceState& appearance, const Eigen::VectorXf& embedding) {
+  return MaskedPsnr(RenderWithEmbedding(c, v.camera, raster, appearance, embedding).rgb, v.rgb, v.valid);
 }
 
 // Adds the geometry and opacity gradients of an extra view (a pseudo or
@@ -555,13 +558,11 @@ std::vector<EmbeddingSource> EmbeddingSources(const std::vector<TrainView>& view
 RenderOutput<float> RenderHeldOut(const GaussianCloud& c, const TrainView& v, const RasterOptions& raster,
                                   const AppearanceState& appearance, const std::vector<EmbeddingSource>& sources,
                                   bool by_date) {
-  if (!appearance.enabled) return RenderGaussians<float>(c, v.camera, raster, nullptr);
+  if (!appearance.enabled) return RenderWithEmbedding(c, v.camera, raster, appearance, Eigen::VectorXf());
   // Without a date or sun, EmbeddingForDate gives the mean.
-  const std::vector<ColourAffine<float>> affine =
-      AffineFor(c, appearance,
-                by_date ? EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun)
-                        : EmbeddingForDate(appearance.model, sources, "", SunDirection()));
-  return RenderGaussians(c, v.camera, raster, &affine);
+  const Eigen::VectorXf embedding = by_date ? EmbeddingForDate(appearance.model, sources, v.acquisition_time, v.sun)
+                                            : EmbeddingForDate(appearance.model, sources, "", SunDirection());
+  return RenderWithEmbedding(c, v.camera, raster, appearance, embedding);
 }
 
 // The mean PSNR of the held-out views (NaN: none), each rendered by
@@ -586,7 +587,7 @@ void BestTrainingEmbedding(const GaussianCloud& c, const TrainView& v, const Ras
                            const std::vector<int>& train_ids, HeldOutRender* r) {
   r->best_embedding_psnr_db = std::numeric_limits<double>::quiet_NaN();
   for (int j : train_ids) {
-    const double psnr = ViewPsnr(c, v, raster, appearance, AffineFor(c, appearance, appearance.model.image_embeddings.col(j)));
+    const double psnr = ViewPsnr(c, v, raster, appearance, appearance.model.image_embeddings.col(j));
     if (std::isnan(r->best_embedding_psnr_db) || psnr > r->best_embedding_psnr_db) {  // a NaN render never wins
       r->best_embedding_psnr_db = psnr;
       r->best_embedding_view = views[j].name;
@@ -595,9 +596,10 @@ void BestTrainingEmbedding(const GaussianCloud& c, const TrainView& v, const Ras
 }
 
 // Every held-out view rendered with the embedding its date chooses, with
-// its PSNR and its PSNR with colours fitted on its left half
-// (HalfFittedPsnr): what is left once the held-out date's radiometry, which
-// no model trained on other dates can know, is taken out.
+// its PSNR, its PSNR with colours fitted on its left half (HalfFittedPsnr:
+// what is left once the held-out date's radiometry, which no model trained
+// on other dates can know, is taken out) and, with the appearance model,
+// its best PSNR under Sat-NeRF's protocol (BestTrainingEmbedding).
 std::vector<HeldOutRender> HeldOutRenders(const GaussianCloud& c, const std::vector<TrainView>& views,
                                           const RasterOptions& raster, const AppearanceState& appearance,
                                           const std::vector<int>& train_ids) {
@@ -662,7 +664,7 @@ double TrainingPsnr(const GaussianCloud& c, const std::vector<TrainView>& views,
   double sum = 0;
   for (int j : train_ids) {
     const Eigen::VectorXf embedding = appearance.enabled ? appearance.model.image_embeddings.col(j) : Eigen::VectorXf();
-    sum += ViewPsnr(c, views[j], raster, appearance, AffineFor(c, appearance, embedding));
+    sum += ViewPsnr(c, views[j], raster, appearance, embedding);
   }
   return sum / static_cast<double>(train_ids.size());
 }
@@ -830,6 +832,8 @@ class PhaseClock {
     profile_->seconds[phase] += std::chrono::duration<double>(now - last_).count();
     last_ = now;
   }
+  // Restarts the clock without counting the time since the previous lap.
+  void Skip() { last_ = std::chrono::steady_clock::now(); }
 
  private:
   StepProfile* profile_;
@@ -1079,7 +1083,11 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       s.seconds = previous_seconds + clock.Seconds();
       s.loss = loss_sum / std::max(1, loss_count);
       if (it == o.iterations) {  // the report's renders are the last point's: rendered once
+        // Not a step's work (each held-out view under every training
+        // embedding): left out of the step profile, as after the loop.
+        phase.Lap(kEvaluation);
         result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
+        phase.Skip();
         held_out_rendered = true;
         s.psnr_test_db = MeanOverHeldOut(result.held_out, &HeldOutRender::psnr_db);
       } else {
