@@ -41,9 +41,10 @@ struct DenseOptions {
   double max_cost = 0.55;           // cells whose matching cost at the chosen height exceeds this get no height
   double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
   // Holes (cells without a height) are filled (FillHoles): ground no pair
-  // can see (OccludedAtGround) takes the terrain; any other hole the
-  // terrain plus the lowest height above it within fill_radius_m (doubled
-  // until something is in reach). Filled cells are flagged.
+  // can see (OccludedAtGround) takes the terrain; any other hole looks for
+  // the lowest height above the ground within fill_radius_m (doubled until
+  // something is in reach): ground takes the terrain, a raised height is
+  // added to the opening at the hole. Filled cells are flagged.
   bool fill_holes = true;
   // Whether ground whose ray toward a view leaves the grid counts as hidden
   // from that view (as if the grid's highest surface stood just outside):

@@ -546,14 +546,23 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
         open = true;
         continue;
       }
-      const bool seen_ground = !ground && !raised_in_reach && low[k] <= o.roof_rim_min_m;
+      // "Ground" is judged above the opening. Where the opening is uphill
+      // ground, a low roof can pass for ground and its hole takes the
+      // terrain: judged above the terrain instead, the streets between a
+      // hillside's tall buildings, whose nearest measured cells are all
+      // roofs, kept the opening's height (docs/benchmarks.md, "Seen holes at
+      // the ground take the terrain"). Without a terrain model at the cell a
+      // seen hole keeps the opening plus its lowest height.
+      const bool seen_ground = o.seen_ground_takes_terrain && !ground && !raised_in_reach &&
+                               low[k] <= o.roof_rim_min_m && std::isfinite(model.terrain_m[k]);
       const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && r > o.radius_cells &&
                               low[k] > o.roof_rim_min_m;
-      // The far-raised cell's ground is the terrain model, which keeps a
-      // hillside's slope; the plain opening there is the lowest roof in reach.
+      // Seen ground and the far-raised cell's ground take the terrain model,
+      // which keeps a hillside's slope; the plain opening there is the
+      // highest of the lowest heights around (uphill ground), and for the
+      // far-raised cell the lowest roof in reach.
       const float terrain_or_base = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
-      const bool takes_terrain = far_raised || (o.seen_ground_takes_terrain && seen_ground);
-      h[k] = ground ? model.terrain_m[k] : takes_terrain ? terrain_or_base : base[k] + low[k];
+      h[k] = ground ? model.terrain_m[k] : (far_raised || seen_ground) ? terrain_or_base : base[k] + low[k];
       filled[k] = 1;
     }
     if (!open || r >= o.max_reach_cells) break;

@@ -47,12 +47,15 @@ struct HoleFillOptions {
   // along its length but no pair matched is far from any measured ground,
   // and the nearest measured heights are the roofs on either side.
   bool far_raised_takes_ground = false;
-  // A seen hole cell (not a roof's hole) whose lowest measured height in
-  // reach is ground (within roof_rim_min_m above the hole's base) takes the
-  // terrain model, which keeps a hillside's slope across the hole: the base,
-  // a plain opening, is the highest of the lowest heights within
-  // ground_radius_cells, and where little ground is measured on a hillside
-  // that is ground far uphill.
+  // A seen hole cell (in a roof's hole: with no roof in reach) whose lowest
+  // measured height in reach is ground (within roof_rim_min_m above the
+  // hole's base) takes the terrain model, which keeps a hillside's slope
+  // across the hole: the base, a plain opening, is the highest of the lowest
+  // heights within ground_radius_cells, and where little ground is measured
+  // on a hillside that is ground far uphill. Without a terrain model at the
+  // cell it keeps the base plus that lowest height. A roof less than
+  // roof_rim_min_m above such a base passes for ground, and a hole in it
+  // takes the terrain.
   bool seen_ground_takes_terrain = false;
 };
 
@@ -86,9 +89,9 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // the ground beyond the roof's edge is nearer; with far_raised_takes_ground
 // a cell that found only roof beyond radius_cells (not in a roof's hole)
 // takes the ground; with seen_ground_takes_terrain a cell whose lowest
-// height in reach is ground takes the terrain model. Heights are measured
-// above the ground, so on a slope a hole is filled at its own ground level,
-// not at the downhill one.
+// height in reach is ground takes the terrain model. Raised heights are
+// measured above the ground (the base), so on a slope a raised fill stands
+// on the ground near the hole, not on the downhill one.
 std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options,
                                     const GroundModel& model, const std::vector<std::uint8_t>* occluded = nullptr);
 

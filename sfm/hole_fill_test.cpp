@@ -285,6 +285,36 @@ TEST(HoleFill, ASeenHoleOnAHillsideTakesTheGroundOnTheSlope) {
   EXPECT_TRUE(std::isnan(at(on, 39, 0)));  // beyond reach: nothing to fill from
 }
 
+TEST(HoleFill, WithoutATerrainModelASeenGroundHoleKeepsTheOpeningPlusItsLowest) {
+  // Flat ground with a 1 m platform 20 m wide (narrower than the opening's
+  // square, so the opening there is the ground at 0 m) holding a small
+  // unmatched hole, and no terrain model anywhere: seen_ground_takes_terrain
+  // has nothing to take, and the hole is filled as without it, at the
+  // opening plus the lowest height in reach (the platform, 1 m: within
+  // roof_rim_min_m, so ground), not at the bare opening.
+  const int nx = 200, ny = 60;
+  constexpr float kPlatformM = 1.0f;
+  std::vector<float> scene(static_cast<std::size_t>(nx) * ny, 0.0f);
+  for (int j = 10; j < 50; ++j)
+    for (int i = 85; i < 125; ++i)
+      scene[static_cast<std::size_t>(j) * nx + i] = i >= 103 && i <= 106 && j >= 28 && j <= 32 ? std::nanf("") : kPlatformM;
+  HoleFillOptions o = FillOptions();
+  GroundModel model = GroundModelOf(scene, nx, ny, o);
+  std::fill(model.terrain_m.begin(), model.terrain_m.end(), std::nanf(""));
+  std::vector<float> on = scene, off = scene;
+  o.seen_ground_takes_terrain = true;
+  FillHoles(on, nx, ny, o, model);
+  o.seen_ground_takes_terrain = false;
+  FillHoles(off, nx, ny, o, model);
+  for (int j = 28; j <= 32; ++j)
+    for (int i = 103; i <= 106; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * nx + i;
+      EXPECT_EQ(model.seen_hole_base_m[k], 0.0f) << i << "," << j;
+      EXPECT_EQ(off[k], kPlatformM) << i << "," << j;
+      EXPECT_EQ(on[k], off[k]) << i << "," << j;
+    }
+}
+
 TEST(HoleFill, AnOccludedStripIsGroundOnItsSlopeUpToTheGridEdge) {
   // A 30% slope rising east (0.5 m cells: 0.15 m per cell) and a 40 m tall
   // building whose south wall hides a 20-cell strip of ground that runs to
