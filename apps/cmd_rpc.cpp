@@ -1,5 +1,6 @@
 // skyfall rpc project|localize|check: direct access to the RPC model of an
-// image (GeoTIFF/NITF metadata, .RPB file or Sat-NeRF JSON).
+// image (GeoTIFF/NITF metadata and GDAL's sidecars) or of an RPC file given
+// directly (.RPB, _RPC.TXT, DIMAP / DigitalGlobe / EnMAP XML, Sat-NeRF JSON).
 #include <spdlog/spdlog.h>
 
 #include <iostream>
@@ -16,6 +17,7 @@ namespace {
 struct RpcArgs {
   std::string image;
   double a = 0, b = 0, height_m = 0;
+  RpcReadOptions read;
 };
 
 void AddPointCommand(CLI::App& rpc, const std::string& name, const std::string& help,
@@ -23,11 +25,17 @@ void AddPointCommand(CLI::App& rpc, const std::string& name, const std::string& 
                      std::function<int(const RpcArgs&)> run, Runner* runner) {
   auto args = std::make_shared<RpcArgs>();
   CLI::App* cmd = rpc.add_subcommand(name, help);
-  cmd->add_option("image", args->image, "Raster with RPC metadata, .RPB file or Sat-NeRF .json")
+  cmd->add_option("image", args->image,
+                  "Raster with RPC metadata, or an RPC file: .RPB, _RPC.TXT, DIMAP RPC_*.XML, "
+                  "DigitalGlobe/Maxar .XML, EnMAP METADATA.XML, Sat-NeRF .json")
       ->required();
   cmd->add_option(a_name, args->a, a_name)->required();
   cmd->add_option(b_name, args->b, b_name)->required();
   cmd->add_option("alt", args->height_m, "Height above the WGS84 ellipsoid [m]")->required();
+  cmd->add_option("--band", args->read.band,
+                  "EnMAP metadata (one RPC model per band): the band, from 1 (default 1, the model "
+                  "the 91 VNIR bands share)")
+      ->check(CLI::PositiveNumber);
   cmd->callback([runner, args, run] { *runner = [args, run] { return run(*args); }; });
 }
 
@@ -40,7 +48,8 @@ void AddRpcCommand(CLI::App& app, Runner* runner) {
       *rpc, "project", "Print 'col row' (pixel centres at integers) of a lon/lat/alt point",
       "lon", "lat",
       [](const RpcArgs& a) {
-        const Eigen::Vector2d px = ReadRpcAny(a.image).Project(a.a, a.b, a.height_m);
+        const RpcModel rpc = ReadRpcAny(a.image, nullptr, a.read);
+        const Eigen::Vector2d px = rpc.Project(a.a, a.b, a.height_m);
         std::cout << FormatDouble(px.x()) << " " << FormatDouble(px.y()) << std::endl;
         return 0;
       },
@@ -48,7 +57,8 @@ void AddRpcCommand(CLI::App& app, Runner* runner) {
   AddPointCommand(
       *rpc, "localize", "Print 'lon lat' of a pixel at a given height", "col", "row",
       [](const RpcArgs& a) {
-        const Eigen::Vector2d ll = Localize(ReadRpcAny(a.image), a.a, a.b, a.height_m);
+        const RpcModel rpc = ReadRpcAny(a.image, nullptr, a.read);
+        const Eigen::Vector2d ll = Localize(rpc, a.a, a.b, a.height_m);
         std::cout << FormatDouble(ll.x()) << " " << FormatDouble(ll.y()) << std::endl;
         return 0;
       },

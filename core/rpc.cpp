@@ -86,14 +86,26 @@ void CheckDenominator(const Terms& den, const char* key) {
   }
 }
 
+bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+bool IsLetter(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
+
+// A number, optionally followed by one unit word: IKONOS/GeoEye _rpc.txt files
+// write "LINE_OFF: +005124.00 pixels", and GDAL (CPLAtof) reads such values by
+// ignoring whatever follows the number. Anything else after the number is
+// refused, so that "12,5" or "1.5.3" is not silently read as 12 or 1.5.
 double ParseNumber(const std::string& text, const std::string& field) {
   const char* begin = text.c_str();
   while (*begin == ' ' || *begin == '\t') ++begin;
   char* end = nullptr;
   const double v = std::strtod(begin, &end);
   if (end == begin) throw Error("rpc", field, "is not a number: '" + text + "'");
-  while (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n') ++end;
-  if (*end != '\0') throw Error("rpc", field, "has trailing text: '" + text + "'");
+  const char* rest = end;
+  while (IsBlank(*rest)) ++rest;
+  if (rest > end && IsLetter(*rest)) {  // the unit word, apart from the number
+    while (IsLetter(*rest)) ++rest;
+    while (IsBlank(*rest)) ++rest;
+  }
+  if (*rest != '\0') throw Error("rpc", field, "has trailing text: '" + text + "'");
   return v;
 }
 
@@ -295,6 +307,49 @@ RpcModel RpcFromRpbText(const std::string& text) {
     }
     throw Error("rpc", rpb_name, e.detail());
   }
+}
+
+RpcModel RpcFromKeyValueText(const std::string& text) {
+  // One "KEY: value" per line (GDAL's own reader of these files, GDALLoadRPCFile,
+  // also takes "KEY=value"); the first of repeated keys counts, as in GDAL.
+  std::map<std::string, std::string> values;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    const size_t sep = line.find_first_of(":=");
+    if (sep == std::string::npos) continue;
+    size_t a = 0, b = sep;
+    while (a < b && IsBlank(line[a])) ++a;
+    while (b > a && IsBlank(line[b - 1])) --b;
+    if (b > a) values.emplace(line.substr(a, b - a), line.substr(sep + 1));
+  }
+  auto get = [&](const std::string& key) -> const std::string& {
+    const auto it = values.find(key);
+    if (it == values.end()) throw Error("rpc", key, "is missing");
+    return it->second;
+  };
+  RpcModel rpc;
+  for (const auto& f : kScalarFields) rpc.*f.member = ParseNumber(get(f.gdal_key), f.gdal_key);
+  // Each polynomial is written one term a line, KEY_1 .. KEY_20.
+  for (const auto& f : kCoeffFields) {
+    for (int i = 0; i < 20; ++i) {
+      const std::string key = std::string(f.gdal_key) + "_" + std::to_string(i + 1);
+      (rpc.*f.member)[i] = ParseNumber(get(key), key);
+    }
+  }
+  if (values.count("ERR_BIAS")) rpc.err_bias_m = ParseNumber(values.at("ERR_BIAS"), "ERR_BIAS");
+  if (values.count("ERR_RAND")) rpc.err_rand_m = ParseNumber(values.at("ERR_RAND"), "ERR_RAND");
+  try {
+    rpc.Validate();
+  } catch (const Error& e) {
+    // Validate names the term 0-based, "LINE_NUM_COEFF[3]"; the file says LINE_NUM_COEFF_4.
+    std::smatch m;
+    static const std::regex kIndexed(R"(^([A-Z_]+)\[(\d+)\]$)");
+    if (std::regex_match(e.subject(), m, kIndexed)) {
+      throw Error("rpc", m[1].str() + "_" + std::to_string(std::stoi(m[2].str()) + 1), e.detail());
+    }
+    throw;
+  }
+  return rpc;
 }
 
 }  // namespace skyfall

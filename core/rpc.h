@@ -81,12 +81,20 @@ Eigen::Vector2d Localize(const RpcModel& rpc, double col, double row, double hei
 
 // GDAL "RPC" metadata domain keys (LINE_OFF, ..., SAMP_DEN_COEFF) <-> model.
 // The same keys appear in GeoTIFF RPC tags, NITF RPC00B and _RPC.TXT files as
-// GDAL reports them. Parsing throws Error naming the missing or bad key, then
-// validates the model.
+// GDAL reports them. A value may carry one unit word after the number
+// ("+005124.00 pixels", as IKONOS writes and GDAL passes on). Parsing throws
+// Error naming the missing or bad key, then validates the model.
 RpcModel RpcFromGdalMetadata(const std::map<std::string, std::string>& keys);
 std::map<std::string, std::string> RpcToGdalMetadata(const RpcModel& rpc);
 
 // DigitalGlobe .RPB text ("lineOffset = ...; lineNumCoef = ( ... );").
 RpcModel RpcFromRpbText(const std::string& text);
+
+// "KEY: value" RPC text, one value a line, the polynomials as LINE_NUM_COEFF_1
+// .. _20 (the _RPC.TXT / _rpc.txt of IKONOS, GeoEye, SkySat and PlanetScope;
+// values may carry unit words). Offsets are taken as written: these files
+// follow the RPC00B convention (first pixel centre at 0), as GDAL and rpcm read
+// them. Errors name the file's own key (LINE_NUM_COEFF_7).
+RpcModel RpcFromKeyValueText(const std::string& text);
 
 }  // namespace skyfall

@@ -1,5 +1,5 @@
 // RPC metadata as it comes from outside: RPB text, GDAL "KEY=VALUE" metadata,
-// Sat-NeRF camera JSON.
+// "KEY: value" _RPC.TXT text, Sat-NeRF camera JSON.
 #include <map>
 #include <sstream>
 
@@ -11,6 +11,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   using namespace skyfall;
   const std::string text = fuzz::Text(data, size);
   fuzz::Expect([&] { RpcFromRpbText(text); });
+  fuzz::Expect([&] { RpcFromKeyValueText(text); });
   fuzz::Expect([&] {
     std::map<std::string, std::string> keys;
     std::istringstream lines(text);

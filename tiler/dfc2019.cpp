@@ -17,6 +17,7 @@
 #include "tiler/height_probe.h"
 #include "tiler/raster.h"
 #include "tiler/rpc_io.h"
+#include "tiler/vendor_rpc.h"
 
 namespace skyfall {
 namespace {
@@ -47,7 +48,8 @@ bool HasRasterExtension(const fs::path& p) {
 }
 
 // A plain folder of images with RPCs (GeoTIFF tags, .RPB, _RPC.TXT, DIMAP
-// RPC XML: whatever GDAL reads into its RPC domain) is one AOI named after the
+// RPC XML: whatever GDAL reads into its RPC domain, or an RPC_<stem>.XML-like
+// sidecar our own readers know, FindOwnRpcSidecar) is one AOI named after the
 // folder. A raster without an RPC whose name contains "dsm" is the truth DSM,
 // one containing "cls" its classes.
 std::map<std::string, AoiFiles> ScanPlainFolder(const fs::path& root) {
@@ -68,7 +70,7 @@ std::map<std::string, AoiFiles> ScanPlainFolder(const fs::path& root) {
       continue;
     }
     const std::string name = ToLower(file.filename().string());
-    if (!info.rpc_metadata.empty()) {
+    if (!info.rpc_metadata.empty() || !FindOwnRpcSidecar(file.string()).empty()) {
       found.images.emplace(file.stem().string(), file.string());
     } else if (name.find("dsm") != std::string::npos && found.truth_dsm_path.empty()) {
       found.truth_dsm_path = file.string();
@@ -181,20 +183,23 @@ ImageRecord ReadImage(const std::string& stem, const std::string& path, const Ao
   const fs::path json_path = fs::path(files.satnerf_dir) / (stem + ".json");
   if (fs::exists(json_path)) *satnerf = ReadSatNerfCamera(json_path.string());
 
+  const std::string own_sidecar = info.rpc_metadata.empty() ? FindOwnRpcSidecar(path) : "";
   if (!info.rpc_metadata.empty()) {
     try {
-      im.rpc = RpcFromGdalMetadata(info.rpc_metadata);
+      im.rpc = RpcFromGdalRpcDomain(info.rpc_metadata);
     } catch (const Error& e) {
       throw e.Within(path);
     }
     im.rpc_source = "gdal_metadata";
+  } else if (!own_sidecar.empty()) {
+    im.rpc = ReadRpcAny(own_sidecar, &im.rpc_source);
   } else if (*satnerf) {
     im.rpc = (*satnerf)->rpc;
     im.rpc_source = "satnerf_json";
   } else {
     throw Error("rpc", path,
-                "no RPC metadata (no GeoTIFF RPC tag, NITF RPC00B, .RPB/_RPC.TXT sidecar, "
-                "or Sat-NeRF JSON)");
+                "no RPC metadata (no GeoTIFF RPC tag, NITF RPC00B, sidecar GDAL reads (.RPB, "
+                "_RPC.TXT, DigitalGlobe .XML, DIMAP), RPC_<image>.XML or Sat-NeRF JSON)");
   }
   const auto idatim = info.metadata.find("NITF_IDATIM");
   const auto imagery = info.imagery_metadata.find("ACQUISITIONDATETIME");

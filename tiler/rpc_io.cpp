@@ -7,10 +7,15 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include <cpl_string.h>
+#include <gdal.h>
+
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/format.h"
+#include "tiler/gdal_util.h"
 #include "tiler/raster.h"
+#include "tiler/vendor_rpc.h"
 
 namespace skyfall {
 namespace {
@@ -61,14 +66,47 @@ std::string CoeffList(const json& rpc, const std::string& key, const std::string
 
 }  // namespace
 
+RpcModel RpcFromGdalRpcDomain(const std::map<std::string, std::string>& rpc_metadata) {
+  RpcFromGdalMetadata(rpc_metadata);  // names a missing key or a malformed value
+  CPLStringList list;
+  for (const auto& [key, value] : rpc_metadata) list.SetNameValue(key.c_str(), value.c_str());
+  GDALRPCInfoV2 info{};
+  gdal::QuietErrors quiet;
+  if (!GDALExtractRPCInfoV2(list.List(), &info)) {
+    throw Error("rpc", "RPC metadata", "GDAL cannot read it: " + quiet.LastMessage());
+  }
+  RpcModel rpc;
+  rpc.line_off = info.dfLINE_OFF;
+  rpc.samp_off = info.dfSAMP_OFF;
+  rpc.lat_off = info.dfLAT_OFF;
+  rpc.lon_off = info.dfLONG_OFF;
+  rpc.height_off = info.dfHEIGHT_OFF;
+  rpc.line_scale = info.dfLINE_SCALE;
+  rpc.samp_scale = info.dfSAMP_SCALE;
+  rpc.lat_scale = info.dfLAT_SCALE;
+  rpc.lon_scale = info.dfLONG_SCALE;
+  rpc.height_scale = info.dfHEIGHT_SCALE;
+  for (int i = 0; i < 20; ++i) {
+    rpc.line_num[i] = info.adfLINE_NUM_COEFF[i];
+    rpc.line_den[i] = info.adfLINE_DEN_COEFF[i];
+    rpc.samp_num[i] = info.adfSAMP_NUM_COEFF[i];
+    rpc.samp_den[i] = info.adfSAMP_DEN_COEFF[i];
+  }
+  rpc.err_bias_m = info.dfERR_BIAS;  // GDAL, like us, says -1 when unknown
+  rpc.err_rand_m = info.dfERR_RAND;
+  rpc.Validate();
+  return rpc;
+}
+
 RpcModel ReadRpcFromRaster(const std::string& raster_path) {
   const RasterInfo info = ReadRasterInfo(raster_path);
   if (info.rpc_metadata.empty()) {
     throw Error("rpc", raster_path,
-                "no RPC metadata (no GeoTIFF RPC tag, NITF RPC00B TRE or .RPB/_RPC.TXT sidecar)");
+                "no RPC metadata (no GeoTIFF RPC tag, NITF RPC00B TRE or sidecar GDAL reads: "
+                "_RPC.TXT, .RPB, DigitalGlobe .XML, DIMAP RPC_*.XML)");
   }
   try {
-    return RpcFromGdalMetadata(info.rpc_metadata);
+    return RpcFromGdalRpcDomain(info.rpc_metadata);
   } catch (const Error& e) {
     throw e.Within(raster_path);
   }
@@ -80,6 +118,15 @@ RpcModel ReadRpbFile(const std::string& rpb_path) {
     return RpcFromRpbText(text);
   } catch (const Error& e) {
     throw e.Within(rpb_path);
+  }
+}
+
+RpcModel ReadRpcTextFile(const std::string& path) {
+  const std::string text = ReadTextFile(path);
+  try {
+    return RpcFromKeyValueText(text);
+  } catch (const Error& e) {
+    throw e.Within(path);
   }
 }
 
@@ -143,21 +190,46 @@ SatNerfCamera ReadSatNerfCamera(const std::string& json_path) {
   return ParseSatNerfCamera(ReadTextFile(json_path), json_path);
 }
 
-RpcModel ReadRpcAny(const std::string& path, std::string* source) {
-  const std::string ext = ToLower(std::filesystem::path(path).extension().string());
-  std::string kind;
-  RpcModel rpc;
-  if (ext == ".json") {
-    kind = "satnerf_json";
-    rpc = ReadSatNerfCamera(path).rpc;
-  } else if (ext == ".rpb") {
-    kind = "rpb";
-    rpc = ReadRpbFile(path);
-  } else {
-    kind = "gdal_metadata";
-    rpc = ReadRpcFromRaster(path);
+namespace {
+
+// A text file that none of our readers takes and GDAL does not open.
+Error NoRpcIn(const std::string& path, const Error& gdal_error) {
+  return Error("rpc", path,
+               "holds no RPC: it is no Sat-NeRF JSON, .RPB, KEY: value RPC text, DIMAP RPC XML, "
+               "DigitalGlobe/Maxar XML or EnMAP metadata, and GDAL does not read an RPC from it (" +
+                   gdal_error.detail() + ")");
+}
+
+}  // namespace
+
+RpcModel ReadRpcAny(const std::string& path, std::string* source, const RpcReadOptions& options) {
+  const RpcFileFormat format = DetectRpcFileFormat(path);
+  if (options.band != 0 && format != RpcFileFormat::kEnmapXml) {
+    throw Error("rpc", path, "holds one RPC model; a band (" + std::to_string(options.band) +
+                                 ") can only be chosen in EnMAP metadata");
   }
-  if (source) *source = kind;
+  RpcModel rpc;
+  switch (format) {
+    case RpcFileFormat::kSatNerfJson: rpc = ReadSatNerfCamera(path).rpc; break;
+    case RpcFileFormat::kRpbText: rpc = ReadRpbFile(path); break;
+    case RpcFileFormat::kKeyValueText: rpc = ReadRpcTextFile(path); break;
+    case RpcFileFormat::kDimapXml: rpc = ReadDimapRpcXml(path); break;
+    case RpcFileFormat::kDigitalGlobeXml: rpc = ReadDigitalGlobeXml(path); break;
+    case RpcFileFormat::kEnmapXml:
+      rpc = ReadEnmapRpc(path, options.band != 0 ? options.band : kEnmapDefaultBand);
+      break;
+    case RpcFileFormat::kGdalDataset: rpc = ReadRpcFromRaster(path); break;
+    case RpcFileFormat::kUnknownText:
+      try {
+        rpc = ReadRpcFromRaster(path);
+      } catch (const Error& e) {
+        throw NoRpcIn(path, e);
+      }
+      break;
+  }
+  // Text that GDAL did read (a format it knows and we do not) came through its metadata.
+  const bool via_gdal = format == RpcFileFormat::kUnknownText;
+  if (source) *source = RpcFileFormatName(via_gdal ? RpcFileFormat::kGdalDataset : format);
   return rpc;
 }
 

@@ -1,9 +1,17 @@
 // Reading RPC cameras from the formats users have: GDAL RPC metadata (GeoTIFF
-// RPC tags, NITF RPC00B, _RPC.TXT/.RPB sidecars as GDAL reports them),
-// DigitalGlobe .RPB text files and Sat-NeRF camera JSONs. Every reader
-// validates the model and names the file and the field on error.
+// RPC tags, NITF RPC00B, and the sidecars GDAL attaches to an image:
+// <image>_RPC.TXT, <image>.RPB, DigitalGlobe <image>.XML, DIMAP RPC_*.XML),
+// and files given directly: .RPB text, "KEY: value" RPC text, Sat-NeRF camera
+// JSONs and the vendor XMLs of tiler/vendor_rpc.h. Every reader validates the
+// model and names the file and the field on error.
+//
+// Pixel convention (core/rpc.h): first pixel centre at (0, 0). GDAL's RPC
+// metadata is in that convention already (its DIMAP reader subtracts DIMAP's
+// 1-based origin itself); GDAL's transformer adds the half pixel of its
+// corner-based pixel/line (tiler/gdal_rpc_check.h).
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 
@@ -11,11 +19,21 @@
 
 namespace skyfall {
 
-// From the raster's GDAL "RPC" metadata domain.
+// GDAL "RPC" metadata domain -> model, read by GDAL itself
+// (GDALExtractRPCInfoV2: the values every GDAL tool uses; unit words after a
+// number are ignored, as IKONOS _rpc.txt sidecars need). Our own stricter
+// reading of the same text comes first so that a missing key or a value that
+// is no number is named, where GDAL would quietly read it as 0.
+RpcModel RpcFromGdalRpcDomain(const std::map<std::string, std::string>& rpc_metadata);
+
+// From the raster's GDAL "RPC" metadata domain (its tags or GDAL's sidecars).
 RpcModel ReadRpcFromRaster(const std::string& raster_path);
 
 // From a DigitalGlobe .RPB text file.
 RpcModel ReadRpbFile(const std::string& rpb_path);
+
+// From a "KEY: value" RPC text file (_RPC.TXT, _rpc.txt).
+RpcModel ReadRpcTextFile(const std::string& path);
 
 // What a Sat-NeRF camera JSON holds besides the RPC.
 struct SatNerfCamera {
@@ -34,10 +52,19 @@ struct SatNerfCamera {
 SatNerfCamera ParseSatNerfCamera(const std::string& json_text, const std::string& subject);
 SatNerfCamera ReadSatNerfCamera(const std::string& json_path);
 
-// Picks the reader by file name: *.json -> Sat-NeRF, *.rpb -> RPB, anything
-// else -> raster metadata. `source` (optional) receives "satnerf_json", "rpb"
-// or "gdal_metadata".
-RpcModel ReadRpcAny(const std::string& path, std::string* source = nullptr);
+struct RpcReadOptions {
+  // Files holding one model per band (EnMAP metadata): the band number, from
+  // 1. 0: the default band (kEnmapDefaultBand). Refused for other files.
+  int band = 0;
+};
+
+// Picks the reader by the file's content, whatever its name
+// (DetectRpcFileFormat): Sat-NeRF JSON, .RPB text, KEY: value text, DIMAP /
+// DigitalGlobe / EnMAP XML, else a raster or VRT GDAL opens. `source`
+// (optional) receives RpcFileFormatName of the format read. A file holding no
+// RPC is refused with an Error naming it.
+RpcModel ReadRpcAny(const std::string& path, std::string* source = nullptr,
+                    const RpcReadOptions& options = {});
 
 // "20141005160138" (NITF IDATIM, YYYYMMDDhhmmss) -> "2014-10-05T16:01:38Z".
 // Returns an empty string when the text is not such a date.
