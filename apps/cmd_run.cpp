@@ -33,7 +33,9 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
                 "(exports.tiles3d)");
   cmd->add_flag("--print-config", *print_config,
                 "Print the effective configuration (defaults, --config, --set, flags) as JSON and exit");
-  flags->Add("--tile-m", +[](RunOptions& o) -> double& { return o.tiling.tile_m; }, "Tile core side [m]");
+  flags->Add("--tile-m", +[](RunOptions& o) -> double& { return o.tiling.tile_m; }, "Tile core side [m]; 0: sized by the imagery (a multiple of 256 m holding about --tile-px px)");
+  flags->Add("--tile-px", +[](RunOptions& o) -> int& { return o.tiling.tile_px; },
+             "What an automatic tile holds a side [px]");
   flags->Add("--overlap-m", +[](RunOptions& o) -> double& { return o.tiling.overlap_m; }, "Overlap margin [m]");
   flags->AddTileFlags();
   flags->Add("--jobs", +[](RunOptions& o) -> int& { return o.executor.jobs; },

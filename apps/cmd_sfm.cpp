@@ -52,7 +52,7 @@ void AddDenseCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--sfm", *sfm, "Folder written by `skyfall sfm`")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--tile", *tile, "tile.json whose extent clips the grid (run-tile passes its own)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--cell", opts->cell_m, "Grid cell [m]")->capture_default_str();
+  cmd->add_option("--cell", opts->cell_m, "Grid cell [m]; 0: follows the imagery (0.5 m below 0.75 m GSD)")->capture_default_str();
   cmd->add_option("--height-step", opts->height_step_m, "Sweep step [m]")->capture_default_str();
   cmd->add_option("--window", opts->window_cells, "NCC window side [cells], odd")->capture_default_str();
   cmd->add_option("--max-pairs", opts->max_pairs, "Image pairs used, most tie points first")->capture_default_str();

@@ -201,7 +201,7 @@ std::string AoiCatalogToJson(const AoiCatalog& c) {
       {"utm", {{"zone", c.utm_zone}, {"north", c.utm_north}, {"epsg", c.epsg}}},
       {"footprint_lonlat", LonLatList(c.footprint_lonlat)},
       {"footprint_source", c.footprint_source},
-      {"height_range_m", {c.min_height_m, c.max_height_m}},
+      {"height_range_m", {c.min_ellipsoid_height_m, c.max_ellipsoid_height_m}},
       {"height_range_source", c.height_range_source},
       {"truth", c.truth ? TruthToJson(*c.truth) : json(nullptr)},
       {"split", {{"train", c.train_images}, {"test", c.test_images}}},
@@ -224,8 +224,8 @@ AoiCatalog AoiCatalogFromJson(const std::string& text, const std::string& subjec
     c.epsg = catalogs::JsonInt(doc.at("utm").at("epsg"), subject, "utm.epsg");
     c.footprint_lonlat = LonLatListFrom(doc.at("footprint_lonlat"));
     c.footprint_source = doc.value("footprint_source", std::string());
-    c.min_height_m = doc.at("height_range_m").at(0).get<double>();
-    c.max_height_m = doc.at("height_range_m").at(1).get<double>();
+    c.min_ellipsoid_height_m = doc.at("height_range_m").at(0).get<double>();
+    c.max_ellipsoid_height_m = doc.at("height_range_m").at(1).get<double>();
     c.height_range_source = doc.value("height_range_source", std::string());
     if (!doc.at("truth").is_null()) c.truth = TruthFromJson(doc.at("truth"));
     if (doc.contains("split")) {

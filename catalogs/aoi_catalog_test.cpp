@@ -18,8 +18,8 @@ AoiCatalog MakeCatalog() {
   c.epsg = 32617;
   c.footprint_lonlat = {{-81.665, 30.347}, {-81.662, 30.347}, {-81.662, 30.350}, {-81.665, 30.350}};
   c.footprint_source = "truth_grid";
-  c.min_height_m = -31.25;
-  c.max_height_m = 34.125;
+  c.min_ellipsoid_height_m = -31.25;
+  c.max_ellipsoid_height_m = 34.125;
   c.height_range_source = "truth_dsm";
   ImageRecord im;
   im.name = "TST_001_001_RGB";

@@ -49,7 +49,7 @@ std::string TileSpecToJson(const TileSpec& t) {
       {"extent", BoxToJson(t.extent)},
       {"enu_origin", {{"lon_deg", t.enu_origin.lon_deg}, {"lat_deg", t.enu_origin.lat_deg},
                       {"height_m", t.enu_origin.height_m}}},
-      {"height_range_m", {t.min_height_m, t.max_height_m}},
+      {"height_range_m", {t.min_ellipsoid_height_m, t.max_ellipsoid_height_m}},
       {"images", images}};
   return doc.dump(2) + "\n";
 }
@@ -73,8 +73,8 @@ TileSpec TileSpecFromJson(const std::string& text, const std::string& subject) {
     t.extent = BoxFromJson(doc.at("extent"));
     const json& o = doc.at("enu_origin");
     t.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
-    t.min_height_m = doc.at("height_range_m").at(0).get<double>();
-    t.max_height_m = doc.at("height_range_m").at(1).get<double>();
+    t.min_ellipsoid_height_m = doc.at("height_range_m").at(0).get<double>();
+    t.max_ellipsoid_height_m = doc.at("height_range_m").at(1).get<double>();
     for (const json& j : doc.at("images")) {
       TileImage im;
       im.name = j.at("name").get<std::string>();

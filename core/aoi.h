@@ -81,8 +81,8 @@ struct AoiCatalog {
   int epsg = 0;
   std::vector<Eigen::Vector2d> footprint_lonlat;  // polygon, counter-clockwise, not closed
   std::string footprint_source;                   // "truth_grid" or "image_overlap"
-  double min_height_m = 0.0;                      // scene height range (ellipsoidal)
-  double max_height_m = 0.0;
+  double min_ellipsoid_height_m = 0.0;                      // scene height range (ellipsoidal)
+  double max_ellipsoid_height_m = 0.0;
   std::string height_range_source;                // "satnerf_json", "truth_dsm" or "rpc"
   std::vector<ImageRecord> images;
   std::optional<TruthGrid> truth;

@@ -67,7 +67,7 @@ struct TileSpec {
   // city's edge (tiling.cpp: PlanTiles).
   GroundBox extent;
   GeodeticPoint enu_origin;       // the city's shared frame
-  double min_height_m = 0, max_height_m = 0;  // ellipsoidal
+  double min_ellipsoid_height_m = 0, max_ellipsoid_height_m = 0;  // ellipsoidal
   std::vector<TileImage> images;
   // The part of the core within the city (a city smaller than a tile clips
   // its core): the core cut to the extent less its margin.

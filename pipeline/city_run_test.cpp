@@ -84,6 +84,39 @@ TEST(CityRun, AdjacentAoisOfOneZoneFormOneCity) {
   EXPECT_EQ(cities[3][0].aoi, "OTHER_ZONE");
 }
 
+// Two images are the most common real input and the minimum: a stereo pair
+// runs end to end (SfM, dense heights, training, DSM) and its tile report
+// says what a pair cannot do.
+TEST(CityRun, AStereoPairRunsEndToEndAndStatesItsLimits) {
+  const fs::path dir = ScratchDir("pair");
+  NullProgress progress;
+  MakeCity(dir / "city", 96, 2, 5, [](synth::SynthOptions& o) {
+    o.min_off_nadir_deg = 10;
+    o.max_off_nadir_deg = 25;
+  });
+  const RunRequest request{(dir / "city").string(), (dir / "out").string(), {}};
+  const RunSummary run = RunAll(ShortRun(40), request, progress);
+  ASSERT_EQ(run.exit_code, kExitOk);
+  ASSERT_EQ(run.cities.size(), 1u);
+  ASSERT_TRUE(run.cities[0].scene) << run.cities[0].error;
+  ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 1u);
+  // 40 steps: a bound that holds for any working DSM of a 96 m city, not a
+  // target (bench_accuracy's syn_stereo row measures the pair's accuracy).
+  EXPECT_LT(run.cities[0].dsm_mae_m[0], 5.0);
+  EXPECT_TRUE(fs::exists(dir / "out" / "SYN_001" / "dsm.tif"));
+  const json report = ReadJson(dir / "out" / "SYN_001" / "run_report.json");
+  ASSERT_EQ(report["tiles"].size(), 1u);
+  bool stated = false;
+  for (const auto& stage : report["tiles"][0]["stages"])
+    for (const auto& w : stage.value("warnings", json::array()))
+      stated = stated || w.get<std::string>().find("stereo pair") != std::string::npos;
+  EXPECT_TRUE(stated) << report["tiles"][0].dump();
+  std::ifstream page_in(dir / "out" / "report.html");
+  const std::string page((std::istreambuf_iterator<char>(page_in)), {});
+  EXPECT_NE(page.find("a stereo pair"), std::string::npos);
+  std::printf("[figures] stereo pair, 96 m, 40 steps: DSM MAE %.2f m\n", run.cities[0].dsm_mae_m[0]);
+}
+
 // The whole run through the library, tiles in this process: a synthetic city
 // of two adjacent AOIs, merged, compared with its truth, then resumed.
 TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {

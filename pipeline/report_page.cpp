@@ -166,10 +166,20 @@ std::string HeldOutViews(const fs::path& splat_dir, const fs::path& out_dir) {
   return html;
 }
 
+// What a tile's stages warned of (an image left out, the limits of a
+// stereo pair), one line each.
+std::string StageWarnings(const json& tile) {
+  std::string html;
+  for (const json& s : tile.value("stages", json::array()))
+    for (const json& w : s.value("warnings", json::array()))
+      if (w.is_string()) html += (html.empty() ? "" : "<br>") + HtmlEscape(w.get<std::string>());
+  return html;
+}
+
 std::string TileTable(const json& report, const fs::path& city_dir, const fs::path& out_dir) {
   std::string html =
       "<table><tr><th>tile</th><th>status</th><th>time [s]</th><th>peak memory [MB]</th><th>decisions</th>"
-      "<th>held-out views (PSNR)</th></tr>";
+      "<th>held-out views (PSNR)</th><th>warnings</th></tr>";
   for (const json& t : report.value("tiles", json::array())) {
     const std::string status = t.value("status", "failed");
     const std::string tile = t.value("tile", "?");
@@ -177,7 +187,7 @@ std::string TileTable(const json& report, const fs::path& city_dir, const fs::pa
             HtmlEscape(status) + (t.value("message", "").empty() ? "" : ": " + HtmlEscape(t.value("message", ""))) +
             "</td>" + Cell(Number(t, "seconds", 1), true) + Cell(Number(t, "peak_rss_mb", 0), true) +
             Cell(Decisions(t.value("decisions", json::object()))) +
-            Cell(HeldOutViews(city_dir / "tiles" / tile / "splat", out_dir)) + "</tr>";
+            Cell(HeldOutViews(city_dir / "tiles" / tile / "splat", out_dir)) + Cell(StageWarnings(t)) + "</tr>";
   }
   return html + "</table>";
 }

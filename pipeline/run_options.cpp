@@ -35,6 +35,7 @@ template <class IO> void Visit(IO& io, IngestOptions& o) {
 }
 template <class IO> void Visit(IO& io, TilingOptions& o) {
   io("tile_m", o.tile_m);
+  io("tile_px", o.tile_px);
   io("overlap_m", o.overlap_m);
   io("min_coverage", o.min_coverage);
   io("min_images", o.min_images);
@@ -83,6 +84,7 @@ template <class IO> void Visit(IO& io, SfmOptions& o) {
   io("max_reprojection_after_ba_px", o.max_reprojection_after_ba_px);
   io("min_triangulation_angle_deg", o.min_triangulation_angle_deg);
   io("ba_rounds", o.ba_rounds);
+  io("anchor_image", o.anchor_image);
 }
 template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("cell_m", o.cell_m);

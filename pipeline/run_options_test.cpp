@@ -103,7 +103,7 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.optimizer.iterations = 0; }).find("train.iterations"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dense.cell_m = -1; }).find("dense.cell_m"), std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.tiling.tile_m = 0; }).find("tiling."), std::string::npos);
+  EXPECT_NE(check([](RunOptions& o) { o.tiling.tile_m = 8; }).find("tiling."), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.merge.lod.min_reduction = 2; }).find("merge.lod.min_reduction"),
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dsm.compare.pyramid_levels = 0; }).find("dsm.compare.pyramid_levels"),

@@ -38,12 +38,16 @@ done
 source scripts/bench_env.sh
 mkdir -p "$OUT"
 
-# name | tuned_on | synth flags ("dfc2019" for the real AOI)
+# name | tuned_on | synth flags ("dfc2019" for the real AOI, "own:DIR" for a
+# user's own-data folder)
 # Settings of the dense stage and the trainer were chosen on JAX_068 (the only
-# real AOI with truth here), the surface-anchor weights on syn_default (its
-# 128 m quick form); the other synthetic scenes are held out of all tuning.
+# real AOI with LiDAR truth here), the surface-anchor weights on syn_default
+# (its 128 m quick form); the other scenes are held out of all tuning.
 # Later dense-stage rules were also chosen on cities of other seeds
 # (`skyfall synth --seed 2|3`, docs/benchmarks.md), none of them listed here.
+# The rows after syn_multidate are the real-sensor defect classes: a second
+# real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
+# mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair.
 SCENES=(
   "jax068|true|dfc2019"
   "syn_default|true|"
@@ -54,6 +58,11 @@ SCENES=(
   "syn_pan16|false|--bit-depth 11 --bands 1"
   "syn_towers|false|--max-building-m 180"
   "syn_multidate|false|--date-contrast 3 --views-per-date 1"
+  "pleiades_mrs|false|own:../shared/data/pleiades-mrs"
+  "syn_alt2300|false|--ground-height-m 2300"
+  "syn_alt4000|false|--ground-height-m 4000"
+  "syn_biased|false|--rpc-bias-px 3 --rpc-bias-rotation-deg 0.01"
+  "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
 )
 if ! [[ "$DRAW" =~ ^[0-9]+$ && "$DRAW_FROM" =~ ^[1-9][0-9]*$ ]]; then
   echo "bench_accuracy: --draw needs a count >= 0 and --draw-from a number >= 1, got '$DRAW' and '$DRAW_FROM'" >&2
@@ -74,6 +83,10 @@ for entry in "${SCENES[@]}"; do
     root=../shared/data/dfc2019
     if [ ! -d "$root/Track3-Truth" ]; then echo "bench_accuracy: $name skipped: no $root" >&2; continue; fi
     extra=(--aoi JAX_068)
+  elif [[ "$flags" == own:* ]]; then
+    root=${flags#own:}
+    if [ ! -d "$root" ]; then echo "bench_accuracy: $name skipped: no $root" >&2; continue; fi
+    extra=()
   else
     root="$dir/input"
     # shellcheck disable=SC2086
@@ -128,6 +141,12 @@ for name in sorted(os.listdir(out)):
         for band in ("roof_rim", "beside_buildings"):
             parts[band] = (entry.get("building_rims") or {}).get(band, {}).get("mae_part_m")
         return parts
+    def compare_shift(entry):
+        path = entry.get("report")
+        if not path or not os.path.isfile(path):
+            return None
+        compared = json.load(open(path))
+        return [compared.get("shift_col_px"), compared.get("shift_row_px")]
     def edge_bias(entry):
         profile = entry.get("building_edge_profile")
         if not profile:
@@ -138,6 +157,9 @@ for name in sorted(os.listdir(out)):
         "scene": name,
         "mae_m": d.get("mae_m"), "rmse_m": d.get("rmse_m"), "median_m": d.get("median_abs_m"),
         "nmad_m": d.get("nmad_m"), "completeness": d.get("completeness"), "within_1m": d.get("within_1m"),
+        # The comparison's horizontal registration [truth px]: how far the
+        # product sits from the truth; RPC biases that BA leaves show here.
+        "shift_px": compare_shift(d),
         "dense_mae_m": (d.get("dense") or {}).get("mae_m"),
         "dense_completeness": (d.get("dense") or {}).get("completeness"),
         "filled_cell_fraction": (d.get("dense") or {}).get("filled_cell_fraction"),
@@ -164,7 +186,7 @@ for name in sorted(os.listdir(out)):
         "edge_bias_m": edge_bias(d),
         "dense_edge_bias_m": edge_bias(d.get("dense") or {}),
         "tuned_on": name in tuned,
-        "synthetic_size_m": None if name == "jax068" else size,
+        "synthetic_size_m": size if synth_options(name) else None,
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
         "synth_options": synth_options(name),
     })
@@ -174,12 +196,14 @@ with open(os.path.join(out, "bench_accuracy.json.tmp"), "w") as f:
 os.replace(os.path.join(out, "bench_accuracy.json.tmp"), os.path.join(out, "bench_accuracy.json"))
 def fmt(v, digits=2, scale=1.0, suffix=""):
     return "n/a" if v is None else f"{v * scale:.{digits}f}{suffix}"
-lines = ["| scene | tuned on | MAE | RMSE | median | NMAD | completeness | within 1 m | dense MAE | filled cells | held-out PSNR | best embedding | fitted on half | training views | run |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+def shift(v):
+    return "n/a" if not v or v[0] is None else f"{v[0]:+d},{v[1]:+d}"
+lines = ["| scene | tuned on | MAE | RMSE | median | NMAD | completeness | within 1 m | shift px | dense MAE | filled cells | held-out PSNR | best embedding | fitted on half | training views | run |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for s in scenes:
     lines.append(f"| {s['scene']} | {'yes' if s['tuned_on'] else 'no'} | {fmt(s['mae_m'], suffix=' m')} | "
                  f"{fmt(s['rmse_m'], suffix=' m')} | {fmt(s['median_m'], suffix=' m')} | {fmt(s['nmad_m'], suffix=' m')} | "
-                 f"{fmt(s['completeness'], 1, 100, '%')} | {fmt(s['within_1m'], 0, 100, '%')} | "
+                 f"{fmt(s['completeness'], 1, 100, '%')} | {fmt(s['within_1m'], 0, 100, '%')} | {shift(s['shift_px'])} | "
                  f"{fmt(s['dense_mae_m'], suffix=' m')} | {fmt(s['filled_cell_fraction'], 0, 100, '%')} | "
                  f"{fmt(s['heldout_psnr_db'], 1, 1, ' dB')} | {fmt(s['heldout_psnr_best_embedding_db'], 1, 1, ' dB')} | "
                  f"{fmt(s['heldout_psnr_fitted_db'], 1, 1, ' dB')} | {fmt(s['train_psnr_db'], 1, 1, ' dB')} | "
@@ -213,14 +237,15 @@ for s in scenes:
 described = [s for s in scenes if s["synth_options"]]
 if described:
     lines += ["", "The synthetic scenes' options (`skyfall synth`; drawn scenes: `--draw K`):", "",
-              "| scene | seed | lat, lon | off-nadir | views (per date) | bands x bits | relief | tallest | date contrast |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "| scene | seed | lat, lon | off-nadir | views (per date) | bands x bits | relief | tallest | date contrast | ground (ellipsoidal) | RPC bias |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in described:
         o = s["synth_options"]
         lines.append(f"| {s['scene']} | {o['seed']} | {o['lat_deg']:g}, {o['lon_deg']:g} | "
                      f"{o['min_off_nadir_deg']:g}-{o['max_off_nadir_deg']:g} deg | {o['views']} ({o['views_per_date']}) | "
                      f"{o['bands']} x {o['bit_depth']} | {o['relief_m']:g} m | {o['max_building_m']:g} m | "
-                     f"{o['date_contrast']:g} |")
+                     f"{o['date_contrast']:g} | {o.get('ground_height_m', -20):g} m | "
+                     f"{o.get('rpc_bias_px', 0):g} px, {o.get('rpc_bias_rotation_deg', 0):g} deg |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))
 PY

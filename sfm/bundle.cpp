@@ -55,8 +55,12 @@ BundleSummary RunBundleAdjustment(BundleProblem* bp, const BundleOptions& option
                                bp->points[t].data());
     }
   }
+  const bool anchored = bp->anchor_image >= 0 && bp->anchor_image < static_cast<int>(bp->offsets_px.size()) &&
+                        problem.HasParameterBlock(bp->offsets_px[bp->anchor_image].data());
+  if (anchored) problem.SetParameterBlockConstant(bp->offsets_px[bp->anchor_image].data());
   for (size_t i = 0; i < bp->offsets_px.size(); ++i) {
     if (!bp->image_used[i] || !problem.HasParameterBlock(bp->offsets_px[i].data())) continue;
+    if (anchored) continue;  // the anchor fixes the gauge: the others follow it freely
     // Cauchy: an image with a large pointing error (tens of px happen) does
     // not drag the others' offsets; the majority fixes the gauge.
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetPrior, 2, 2>(

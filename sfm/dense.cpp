@@ -42,7 +42,7 @@ void DenseOptions::Check() const {
   auto positive = [](double v, const char* name) {
     if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
   };
-  positive(cell_m, "cell_m");
+  if (cell_m != 0) positive(cell_m, "cell_m");  // 0: automatic
   positive(height_step_m, "height_step_m");
   positive(cost_truncation, "cost_truncation");
   positive(min_std, "min_std");
@@ -868,10 +868,21 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector
   return kept;
 }
 
-DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
-                            const std::vector<Eigen::Vector3d>& all_points, Progress& progress,
-                            const std::optional<GroundBox>& extent) {
-  o.Check();
+double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m) {
+  double finest_m = std::numeric_limits<double>::infinity();
+  for (const DenseView& v : views) {
+    const double depth_m = v.camera.Depth(centre_enu_m);
+    if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(v.camera.fx * v.camera.fy));
+  }
+  if (!std::isfinite(finest_m)) return kDenseCellStepM;
+  return kDenseCellStepM * std::max(1.0, std::round(finest_m / kDenseCellStepM));
+}
+
+DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseView>& views,
+                            const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& all_points,
+                            Progress& progress, const std::optional<GroundBox>& extent) {
+  given.Check();
+  DenseOptions o = given;
   Stopwatch clock;
   DenseResult result;
   result.report.stage = "dense";
@@ -911,6 +922,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     z.push_back(p.z());
   }
   centre /= static_cast<double>(points.size());
+  if (given.cell_m == 0) o.cell_m = AutomaticCellM(views, centre);
   const double z_lo = Quantile(z, o.height_percentile) - o.height_margin_m;
   const double z_hi = Quantile(z, 1.0 - o.height_percentile) + o.height_margin_m;
   // A range longer than max_heights steps (towers, hills) is swept with a
@@ -1087,6 +1099,7 @@ DenseResult RunDenseHeights(const DenseOptions& o, const std::vector<DenseView>&
     }
 
   StageReport& r = result.report;
+  r.metrics["cell_m"] = o.cell_m;
   r.metrics["cells"] = static_cast<double>(cells);
   r.metrics["heights"] = nh;
   r.metrics["height_step_m"] = step_m;

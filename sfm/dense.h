@@ -24,7 +24,9 @@
 namespace skyfall {
 
 struct DenseOptions {
-  double cell_m = 0.5;              // ground sampling of the height grid [m]
+  // Ground sampling of the height grid [m]; 0 (the default): follows the
+  // imagery, AutomaticCellM.
+  double cell_m = 0.0;
   double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
   double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
   double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
@@ -217,6 +219,13 @@ struct DenseResult {
 // beyond it are another tile's work); the heights of the tie points inside
 // set the sweep range. Status "degenerate" when fewer than 3 tie points lie
 // inside or no pair qualifies.
+// The automatic cell: kDenseCellStepM for sub-metre imagery (where every
+// setting was measured), else the whole multiple of it nearest the finest
+// view's GSD at `centre_enu_m` (depth / focal length): a 2.1 m sensor gets
+// 2 m cells, not 0.5 m cells 16 times as many for the same detail.
+constexpr double kDenseCellStepM = 0.5;
+double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m);
+
 DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<DenseView>& views,
                             const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& tie_points_enu_m,
                             Progress& progress, const std::optional<GroundBox>& extent_enu_m = std::nullopt);

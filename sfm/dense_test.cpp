@@ -118,6 +118,26 @@ DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
   return testing::UniformView(name, camera, 100.0f);  // no texture: no height can be told from another
 }
 
+// The automatic cell follows the finest view: a sub-metre sensor keeps the
+// 0.5 m cells every setting was measured with (exactly 0.5, not a near
+// value that would move the grid), a 2.1 m sensor gets 2 m cells.
+TEST(Dense, AutomaticCellFollowsTheFinestViewInStepsOfHalfAMetre) {
+  auto view_at_gsd = [](double gsd_m) {
+    DenseView v;
+    v.camera.cam_from_world_rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();  // looking down
+    v.camera.cam_from_world_translation = Eigen::Vector3d(0, 0, 617000.0);
+    v.camera.fx = v.camera.fy = 617000.0 / gsd_m;
+    return v;
+  };
+  const Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.31)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.5000001)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.7), view_at_gsd(3.0)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(2.1)}, centre), 2.0);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(1.5), view_at_gsd(2.5)}, centre), 1.5);
+  EXPECT_EQ(AutomaticCellM({}, centre), kDenseCellStepM);  // nothing to follow
+}
+
 TEST(Dense, PairsAreChosenByAngleAndTiePoints) {
   const std::vector<DenseView> views = {FlatView("nadir", LookingDown(0, 0)), FlatView("a", LookingDown(20, 90)),
                                         FlatView("b", LookingDown(1, 90)), FlatView("c", LookingDown(30, 270))};

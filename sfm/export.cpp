@@ -86,6 +86,7 @@ std::string ReportJson(const SfmResult& r) {
               {"message", r.report.message},
               {"warnings", r.report.warnings},
               {"verified_pairs", r.verified_pairs},
+              {"absolute_position", r.absolute_position},
               {"ba_mean_reproj_px_before", r.before.mean_px},
               {"ba_p90_reproj_px_before", r.before.p90_px},
               {"ba_mean_reproj_px_after", r.after.mean_px},

@@ -10,8 +10,9 @@
 namespace skyfall {
 namespace {
 
-Eigen::Vector3d AtHeight(const Ray& ray, double height_m) {
-  return ray.origin + ((height_m - ray.origin.z()) / ray.direction.z()) * ray.direction;
+// Where the ray crosses the plane at ENU up `up` (the cameras' frame).
+Eigen::Vector3d AtUp(const Ray& ray, EnuUpM up) {
+  return ray.origin + ((up.value - ray.origin.z()) / ray.direction.z()) * ray.direction;
 }
 
 int Find(std::vector<int>& parent, int x) {
@@ -37,8 +38,8 @@ std::vector<std::pair<int, int>> VerifyMatches(const PinholeCamera& a, const Pin
   std::vector<double> distance(matches.size()), along(matches.size());
   for (size_t m = 0; m < matches.size(); ++m) {
     const Ray ray = PixelRay(a, keypoints_a[matches[m].first]);
-    const Eigen::Vector2d p0 = b.Project(AtHeight(ray, o.min_height_m - o.height_pad_m));
-    const Eigen::Vector2d p1 = b.Project(AtHeight(ray, o.max_height_m + o.height_pad_m));
+    const Eigen::Vector2d p0 = b.Project(AtUp(ray, EnuUpM(o.min_up.value - o.height_pad_m)));
+    const Eigen::Vector2d p1 = b.Project(AtUp(ray, EnuUpM(o.max_up.value + o.height_pad_m)));
     Eigen::Vector2d seg = p1 - p0;
     const double len = seg.norm();
     const Eigen::Vector2d q = keypoints_b[matches[m].second] - p0;

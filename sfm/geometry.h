@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/height.h"
 #include "core/pinhole.h"
 
 namespace skyfall {
@@ -18,8 +19,11 @@ struct Ray {
 Ray PixelRay(const PinholeCamera& camera, const Eigen::Vector2d& pixel);
 
 struct VerifyOptions {
-  double min_height_m = 0;        // scene height range: a true match lies on the
-  double max_height_m = 0;        // epipolar segment between these heights
+  // Scene height range on the cameras' ENU up axis: a true match lies on the
+  // epipolar segment between these heights. RunSfm converts the catalog's
+  // ellipsoidal range (EnuUpAtOrigin).
+  EnuUpM min_up;
+  EnuUpM max_up;
   double min_threshold_px = 1.5;  // smallest accepted distance from the epipolar line [px]
   double mad_factor = 4.0;        // threshold = max(min, factor * 1.4826 * MAD)
   double segment_slack = 0.25;    // allowed overshoot beyond the height range, as a fraction

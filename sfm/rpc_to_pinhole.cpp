@@ -190,10 +190,11 @@ void PinholeFitOptions::Check() const {
 }
 
 PinholeFit ApproximateRpcByPinhole(
-    const RpcModel& rpc, int width_px, int height_px, double min_height_m, double max_height_m,
+    const RpcModel& rpc, int width_px, int height_px, EllipsoidHeightM min_height, EllipsoidHeightM max_height,
     const std::function<Eigen::Vector3d(const GeodeticPoint&)>& enu_from_geodetic,
     const PinholeFitOptions& options) {
   options.Check();
+  const double min_height_m = min_height.value, max_height_m = max_height.value;
   if (width_px < 2 || height_px < 2) throw Error("pinhole", "image", "is smaller than 2x2 px");
   if (!(min_height_m < max_height_m)) {
     throw Error("pinhole", "height range", "is empty: a pinhole needs 3D extent to be determined");

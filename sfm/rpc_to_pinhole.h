@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "core/aoi.h"
+#include "core/height.h"
 #include "core/pinhole.h"
 #include "core/rpc.h"
 
@@ -38,9 +39,10 @@ struct PinholeFit {
 };
 
 // `enu_from_geodetic` maps (lon, lat, height) into the local frame the camera
-// lives in (the AOI's ENU frame). Heights span [min_height_m, max_height_m].
+// lives in (the AOI's ENU frame). The RPC is sampled between the two
+// ellipsoidal heights (its own height frame).
 PinholeFit ApproximateRpcByPinhole(
-    const RpcModel& rpc, int width_px, int height_px, double min_height_m, double max_height_m,
+    const RpcModel& rpc, int width_px, int height_px, EllipsoidHeightM min_height, EllipsoidHeightM max_height,
     const std::function<Eigen::Vector3d(const GeodeticPoint&)>& enu_from_geodetic,
     const PinholeFitOptions& options = {});
 

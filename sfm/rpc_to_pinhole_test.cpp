@@ -34,7 +34,8 @@ TEST(RpcToPinhole, RecoversTheTrueCamerasOfTheSyntheticScene) {
   for (const synth::SynthView& v : scene.aois.at(0).views) {
     const RpcModel rpc = ReadRpcFromRaster(v.path);
     const PinholeFit fit = ApproximateRpcByPinhole(rpc, v.camera.width_px, v.camera.height_px,
-                                                   scene.city.min_height_m, scene.city.max_height_m,
+                                                   EllipsoidHeightM(scene.city.min_height_m),
+                                                   EllipsoidHeightM(scene.city.max_height_m),
                                                    EnuFunction(frame));
     // The RPC was fitted to a perspective camera, so a pinhole reproduces it
     // to the RPC fit's own residual (~1e-8 px).
@@ -63,7 +64,8 @@ TEST(RpcToPinhole, Jax068CropsWithinTarget) {
   for (const auto& e : fs::directory_iterator(Dfc2019Root() / "Track3-RGB-crops" / "JAX_068")) {
     const RasterInfo info = ReadRasterInfo(e.path().string());
     const PinholeFit fit = ApproximateRpcByPinhole(ReadRpcFromRaster(e.path().string()), info.width_px,
-                                                   info.height_px, -31.3, 34.2, EnuFunction(frame));
+                                                   info.height_px, EllipsoidHeightM(-31.3), EllipsoidHeightM(34.2),
+                                                   EnuFunction(frame));
     EXPECT_LE(fit.max_error_px, kPinholeMaxErrorPx) << e.path();
     std::printf("  %s: DLT max %.4f mean %.4f -> refined max %.4f mean %.4f, skew %.3g px\n",
                 e.path().filename().c_str(), fit.dlt_max_error_px, fit.dlt_mean_error_px,
@@ -93,13 +95,15 @@ TEST(RpcToPinhole, StiffCameraNeedsHartleyNormalization) {
   raw.refine = false;
   PinholeFitOptions normalized = raw;
   normalized.hartley_normalization = true;
-  const PinholeFit b = ApproximateRpcByPinhole(rpc, info.width_px, info.height_px, -31.3, 34.2, far_frame, normalized);
+  const PinholeFit b = ApproximateRpcByPinhole(rpc, info.width_px, info.height_px, EllipsoidHeightM(-31.3), EllipsoidHeightM(34.2),
+                                               far_frame, normalized);
   EXPECT_LT(b.dlt_max_error_px, kPinholeMaxErrorPx);
   // Losing the normalization must show: either the decomposition is refused
   // (a camera facing away) or the camera is off by pixels.
   double raw_error_px = std::numeric_limits<double>::infinity();
   try {
-    raw_error_px = ApproximateRpcByPinhole(rpc, info.width_px, info.height_px, -31.3, 34.2, far_frame, raw)
+    raw_error_px = ApproximateRpcByPinhole(rpc, info.width_px, info.height_px, EllipsoidHeightM(-31.3),
+                                           EllipsoidHeightM(34.2), far_frame, raw)
                        .dlt_max_error_px;
   } catch (const Error& e) {
     std::printf("[figures] stiff DLT without normalization: %s\n", e.what());
@@ -113,7 +117,7 @@ TEST(RpcToPinhole, RejectsAnEmptyHeightRange) {
   SKYFALL_REQUIRE_DFC2019();
   const RpcModel rpc = ReadRpcFromRaster(Jax068Image("001").string());
   const EnuFrame frame({-81.66, 30.35, 0});
-  EXPECT_THROW(ApproximateRpcByPinhole(rpc, 100, 100, 5.0, 5.0, EnuFunction(frame)), Error);
+  EXPECT_THROW(ApproximateRpcByPinhole(rpc, 100, 100, EllipsoidHeightM(5.0), EllipsoidHeightM(5.0), EnuFunction(frame)), Error);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <mutex>
 #include <numeric>
 
+#include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
@@ -72,6 +73,18 @@ void CutOutliers(BundleProblem* bp, double max_px) {
   KeepUsedImages(bp);
 }
 
+// The index of the anchor image named by the option, -1 for none. A name
+// that is no image of the AOI is refused with the names that are.
+int AnchorIndex(const std::string& name, const std::vector<SfmImage>& images, const std::string& aoi) {
+  if (name.empty()) return -1;
+  std::string names;
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (images[i].name == name) return static_cast<int>(i);
+    names += (names.empty() ? "" : ", ") + images[i].name;
+  }
+  throw Error("sfm", "anchor_image", "'" + name + "' is not an image of " + aoi + " (its images: " + names + ")");
+}
+
 }  // namespace
 
 void SfmOptions::Check() const {
@@ -122,8 +135,9 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     im.sun_elevation_deg = rec.sun_elevation_deg;
     im.sun_azimuth_deg = rec.sun_azimuth_deg;
     im.radiometry = rec.radiometry;
-    im.approximation = ApproximateRpcByPinhole(rec.rpc, rec.width_px, rec.height_px, catalog.min_height_m,
-                                               catalog.max_height_m, enu, options.pinhole);
+    im.approximation = ApproximateRpcByPinhole(rec.rpc, rec.width_px, rec.height_px,
+                                               EllipsoidHeightM(catalog.min_ellipsoid_height_m),
+                                               EllipsoidHeightM(catalog.max_ellipsoid_height_m), enu, options.pinhole);
     im.camera = im.approximation.camera;
     NormalizedImage pixels = ReadNormalizedImage(rec.path, rec.radiometry);
     for (float& v : pixels.rgb) v *= 255.0f;  // keypoint colours are 8-bit
@@ -139,8 +153,8 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
   // 2. Pairwise matching and verification, pairs in parallel; results are
   // collected by pair index so the outcome does not depend on scheduling.
   VerifyOptions verify = options.verify;
-  verify.min_height_m = catalog.min_height_m;
-  verify.max_height_m = catalog.max_height_m;
+  verify.min_up = EnuUpAtOrigin(EllipsoidHeightM(catalog.min_ellipsoid_height_m), catalog.enu_origin);
+  verify.max_up = EnuUpAtOrigin(EllipsoidHeightM(catalog.max_ellipsoid_height_m), catalog.enu_origin);
   std::vector<std::pair<int, int>> all_pairs;
   for (int a = 0; a < n; ++a)
     for (int b = a + 1; b < n; ++b) all_pairs.emplace_back(a, b);
@@ -179,6 +193,7 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
   bp.cameras = loaded.cameras;
   bp.offsets_px.assign(n, Eigen::Vector2d::Zero());
   bp.image_used.assign(n, true);
+  bp.anchor_image = AnchorIndex(options.anchor_image, result.images, catalog.aoi);
   TriangulateTracks(tracks, loaded.cameras, options, &bp);
 
   // 4. Images with too few observations are left out.
@@ -244,12 +259,17 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     im.camera.cy += im.ba_offset_px.y();
   }
   int images_used = 0;
-  double dlt_max = 0, dlt_mean_sum = 0;
+  double dlt_max = 0, dlt_mean_sum = 0, largest_offset_px = 0;
+  Eigen::Vector2d mean_offset_px = Eigen::Vector2d::Zero();
   for (const auto& im : result.images) {
     images_used += im.used;
     dlt_max = std::max(dlt_max, im.approximation.max_error_px);
     dlt_mean_sum += im.approximation.mean_error_px;
+    if (!im.used) continue;
+    mean_offset_px += im.ba_offset_px;
+    largest_offset_px = std::max(largest_offset_px, im.ba_offset_px.norm());
   }
+  if (images_used > 0) mean_offset_px /= images_used;
   auto& m = result.report.metrics;
   m["dlt_max_error_px"] = dlt_max;
   m["dlt_mean_error_px"] = dlt_mean_sum / n;
@@ -257,6 +277,29 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
   m["ba_median_reproj_px_after"] = result.after.median_px;
   m["num_points"] = static_cast<double>(result.points.size());
   m["num_images_used"] = images_used;
+  // The gauge: a shift common to every image is invisible to tie points, so
+  // the absolute position is the robust average of the images' RPCs (the
+  // Cauchy prior on each offset). These say how far BA moved them from it.
+  m["ba_mean_offset_px"] = mean_offset_px.norm();
+  m["ba_largest_offset_px"] = largest_offset_px;
+  const bool anchored = bp.anchor_image >= 0 && result.images[bp.anchor_image].used;
+  result.absolute_position =
+      anchored ? "the RPC of " + result.images[bp.anchor_image].name + " (sfm.anchor_image)"
+               : "the average of " + std::to_string(images_used) + " images' RPCs";
+  if (bp.anchor_image >= 0 && !anchored) {
+    result.report.warnings.push_back("sfm " + catalog.aoi + ": anchor image " + options.anchor_image +
+                                     " was left out; the absolute position is the images' average");
+  }
+  progress.Info(fmt::format("sfm {}: absolute position from {} (mean BA offset {:.2f} px, largest {:.2f} px)",
+                            catalog.aoi, result.absolute_position, mean_offset_px.norm(), largest_offset_px));
+  if (images_used == 2) {
+    // The most common real input and the minimum: say what it cannot do.
+    result.report.warnings.push_back(
+        "sfm " + catalog.aoi +
+        ": a stereo pair: one intersection per point, so a mismatch cannot be outvoted; ground that either view "
+        "cannot see (beside buildings, away from its look direction) gets no height and is filled; no view is left "
+        "to hold out for scoring");
+  }
   if (images_used < 2) {
     result.report.status = StageStatus::kDegenerate;
     result.report.message = "sfm: " + catalog.aoi + ": fewer than 2 images kept after bundle adjustment";

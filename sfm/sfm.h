@@ -29,6 +29,10 @@ struct SfmOptions {
   double max_reprojection_after_ba_px = 2.0; // outlier cut between BA rounds
   double min_triangulation_angle_deg = 2.0;
   int ba_rounds = 2;
+  // What fixes the absolute position, which tie points cannot see: empty, the
+  // robust average of all images' RPCs; else the name of one image whose RPC
+  // is taken as exact (s2p anchors to its reference image this way).
+  std::string anchor_image;
   void Check() const;  // throws Error("sfm", field, ...)
 };
 
@@ -73,6 +77,7 @@ struct SfmResult {
   std::vector<SfmPoint> points;
   ReprojectionStats before, after;
   int verified_pairs = 0;
+  std::string absolute_position;  // what fixed it, in words ("the average of 12 images' RPCs")
   StageReport report;
 };
 

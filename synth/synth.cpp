@@ -13,6 +13,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/format.h"
+#include "core/height.h"
 #include "core/rpc_fit.h"
 #include "tiler/geo.h"
 #include "tiler/raster.h"
@@ -40,7 +41,11 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"max_building_m", o.max_building_m},
           {"relief_m", o.relief_m},
           {"date_contrast", o.date_contrast},
-          {"rpc_height_offset_m", o.rpc_height_offset_m}};
+          {"rpc_height_offset_m", o.rpc_height_offset_m},
+          {"ground_height_m", o.ground_height_m},
+          {"rpc_bias_px", o.rpc_bias_px},
+          {"rpc_bias_rotation_deg", o.rpc_bias_rotation_deg},
+          {"along_track_deg", o.along_track_deg}};
 }
 
 constexpr double kDegToRad = M_PI / 180.0;
@@ -177,7 +182,16 @@ ViewGeometry MakeCamera(const SynthOptions& o, const Georef& g, const City& city
   const double seed_turn = static_cast<double>(o.seed % 360);
   vg.off_nadir_deg = o.min_off_nadir_deg + (o.max_off_nadir_deg - o.min_off_nadir_deg) * Frac(0.5 + v * 0.618034);
   vg.azimuth_deg = std::fmod(v * 137.508 + 23.0 + seed_turn, 360.0);
-  const double roll = (-25.0 + 50.0 * Frac(0.3 + v * 0.754877)) * kDegToRad;
+  double roll = (-25.0 + 50.0 * Frac(0.3 + v * 0.754877)) * kDegToRad;
+  if (o.along_track_deg > 0) {
+    // A near-polar descending track (heading 190 deg): the forward view looks
+    // ahead along it, the backward one behind; the image rows follow the track.
+    constexpr double kTrackHeadingDeg = 190.0;
+    const double signed_deg = o.views == 1 ? 0.0 : -o.along_track_deg + 2.0 * o.along_track_deg * v / (o.views - 1);
+    vg.off_nadir_deg = std::abs(signed_deg);
+    vg.azimuth_deg = std::fmod(kTrackHeadingDeg + (signed_deg < 0 ? 0.0 : 180.0), 360.0);
+    roll = 0.0;
+  }
   const double alpha = vg.off_nadir_deg * kDegToRad;
   const double ratio = (kEarthRadiusM + o.orbit_height_m) / kEarthRadiusM;
   const double zenith = std::asin(std::min(1.0, ratio * std::sin(alpha)));
@@ -212,19 +226,53 @@ ViewGeometry MakeCamera(const SynthOptions& o, const Georef& g, const City& city
   return vg;
 }
 
-RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city, double height_offset_m) {
+// A pointing bias of a written RPC (see SynthOptions::rpc_bias_px).
+struct PointingBias {
+  Eigen::Vector2d shift_px = Eigen::Vector2d::Zero();
+  double rotation_deg = 0.0;
+  Eigen::Vector2d Apply(const Eigen::Vector2d& px, const SatelliteCamera& cam) const {
+    const Eigen::Vector2d centre(0.5 * (cam.width_px - 1), 0.5 * (cam.height_px - 1));
+    const double a = rotation_deg * M_PI / 180.0;
+    const Eigen::Vector2d d = px - centre;
+    return centre + Eigen::Vector2d(std::cos(a) * d.x() - std::sin(a) * d.y(),
+                                    std::sin(a) * d.x() + std::cos(a) * d.y()) + shift_px;
+  }
+};
+
+// The biases of one AOI's images: shifts uniform in a disc of radius
+// rpc_bias_px with their mean removed, rotations uniform in +-max.
+std::vector<PointingBias> DrawPointingBiases(const SynthOptions& o, int aoi_index) {
+  std::vector<PointingBias> out(o.views);
+  if (o.rpc_bias_px <= 0 && o.rpc_bias_rotation_deg <= 0) return out;
+  std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 7777 + aoi_index);
+  auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (PointingBias& b : out) {
+    const double r = o.rpc_bias_px * std::sqrt(unit()), t = 2 * M_PI * unit();
+    b.shift_px = {r * std::cos(t), r * std::sin(t)};
+    b.rotation_deg = o.rpc_bias_rotation_deg * (2 * unit() - 1);
+    mean += b.shift_px / o.views;
+  }
+  for (PointingBias& b : out) b.shift_px -= mean;
+  return out;
+}
+
+RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city, double height_offset_m,
+                        const PointingBias& bias) {
   const double z0 = std::min(city.min_height_m - kRpcHeightPadM, city.min_height_m + 2 * height_offset_m);
   const double z1 = std::max(city.max_height_m + kRpcHeightPadM, city.max_height_m + 2 * height_offset_m);
   RpcFitDomain d{1e9, -1e9, 1e9, -1e9, z0, z1};
   // Longitudes are unwrapped around the frame's origin, so that a domain
   // astride the antimeridian is 179.9992..180.0002, not -180..180.
   const double lon_ref = g.frame.GeodeticFromEnu(Eigen::Vector3d::Zero()).lon_deg;
-  // The ground under the image corners at both ends of the height range.
+  // The ground under the image corners at both ends of the height range
+  // (z0, z1 are ellipsoidal; the rays live in ENU).
   for (double col : {-0.5, cam.width_px - 0.5})
     for (double row : {-0.5, cam.height_px - 0.5}) {
       const Eigen::Vector3d dir = cam.RayDirectionEnu(col, row);
       for (double z : {z0, z1}) {
-        const Eigen::Vector3d p = cam.centre_enu_m + ((z - cam.centre_enu_m.z()) / dir.z()) * dir;
+        const double up_m = EnuUpAtOrigin(EllipsoidHeightM(z), g.frame.origin()).value;
+        const Eigen::Vector3d p = cam.centre_enu_m + ((up_m - cam.centre_enu_m.z()) / dir.z()) * dir;
         const GeodeticPoint q = g.frame.GeodeticFromEnu(p);
         const double lon = lon_ref + LongitudeDeltaDeg(q.lon_deg, lon_ref);
         d.min_lon_deg = std::min(d.min_lon_deg, lon);
@@ -235,7 +283,7 @@ RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City&
     }
   return FitRpc(
       [&](double lon, double lat, double h) {
-        return cam.Project(g.frame.EnuFromGeodetic({lon, lat, h}));
+        return bias.Apply(cam.Project(g.frame.EnuFromGeodetic({lon, lat, h})), cam);
       },
       d);
 }
@@ -386,6 +434,13 @@ void SynthOptions::Check() const {
        FormatDouble(orbit_height_m), "must be 200..2000 km");
   need(std::abs(rpc_height_offset_m) <= 5000, "rpc_height_offset_m", FormatDouble(rpc_height_offset_m),
        "must be -5000..5000 m");
+  need(ground_height_m >= -500 && ground_height_m <= 8000, "ground_height_m", FormatDouble(ground_height_m),
+       "must be -500..8000 m above the ellipsoid");
+  need(rpc_bias_px >= 0 && rpc_bias_px <= 50, "rpc_bias_px", FormatDouble(rpc_bias_px), "must be 0..50 px");
+  need(rpc_bias_rotation_deg >= 0 && rpc_bias_rotation_deg <= 1, "rpc_bias_rotation_deg",
+       FormatDouble(rpc_bias_rotation_deg), "must be 0..1 deg");
+  need(along_track_deg >= 0 && along_track_deg <= 45, "along_track_deg", FormatDouble(along_track_deg),
+       "must be 0..45 deg");
   need(cars_per_block >= 0, "cars_per_block", std::to_string(cars_per_block), "must be >= 0");
   need(image_margin_px >= 0, "image_margin_px", std::to_string(image_margin_px), "must be >= 0");
 }
@@ -410,6 +465,7 @@ Scene MakeScene(const SynthOptions& o, SynthResult* r) {
   const double margin_m = 0.45 * o.size_m + std::max(64.0, lean_m);
   co.margin_m = std::ceil(margin_m / o.gsd_m) * o.gsd_m;
   co.seed = o.seed;
+  co.base_height_m = o.ground_height_m;
   co.max_building_m = o.max_building_m;
   co.relief_m = o.relief_m;
   co.water = o.relief_m <= 10.0;
@@ -480,6 +536,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
       aoi.x0_m = bx * o.size_m;
       aoi.y0_m = by * o.size_m;
       std::map<int, City> with_cars;  // per date: transient objects move between passes
+      const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()));
       const fs::path image_dir = root / "Track3-RGB-crops" / aoi.name;
       const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
       for (int v = 0; v < o.views; ++v) {
@@ -503,7 +560,9 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
         view.lighting = ViewLighting(o, r, v, bx, by, &view);
         const Lighting& light = view.lighting;
 
-        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city, o.rpc_height_offset_m);
+        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city, o.rpc_height_offset_m, biases[v]);
+        view.rpc_bias_shift_px = biases[v].shift_px;
+        view.rpc_bias_rotation_deg = biases[v].rotation_deg;
         view.rpc_fit_max_px = fit.max_residual_px;
         view.rpc_fit_rms_px = fit.rms_residual_px;
         worst_fit = std::max(worst_fit, fit.max_residual_px);
@@ -556,6 +615,8 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                         {"view_azimuth_deg", v.view_azimuth_deg}, {"range_km", v.range_km},
                         {"sun_elevation_deg", v.sun_elevation_deg}, {"sun_azimuth_deg", v.sun_azimuth_deg},
                         {"rpc_fit_max_px", v.rpc_fit_max_px}, {"rpc_fit_rms_px", v.rpc_fit_rms_px},
+                        {"rpc_bias_shift_px", {v.rpc_bias_shift_px.x(), v.rpc_bias_shift_px.y()}},
+                        {"rpc_bias_rotation_deg", v.rpc_bias_rotation_deg},
                         {"width_px", v.camera.width_px}, {"height_px", v.camera.height_px}});
   report["images"] = images;
   r.report.seconds = clock.Seconds();

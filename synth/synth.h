@@ -46,6 +46,24 @@ struct SynthOptions {
   // above (or below) the scene, so HEIGHT_OFF lies far from the ground, as in
   // a vendor RPC of a whole mountain scene seen from a valley AOI [m].
   double rpc_height_offset_m = 0.0;
+  // Mean ground height of the city above the WGS84 ellipsoid [m]: 0 near the
+  // sea, 2,300 or 4,000 m for a city in the mountains. The default is about
+  // Jacksonville's (the DFC2019 scenes').
+  double ground_height_m = -20.0;
+  // Vendor RPCs point a few metres off the ground and off each other. Each
+  // image's written RPC is off its true camera by a shift of up to
+  // rpc_bias_px [px] (uniform in a disc) and a rotation about the image
+  // centre of up to rpc_bias_rotation_deg [deg]. The shifts of an AOI's
+  // images are drawn with zero mean: a bias common to all images cannot be
+  // seen without ground control, so the truth's frame is the images' average.
+  // Seeded by `seed`, recorded per image in synth_report.json.
+  double rpc_bias_px = 0.0;
+  double rpc_bias_rotation_deg = 0.0;
+  // A three-line (along-track) camera instead of views from many orbits: when
+  // > 0, the views lie on one orbit track with off-nadir angles spread evenly
+  // from -along_track_deg (forward) to +along_track_deg (backward), taken on
+  // one pass (ZY-3: nadir and +-22 deg; a pair: +-along_track_deg) [deg].
+  double along_track_deg = 0.0;
   void Check() const;            // throws Error("synth", field, ...)
 };
 
@@ -70,7 +88,11 @@ struct SynthView {
   std::string acquisition_time;   // ISO 8601 UTC
   double sun_elevation_deg = 0, sun_azimuth_deg = 0;
   double off_nadir_deg = 0, view_zenith_deg = 0, view_azimuth_deg = 0, range_km = 0;
-  double rpc_fit_max_px = 0, rpc_fit_rms_px = 0;  // fitted RPC vs true camera
+  double rpc_fit_max_px = 0, rpc_fit_rms_px = 0;  // fitted RPC vs the (biased) camera it models
+  // The written RPC's pointing bias: pixel_rpc = centre + R(rotation) (pixel_true - centre) + shift,
+  // centre = ((width-1)/2, (height-1)/2), pixel centres at integers.
+  Eigen::Vector2d rpc_bias_shift_px = Eigen::Vector2d::Zero();
+  double rpc_bias_rotation_deg = 0.0;
 };
 
 struct SynthAoi {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <fstream>
 #include <regex>
+#include <nlohmann/json.hpp>
 #include <set>
 
 #include "catalogs/aoi_catalog.h"
@@ -19,6 +20,7 @@
 #include "tiler/height_probe.h"
 #include "tiler/raster.h"
 #include "tiler/rpc_io.h"
+#include "tiler/tiling.h"
 
 namespace skyfall::synth {
 namespace {
@@ -514,6 +516,10 @@ TEST(Synth, ExtremeScenesKeepTheirRpcsAndViewGeometry) {
       {"300 m tower", [](SynthOptions& o) { o.max_building_m = 300.0; }},
       {"GSD 0.3 m", [](SynthOptions& o) { o.gsd_m = 0.3; o.size_m = 60.0; }},
       {"GSD 2 m", [](SynthOptions& o) { o.gsd_m = 2.0; o.size_m = 256.0; }},
+      // A city 4,000 m above the ellipsoid (La Paz, El Alto).
+      {"ground 4000 m", [](SynthOptions& o) { o.ground_height_m = 4000.0; }},
+      // A three-line camera: forward, nadir, backward on one track (ZY-3).
+      {"three-line +-22 deg", [](SynthOptions& o) { o.along_track_deg = 22.0; o.views_per_date = 3; }},
   };
   for (const ExtremeCase& c : cases) {
     SynthOptions o = SmallScene();
@@ -557,10 +563,10 @@ TEST(Synth, RpcOnlyHeightRangeFindsTheGroundFarFromHeightOff) {
     const AoiCatalog& c = r.aois.at(0).catalog;
     EXPECT_EQ(c.height_range_source, offset_m == 0.0 ? "rpc" : "rpc_height_probe") << offset_m;
     // The whole scene, ground to roofs, inside the searched range.
-    EXPECT_LE(c.min_height_m, s.result.city.min_height_m) << offset_m;
-    EXPECT_GE(c.max_height_m, s.result.city.max_height_m) << offset_m;
+    EXPECT_LE(c.min_ellipsoid_height_m, s.result.city.min_height_m) << offset_m;
+    EXPECT_GE(c.max_ellipsoid_height_m, s.result.city.max_height_m) << offset_m;
     std::printf("[figures] HEIGHT_OFF %+.0f m from the ground: range %.1f..%.1f m (%s), scene %.1f..%.1f m\n",
-                offset_m, c.min_height_m, c.max_height_m, c.height_range_source.c_str(),
+                offset_m, c.min_ellipsoid_height_m, c.max_ellipsoid_height_m, c.height_range_source.c_str(),
                 static_cast<double>(s.result.city.min_height_m), static_cast<double>(s.result.city.max_height_m));
     // One view cannot place anything.
     EXPECT_FALSE(ProbeSceneHeight({c.images.front()}).has_value());
@@ -568,6 +574,96 @@ TEST(Synth, RpcOnlyHeightRangeFindsTheGroundFarFromHeightOff) {
   HeightProbeOptions bad;
   bad.fine_step_m = 5.0;  // coarser than the coarse step
   EXPECT_NE(ErrorText([&] { bad.Check(); }).find("fine_step_m"), std::string::npos);
+}
+
+// The options that make real sensors' defect classes: a city far above the
+// ellipsoid, biased RPCs, a three-line camera.
+TEST(Synth, GroundHeightLiftsTheWholeSceneAndItsRpcs) {
+  SynthOptions o = SmallScene();
+  o.size_m = 64.0;
+  o.views = 3;
+  o.ground_height_m = 2300.0;
+  const Scene s = MakeScene(o);
+  EXPECT_GT(s.result.city.min_height_m, 2200.0);
+  EXPECT_LT(s.result.city.max_height_m, 2300.0 + o.max_building_m + 50.0);
+  EXPECT_NEAR(s.result.enu_origin.height_m, 2300.0, 60.0);
+  const FloatBand dsm = ReadFloatBand((s.root / "Track3-Truth" / (o.aoi + "_DSM.tif")).string());
+  EXPECT_GT(*std::min_element(dsm.values.begin(), dsm.values.end()), 2200.0f);
+  for (const SynthView& v : s.result.aois[0].views) {
+    EXPECT_NEAR(ReadRpcFromRaster(v.path).height_off, 2300.0, 100.0) << v.name;
+    EXPECT_LE(v.rpc_fit_max_px, kRpcFitTolPx) << v.name;
+  }
+}
+
+TEST(Synth, BiasedRpcsPointOffTheCameraByTheRecordedBias) {
+  SynthOptions o = SmallScene();
+  o.size_m = 64.0;
+  o.views = 4;
+  o.rpc_bias_px = 4.0;
+  o.rpc_bias_rotation_deg = 0.05;
+  const Scene s = MakeScene(o);
+  const EnuFrame frame(s.result.enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(s.result.epsg);
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile((s.root / "synth_report.json").string()));
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double largest = 0;
+  for (std::size_t i = 0; i < s.result.aois[0].views.size(); ++i) {
+    const SynthView& v = s.result.aois[0].views[i];
+    const nlohmann::json& recorded = report.at("images").at(i);
+    EXPECT_DOUBLE_EQ(recorded.at("rpc_bias_shift_px").at(0).get<double>(), v.rpc_bias_shift_px.x());
+    EXPECT_DOUBLE_EQ(recorded.at("rpc_bias_rotation_deg").get<double>(), v.rpc_bias_rotation_deg);
+    EXPECT_LE(v.rpc_bias_shift_px.norm(), 2 * o.rpc_bias_px);  // drawn within 4 px, less the mean
+    EXPECT_LE(std::abs(v.rpc_bias_rotation_deg), o.rpc_bias_rotation_deg);
+    mean += v.rpc_bias_shift_px / 4.0;
+    largest = std::max(largest, v.rpc_bias_shift_px.norm());
+    const RpcModel rpc = ReadRpcFromRaster(v.path);
+    const Eigen::Vector2d centre(0.5 * (v.camera.width_px - 1), 0.5 * (v.camera.height_px - 1));
+    const double a = v.rpc_bias_rotation_deg * M_PI / 180.0;
+    const Eigen::Matrix2d rot = (Eigen::Matrix2d() << std::cos(a), -std::sin(a), std::sin(a), std::cos(a)).finished();
+    for (double fx : {0.1, 0.9})
+      for (double fy : {0.1, 0.9}) {
+        const double z = s.result.city.TerrainAt(fx * 64, fy * 64);
+        const Eigen::Vector2d ll = GeodeticFromUtm(zone, s.result.utm_easting0_m + fx * 64,
+                                                   s.result.utm_northing0_m + fy * 64);
+        const Eigen::Vector2d truth = v.camera.Project(frame.EnuFromGeodetic({ll.x(), ll.y(), z}));
+        const Eigen::Vector2d want = centre + rot * (truth - centre) + v.rpc_bias_shift_px;
+        EXPECT_LT((rpc.Project(ll.x(), ll.y(), z) - want).norm(), kRpcFitTolPx) << v.name;
+      }
+  }
+  EXPECT_LT(mean.norm(), 1e-9);  // zero mean: the truth frame is the images' average
+  EXPECT_GT(largest, 1.0);
+}
+
+// Tiles are sized by the imagery unless a side is given: a 256 m tile of a
+// 2 m sensor holds 128 px, too few to match, while 0.5 m imagery keeps the
+// 256 m tiles every accuracy figure was measured with.
+TEST(Tiling, AutomaticTilesHoldAboutTilePxPixelsOfTheFinestImage) {
+  struct Case { double gsd_m, size_m, want_tile_m; };
+  for (const Case c : {Case{0.5, 64.0, 256.0}, Case{2.0, 512.0, 1024.0}}) {
+    SynthOptions o = SmallScene();
+    o.gsd_m = c.gsd_m;
+    o.size_m = c.size_m;
+    o.views = 3;
+    const Scene s = MakeScene(o);
+    NullProgress progress;
+    const IngestResult r = RunIngest(IngestOptions{}, s.root.string(), (s.root / "out").string(), progress);
+    ASSERT_EQ(r.NumIngested(), 1) << r.aois.at(0).report.message;
+    const AoiCatalog& catalog = r.aois.at(0).catalog;
+    const TilePlan plan = PlanTiles(TilingOptions{}, {catalog});
+    EXPECT_EQ(plan.grid.tile_m, c.want_tile_m) << c.gsd_m;
+    EXPECT_EQ(plan.tile_side_source, "auto");
+    // The nadir-most view's ground pixel: the nominal GSD stretched by at
+    // most 1/cos(zenith) along one axis (SmallScene's views reach 30 deg).
+    EXPECT_GE(plan.finest_gsd_m, 0.99 * c.gsd_m) << c.gsd_m;
+    EXPECT_LE(plan.finest_gsd_m, 1.08 * c.gsd_m) << c.gsd_m;
+    TilingOptions given;
+    given.tile_m = 128;
+    const TilePlan fixed = PlanTiles(given, {catalog});
+    EXPECT_EQ(fixed.grid.tile_m, 128.0);
+    EXPECT_EQ(fixed.tile_side_source, "option");
+    std::printf("[figures] GSD %.1f m scene: finest image %.3f m, automatic tile %.0f m (%.0f px)\n", c.gsd_m,
+                plan.finest_gsd_m, plan.grid.tile_m, plan.grid.tile_m / plan.finest_gsd_m);
+  }
 }
 
 TEST(Synth, TruthFilesFollowTheJax068Conventions) {

@@ -21,6 +21,8 @@ namespace fs = std::filesystem;
 
 inline fs::path SharedData() { return fs::path(SKYFALL_SHARED_DATA); }
 inline fs::path Dfc2019Root() { return SharedData() / "dfc2019"; }
+// A Pleiades 1A triplet laid out as a user's own-data folder (its README).
+inline fs::path PleiadesMrsRoot() { return SharedData() / "pleiades-mrs"; }
 // The official output schemas kept beside the data (see its README).
 inline fs::path SharedSchemas() { return SharedData().parent_path() / "schemas"; }
 inline fs::path Jax068Image(const std::string& nnn) {
@@ -34,6 +36,13 @@ inline fs::path Jax068Image(const std::string& nnn) {
     if (!std::filesystem::exists(::skyfall::testing::Dfc2019Root() / "Track3-Truth")) \
       GTEST_SKIP() << "shared DFC2019 data not found at "                               \
                    << ::skyfall::testing::Dfc2019Root();                                \
+  } while (0)
+
+#define SKYFALL_REQUIRE_PLEIADES_MRS()                                                   \
+  do {                                                                                   \
+    if (!std::filesystem::exists(::skyfall::testing::PleiadesMrsRoot() / "img_01.tif"))  \
+      GTEST_SKIP() << "shared Pleiades data not found at "                               \
+                   << ::skyfall::testing::PleiadesMrsRoot();                             \
   } while (0)
 
 // A fresh, empty scratch folder, unique to the running test so that tests

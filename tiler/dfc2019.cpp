@@ -491,10 +491,10 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   }
 
   const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
-  c.min_height_m = range.min_m;
-  c.max_height_m = range.max_m;
+  c.min_ellipsoid_height_m = range.min_m;
+  c.max_ellipsoid_height_m = range.max_m;
   c.height_range_source = range.source;
-  const double mid_height_m = 0.5 * (c.min_height_m + c.max_height_m);
+  const double mid_height_m = 0.5 * (c.min_ellipsoid_height_m + c.max_ellipsoid_height_m);
 
   LocateFootprints(mid_height_m, &c.images, &result.skipped_images, progress);
   SkipDuplicateViews(&c.images, &result.skipped_images, progress);

@@ -108,7 +108,7 @@ TEST_F(IngestJax068, TruthGridUsesTheLowerLeftConvention) {
   EXPECT_NEAR(t.min_height_m, -26.2958, 1e-3);
   EXPECT_NEAR(t.max_height_m, 29.2188, 1e-3);
   EXPECT_EQ(c.height_range_source, "truth_dsm");
-  EXPECT_NEAR(c.min_height_m, t.min_height_m - 5.0, 1e-9);
+  EXPECT_NEAR(c.min_ellipsoid_height_m, t.min_height_m - 5.0, 1e-9);
 
   // The footprint is the truth grid: its corners map back to the grid corners.
   ASSERT_EQ(c.footprint_source, "truth_grid");

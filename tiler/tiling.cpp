@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/aoi_catalog.h"
@@ -116,7 +117,7 @@ void SelectImages(const TilingOptions& options, const EnuFrame& frame, const std
       const bool seen = std::any_of(tile->images.begin(), tile->images.end(),
                                     [&](const TileImage& t) { return t.name == im.name; });
       if (seen) continue;
-      const Footprint f = ProjectBox(frame, tile->extent, tile->min_height_m, tile->max_height_m, im.rpc);
+      const Footprint f = ProjectBox(frame, tile->extent, tile->min_ellipsoid_height_m, tile->max_ellipsoid_height_m, im.rpc);
       const double coverage = Coverage(f, im.width_px, im.height_px);
       if (coverage < options.min_coverage) continue;
       TileImage t;
@@ -158,8 +159,8 @@ AoiCatalog TileCatalog(const AoiCatalog& first, const TileSpec& tile, const EnuF
     c.footprint_lonlat.emplace_back(g.lon_deg, g.lat_deg);
   }
   c.footprint_source = "tile_extent";
-  c.min_height_m = tile.min_height_m;
-  c.max_height_m = tile.max_height_m;
+  c.min_ellipsoid_height_m = tile.min_ellipsoid_height_m;
+  c.max_ellipsoid_height_m = tile.max_ellipsoid_height_m;
   c.height_range_source = first.height_range_source;
   return c;
 }
@@ -167,14 +168,43 @@ AoiCatalog TileCatalog(const AoiCatalog& first, const TileSpec& tile, const EnuF
 }  // namespace
 
 void TilingOptions::Check() const {
-  if (!(tile_m >= 16.0)) throw Error("tile", "tile_m", "must be >= 16 m, got " + std::to_string(tile_m));
-  if (!(overlap_m >= 0.0 && overlap_m < tile_m)) {
+  if (!(tile_m == 0.0 || tile_m >= 16.0)) {
+    throw Error("tile", "tile_m", "must be 0 (automatic) or >= 16 m, got " + std::to_string(tile_m));
+  }
+  if (tile_px < 64) throw Error("tile", "tile_px", "must be >= 64 px, got " + std::to_string(tile_px));
+  if (!(overlap_m >= 0.0 && (tile_m == 0.0 || overlap_m < tile_m))) {
     throw Error("tile", "overlap_m", "must be in [0, tile_m), got " + std::to_string(overlap_m));
   }
   if (!(min_coverage > 0.0 && min_coverage <= 1.0)) {
     throw Error("tile", "min_coverage", "must be in (0, 1], got " + std::to_string(min_coverage));
   }
   if (min_images < 2) throw Error("tile", "min_images", "must be >= 2, got " + std::to_string(min_images));
+}
+
+double ImageGroundSampleM(const ImageRecord& image, double ellipsoid_height_m) {
+  const double c = 0.5 * (image.width_px - 1), r = 0.5 * (image.height_px - 1);
+  const Eigen::Vector2d o = Localize(image.rpc, c, r, ellipsoid_height_m);
+  const EnuFrame frame({o.x(), o.y(), ellipsoid_height_m});
+  auto ground = [&](double dc, double dr) {
+    const Eigen::Vector2d ll = Localize(image.rpc, c + dc, r + dr, ellipsoid_height_m);
+    return frame.EnuFromGeodetic({ll.x(), ll.y(), ellipsoid_height_m}).head<2>();
+  };
+  // Over 10 px, so that round-off of the localization does not show.
+  const Eigen::Vector2d along_col = ground(10, 0) / 10.0, along_row = ground(0, 10) / 10.0;
+  return std::sqrt(std::abs(along_col.x() * along_row.y() - along_col.y() * along_row.x()));
+}
+
+double ChooseTileSideM(const TilingOptions& options, const std::vector<AoiCatalog>& aois, double* finest_gsd_m) {
+  double finest = std::numeric_limits<double>::infinity();
+  for (const AoiCatalog& a : aois) {
+    const double mid_m = 0.5 * (a.min_ellipsoid_height_m + a.max_ellipsoid_height_m);
+    for (const ImageRecord& im : a.images) finest = std::min(finest, ImageGroundSampleM(im, mid_m));
+  }
+  if (finest_gsd_m) *finest_gsd_m = std::isfinite(finest) ? finest : 0.0;
+  if (options.tile_m > 0) return options.tile_m;
+  if (!std::isfinite(finest)) return kAutoTileStepM;
+  const double steps = std::max(1.0, std::round(options.tile_px * finest / kAutoTileStepM));
+  return steps * kAutoTileStepM;
 }
 
 std::string TileId(const std::string& city, int col, int row) {
@@ -200,7 +230,12 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
   if (!(plan.bounds.Width() > 0 && plan.bounds.Height() > 0)) throw Error("tile", plan.city, "empty AOI footprint");
 
   TileGrid& g = plan.grid;
-  g.tile_m = options.tile_m;
+  g.tile_m = ChooseTileSideM(options, aois, &plan.finest_gsd_m);
+  plan.tile_side_source = options.tile_m > 0 ? "option" : "auto";
+  if (!(options.overlap_m < g.tile_m)) {
+    throw Error("tile", "overlap_m", "must be below the tile side " + std::to_string(g.tile_m) + " m, got " +
+                                         std::to_string(options.overlap_m));
+  }
   g.overlap_m = options.overlap_m;
   g.cols = std::max(1, static_cast<int>(std::ceil(plan.bounds.Width() / g.tile_m - kGridSlackFraction)));
   g.rows = std::max(1, static_cast<int>(std::ceil(plan.bounds.Height() / g.tile_m - kGridSlackFraction)));
@@ -209,8 +244,8 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
 
   double min_h = 1e18, max_h = -1e18;
   for (const AoiCatalog& a : aois) {
-    min_h = std::min(min_h, a.min_height_m);
-    max_h = std::max(max_h, a.max_height_m);
+    min_h = std::min(min_h, a.min_ellipsoid_height_m);
+    max_h = std::max(max_h, a.max_ellipsoid_height_m);
   }
   // The margin reaches beyond the city's bounds too: what stands just
   // outside (a tower hiding roofs and streets inside from some views) is
@@ -239,8 +274,8 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
       if (row == g.rows - 1) grown.max_m.y() = reach.max_m.y();
       t.extent = Intersect(grown, reach);
       t.enu_origin = plan.enu_origin;
-      t.min_height_m = min_h;
-      t.max_height_m = max_h;
+      t.min_ellipsoid_height_m = min_h;
+      t.max_ellipsoid_height_m = max_h;
       AoiCatalog catalog = TileCatalog(aois[0], t, frame);
       SelectImages(options, frame, aois, &t, &catalog);
       if (static_cast<int>(t.images.size()) < options.min_images) {
@@ -293,7 +328,8 @@ nlohmann::json IndexJson(const TilePlan& plan) {
                           {"height_m", plan.enu_origin.height_m}}},
           {"bounds", BoxToJson(plan.bounds)},
           {"grid", {{"cols", plan.grid.cols}, {"rows", plan.grid.rows}, {"tile_m", plan.grid.tile_m},
-                    {"overlap_m", plan.grid.overlap_m}}},
+                    {"overlap_m", plan.grid.overlap_m}, {"tile_side", plan.tile_side_source},
+                    {"finest_gsd_m", plan.finest_gsd_m}}},
           {"tiles", tiles}};
 }
 
@@ -330,7 +366,9 @@ TilingResult WriteTiles(const TilePlan& plan, const std::string& out_dir, Progre
   WriteFileIfChanged((fs::path(out_dir) / "tiles.json").string(), IndexJson(result.plan).dump(2) + "\n");
   result.report.metrics = {{"tiles", static_cast<double>(plan.tiles.size())},
                            {"tiles_without_images", static_cast<double>(empty)},
-                           {"crops", static_cast<double>(crops)}};
+                           {"crops", static_cast<double>(crops)},
+                           {"tile_m", plan.grid.tile_m},
+                           {"finest_gsd_m", plan.finest_gsd_m}};
   result.report.seconds = clock.Seconds();
   return result;
 }

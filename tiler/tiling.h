@@ -12,7 +12,13 @@
 namespace skyfall {
 
 struct TilingOptions {
-  double tile_m = 256.0;      // [m] side of a tile core
+  // [m] side of a tile core. 0 (the default): sized by the imagery, the
+  // whole multiple of kAutoTileStepM that holds closest to tile_px pixels of
+  // the finest image a side (256 m for 0.3-0.6 m sensors, as fixed-size
+  // tiles were; 1,024 m for ZY-3's 2.1 m, where a 256 m tile holds 120 px,
+  // too few to match). A value > 0 is the user's choice and is kept.
+  double tile_m = 0.0;
+  int tile_px = 512;          // [px] what an automatic tile should hold a side
   // [m] margin reconstructed around each core, and beyond the city's bounds
   // at its edge. 8 m: an inner tile
   // reconstructs 1.13x its core (1.27x at 16 m). With the merge's seam lines
@@ -30,9 +36,25 @@ struct TilingOptions {
   void Check() const;         // throws Error("tile", field, ...)
 };
 
+// Step of automatic tile sides [m]: tiles of imagery at 0.3-0.6 m keep
+// the 256 m side that every accuracy figure was measured with.
+constexpr double kAutoTileStepM = 256.0;
+
+// Ground sampling distance of an image at its centre [m]: the square root of
+// the ground area of one pixel at `height` (ellipsoidal), from its RPC.
+double ImageGroundSampleM(const ImageRecord& image, double ellipsoid_height_m);
+
+// The tile side PlanTiles uses: options.tile_m when set, else the automatic
+// side for the finest image of `aois`. `finest_gsd_m` (optional) receives
+// that image's GSD.
+double ChooseTileSideM(const TilingOptions& options, const std::vector<AoiCatalog>& aois,
+                       double* finest_gsd_m = nullptr);
+
 struct TilePlan {
   std::string city;
   GeodeticPoint enu_origin;   // shared by every tile
+  double finest_gsd_m = 0;    // GSD of the finest image [m] (what an automatic tile side follows)
+  std::string tile_side_source;  // "option" (tile_m given) or "auto" (sized by tile_px)
   GroundBox bounds;           // union of the AOI footprints in that frame
   TileGrid grid;
   std::vector<TileSpec> tiles;         // images without crop_path yet

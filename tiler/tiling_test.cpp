@@ -110,7 +110,7 @@ TEST(Tiling, CropsAreVrtWindowsWithShiftedRpcs) {
   // shifted by the window agree at the tile's corners (1e-6 px: round-off).
   const RpcModel from_vrt = ReadRpcFromRaster(im.crop_path);
   const RpcModel& source = jax.images[0].rpc;
-  for (double h : {tile.min_height_m, tile.max_height_m}) {
+  for (double h : {tile.min_ellipsoid_height_m, tile.max_ellipsoid_height_m}) {
     for (const Eigen::Vector2d& en : {tile.extent.min_m, tile.extent.max_m}) {
       const GeodeticPoint g = frame.GeodeticFromEnu({en.x(), en.y(), 0.0});
       const Eigen::Vector2d full = source.Project(g.lon_deg, g.lat_deg, h);
