@@ -59,15 +59,15 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
                   "Mean ground height above the WGS84 ellipsoid [m] (a city in the mountains: 2300, 4000)")
       ->capture_default_str();
   cmd->add_option("--rpc-bias-px", opts->rpc_bias_px,
-                  "Per-image RPC pointing bias: a shift of up to this many pixels, zero mean over the AOI's "
-                  "images, recorded in synth_report.json [px]")
+                  "Per-image RPC pointing bias: a shift of up to this many pixels, less the part a shift of the "
+                  "whole scene would explain, recorded in synth_report.json [px]")
       ->capture_default_str();
   cmd->add_option("--rpc-bias-rotation-deg", opts->rpc_bias_rotation_deg,
-                  "Per-image RPC pointing bias: a rotation about the image centre of up to this angle [deg]")
+                  "Per-image RPC pointing bias: a rotation about the image centre of up to this angle (<= 0.1) [deg]")
       ->capture_default_str();
   cmd->add_option("--along-track-deg", opts->along_track_deg,
                   "A three-line camera: the views on one orbit track, off-nadir from -A (forward) to +A (backward), "
-                  "one pass (ZY-3: --views 3 --along-track-deg 22) [deg]")
+                  "one pass (ZY-3: --views 3 --views-per-date 3 --along-track-deg 22) [deg]")
       ->capture_default_str();
   drawn_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)");
   CLI::Option* draw_option = cmd->add_option(

@@ -27,7 +27,8 @@ void AddTile(CLI::App& app, Runner* runner) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", *out, "Output folder (DIR/tiles)")->required();
-  cmd->add_option("--tile-m", opts->tile_m, "Tile core side [m]")->capture_default_str();
+  cmd->add_option("--tile-m", opts->tile_m, "Tile core side [m]; 0: sized by the imagery (about --tile-px px)")->capture_default_str();
+  cmd->add_option("--tile-px", opts->tile_px, "What an automatic tile holds a side [px]")->capture_default_str();
   cmd->add_option("--overlap-m", opts->overlap_m, "Overlap margin around each core [m]")->capture_default_str();
   cmd->add_option("--min-coverage", opts->min_coverage, "Fraction of a tile an image must see to be used")
       ->capture_default_str();
@@ -39,7 +40,7 @@ void AddTile(CLI::App& app, Runner* runner) {
       ConsoleProgress progress;
       const TilingResult r = WriteTiles(PlanTiles(*opts, catalogs), *out, progress);
       spdlog::info("tile {}: {}x{} tiles of {} m (+{} m overlap), {} crops, {} tile(s) without images -> {}",
-                   r.plan.city, r.plan.grid.cols, r.plan.grid.rows, opts->tile_m, opts->overlap_m,
+                   r.plan.city, r.plan.grid.cols, r.plan.grid.rows, r.plan.grid.tile_m, opts->overlap_m,
                    r.report.metrics.at("crops"), r.report.metrics.at("tiles_without_images"), *out);
       return 0;
     };

@@ -47,7 +47,8 @@ mkdir -p "$OUT"
 # (`skyfall synth --seed 2|3`, docs/benchmarks.md), none of them listed here.
 # The rows after syn_multidate are the real-sensor defect classes: a second
 # real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
-# mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair.
+# mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair,
+# and a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km).
 SCENES=(
   "jax068|true|dfc2019"
   "syn_default|true|"
@@ -63,6 +64,7 @@ SCENES=(
   "syn_alt4000|false|--ground-height-m 4000"
   "syn_biased|false|--rpc-bias-px 3 --rpc-bias-rotation-deg 0.01"
   "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
+  "syn_zy3|false|--size-m 1512 --gsd-m 2.1 --views 3 --views-per-date 3 --along-track-deg 22"
 )
 if ! [[ "$DRAW" =~ ^[0-9]+$ && "$DRAW_FROM" =~ ^[1-9][0-9]*$ ]]; then
   echo "bench_accuracy: --draw needs a count >= 0 and --draw-from a number >= 1, got '$DRAW' and '$DRAW_FROM'" >&2
@@ -90,7 +92,10 @@ for entry in "${SCENES[@]}"; do
   else
     root="$dir/input"
     # shellcheck disable=SC2086
-    [ -f "$root/synth_report.json" ] || "$B" -q synth --out "$root" --size-m "$SIZE" $flags
+    # A scene that gives its own size (a coarse sensor's wide scene) keeps it.
+    size_flag=(--size-m "$SIZE")
+    if [[ " $flags " == *" --size-m "* ]]; then size_flag=(); fi
+    [ -f "$root/synth_report.json" ] || "$B" -q synth --out "$root" "${size_flag[@]}" $flags
     extra=()
   fi
   if [ -f "$dir/run/run_summary.json" ] && [ -f "$dir/wall_seconds" ]; then
@@ -186,7 +191,7 @@ for name in sorted(os.listdir(out)):
         "edge_bias_m": edge_bias(d),
         "dense_edge_bias_m": edge_bias(d.get("dense") or {}),
         "tuned_on": name in tuned,
-        "synthetic_size_m": size if synth_options(name) else None,
+        "synthetic_size_m": (synth_options(name) or {}).get("size_m"),
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
         "synth_options": synth_options(name),
     })

@@ -60,7 +60,10 @@ BundleSummary RunBundleAdjustment(BundleProblem* bp, const BundleOptions& option
   if (anchored) problem.SetParameterBlockConstant(bp->offsets_px[bp->anchor_image].data());
   for (size_t i = 0; i < bp->offsets_px.size(); ++i) {
     if (!bp->image_used[i] || !problem.HasParameterBlock(bp->offsets_px[i].data())) continue;
-    if (anchored) continue;  // the anchor fixes the gauge: the others follow it freely
+    // With an anchor the priors stay on the others: holding one image's 2D
+    // offset fixes the shift across its image plane, not the shift along its
+    // line of sight (mostly height), which only the priors pin.
+    if (anchored && static_cast<int>(i) == bp->anchor_image) continue;
     // Cauchy: an image with a large pointing error (tens of px happen) does
     // not drag the others' offsets; the majority fixes the gauge.
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetPrior, 2, 2>(

@@ -27,8 +27,9 @@ struct BundleProblem {
   std::vector<Eigen::Vector3d> points;      // refined, one per track
   std::vector<std::vector<Observation>> tracks;
   std::vector<bool> image_used;             // images left out keep offset 0 and are ignored
-  // The image whose RPC fixes the absolute position (its offset held at 0),
-  // or -1: the robust average of all images' RPCs (the prior) fixes it.
+  // The image whose RPC fixes the horizontal position (its offset held at 0;
+  // the height along its line of sight stays the priors' average), or -1:
+  // the robust average of all images' RPCs (the prior) fixes it.
   int anchor_image = -1;
 };
 

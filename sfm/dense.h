@@ -219,8 +219,8 @@ struct DenseResult {
 // beyond it are another tile's work); the heights of the tie points inside
 // set the sweep range. Status "degenerate" when fewer than 3 tie points lie
 // inside or no pair qualifies.
-// The automatic cell: kDenseCellStepM for sub-metre imagery (where every
-// setting was measured), else the whole multiple of it nearest the finest
+// The automatic cell: kDenseCellStepM for imagery finer than 0.75 m (where
+// every setting was measured), else the whole multiple of it nearest the finest
 // view's GSD at `centre_enu_m` (depth / focal length): a 2.1 m sensor gets
 // 2 m cells, not 0.5 m cells 16 times as many for the same detail.
 constexpr double kDenseCellStepM = 0.5;

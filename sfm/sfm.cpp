@@ -73,16 +73,20 @@ void CutOutliers(BundleProblem* bp, double max_px) {
   KeepUsedImages(bp);
 }
 
-// The index of the anchor image named by the option, -1 for none. A name
-// that is no image of the AOI is refused with the names that are.
-int AnchorIndex(const std::string& name, const std::vector<SfmImage>& images, const std::string& aoi) {
+// The index of the anchor image named by the option, -1 for none or when
+// this catalog (a tile that the image does not cover) lacks it; `warnings`
+// then says so, naming the images it has.
+int AnchorIndex(const std::string& name, const std::vector<SfmImage>& images, const std::string& aoi,
+                std::vector<std::string>* warnings) {
   if (name.empty()) return -1;
   std::string names;
   for (size_t i = 0; i < images.size(); ++i) {
     if (images[i].name == name) return static_cast<int>(i);
     names += (names.empty() ? "" : ", ") + images[i].name;
   }
-  throw Error("sfm", "anchor_image", "'" + name + "' is not an image of " + aoi + " (its images: " + names + ")");
+  warnings->push_back("sfm " + aoi + ": sfm.anchor_image '" + name + "' is not an image here (" + names +
+                      "); the absolute position is the images' average");
+  return -1;
 }
 
 }  // namespace
@@ -193,7 +197,7 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
   bp.cameras = loaded.cameras;
   bp.offsets_px.assign(n, Eigen::Vector2d::Zero());
   bp.image_used.assign(n, true);
-  bp.anchor_image = AnchorIndex(options.anchor_image, result.images, catalog.aoi);
+  bp.anchor_image = AnchorIndex(options.anchor_image, result.images, catalog.aoi, &result.report.warnings);
   TriangulateTracks(tracks, loaded.cameras, options, &bp);
 
   // 4. Images with too few observations are left out.

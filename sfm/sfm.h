@@ -31,7 +31,9 @@ struct SfmOptions {
   int ba_rounds = 2;
   // What fixes the absolute position, which tie points cannot see: empty, the
   // robust average of all images' RPCs; else the name of one image whose RPC
-  // is taken as exact (s2p anchors to its reference image this way).
+  // fixes the horizontal position (as s2p's reference image does; the height
+  // stays the images' average). A tile without that image falls back to the
+  // average and warns.
   std::string anchor_image;
   void Check() const;  // throws Error("sfm", field, ...)
 };

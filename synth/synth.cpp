@@ -189,7 +189,9 @@ ViewGeometry MakeCamera(const SynthOptions& o, const Georef& g, const City& city
     constexpr double kTrackHeadingDeg = 190.0;
     const double signed_deg = o.views == 1 ? 0.0 : -o.along_track_deg + 2.0 * o.along_track_deg * v / (o.views - 1);
     vg.off_nadir_deg = std::abs(signed_deg);
-    vg.azimuth_deg = std::fmod(kTrackHeadingDeg + (signed_deg < 0 ? 0.0 : 180.0), 360.0);
+    // The satellite's azimuth seen from the ground: ahead of the scene on
+    // the track (heading) while it looks forward, behind it afterwards.
+    vg.azimuth_deg = std::fmod(kTrackHeadingDeg + (signed_deg < 0 ? 180.0 : 0.0), 360.0);
     roll = 0.0;
   }
   const double alpha = vg.off_nadir_deg * kDegToRad;
@@ -240,21 +242,41 @@ struct PointingBias {
 };
 
 // The biases of one AOI's images: shifts uniform in a disc of radius
-// rpc_bias_px with their mean removed, rotations uniform in +-max.
-std::vector<PointingBias> DrawPointingBiases(const SynthOptions& o, int aoi_index) {
+// rpc_bias_px, rotations uniform in +-max. A shift of the whole scene moves
+// image i by P_i v (P_i: its projection's Jacobian at the AOI centre, 2x3),
+// which tie points cannot tell from a bias: the part of the shifts such a v
+// explains, v = argmin sum |b_i - P_i v|^2, is removed, so that the truth's
+// frame is the one bundle adjustment's prior (the images' average) finds.
+std::vector<PointingBias> DrawPointingBiases(const SynthOptions& o, int aoi_index,
+                                             const std::vector<Eigen::Matrix<double, 2, 3>>& jacobians) {
   std::vector<PointingBias> out(o.views);
   if (o.rpc_bias_px <= 0 && o.rpc_bias_rotation_deg <= 0) return out;
   std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 7777 + aoi_index);
   auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (PointingBias& b : out) {
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    PointingBias& b = out[i];
     const double r = o.rpc_bias_px * std::sqrt(unit()), t = 2 * M_PI * unit();
     b.shift_px = {r * std::cos(t), r * std::sin(t)};
     b.rotation_deg = o.rpc_bias_rotation_deg * (2 * unit() - 1);
-    mean += b.shift_px / o.views;
+    normal += jacobians[i].transpose() * jacobians[i];
+    rhs += jacobians[i].transpose() * b.shift_px;
   }
-  for (PointingBias& b : out) b.shift_px -= mean;
+  const Eigen::Vector3d common_m = normal.completeOrthogonalDecomposition().solve(rhs);
+  for (std::size_t i = 0; i < out.size(); ++i) out[i].shift_px -= jacobians[i] * common_m;
   return out;
+}
+
+// d(pixel)/d(ENU point) of a camera at `at_enu_m`, by central differences
+// over 1 m (the projection is nearly affine over a crop).
+Eigen::Matrix<double, 2, 3> ProjectionJacobian(const SatelliteCamera& cam, const Eigen::Vector3d& at_enu_m) {
+  Eigen::Matrix<double, 2, 3> j;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d h = Eigen::Vector3d::Unit(k);
+    j.col(k) = 0.5 * (cam.Project(at_enu_m + h) - cam.Project(at_enu_m - h));
+  }
+  return j;
 }
 
 RpcFitResult FitViewRpc(const SatelliteCamera& cam, const Georef& g, const City& city, double height_offset_m,
@@ -437,10 +459,14 @@ void SynthOptions::Check() const {
   need(ground_height_m >= -500 && ground_height_m <= 8000, "ground_height_m", FormatDouble(ground_height_m),
        "must be -500..8000 m above the ellipsoid");
   need(rpc_bias_px >= 0 && rpc_bias_px <= 50, "rpc_bias_px", FormatDouble(rpc_bias_px), "must be 0..50 px");
-  need(rpc_bias_rotation_deg >= 0 && rpc_bias_rotation_deg <= 1, "rpc_bias_rotation_deg",
-       FormatDouble(rpc_bias_rotation_deg), "must be 0..1 deg");
+  // Bundle adjustment models a bias as a shift; 0.1 deg turns a 600 px crop's
+  // corners by 0.5 px, which it cannot absorb.
+  need(rpc_bias_rotation_deg >= 0 && rpc_bias_rotation_deg <= 0.1, "rpc_bias_rotation_deg",
+       FormatDouble(rpc_bias_rotation_deg), "must be 0..0.1 deg");
   need(along_track_deg >= 0 && along_track_deg <= 45, "along_track_deg", FormatDouble(along_track_deg),
        "must be 0..45 deg");
+  need(along_track_deg == 0 || views_per_date == views, "views_per_date", std::to_string(views_per_date),
+       "must equal views with along_track_deg (a three-line camera takes its views on one pass)");
   need(cars_per_block >= 0, "cars_per_block", std::to_string(cars_per_block), "must be >= 0");
   need(image_margin_px >= 0, "image_margin_px", std::to_string(image_margin_px), "must be >= 0");
 }
@@ -536,7 +562,15 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
       aoi.x0_m = bx * o.size_m;
       aoi.y0_m = by * o.size_m;
       std::map<int, City> with_cars;  // per date: transient objects move between passes
-      const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()));
+      std::vector<ViewGeometry> geometries;
+      std::vector<Eigen::Matrix<double, 2, 3>> jacobians;
+      const Eigen::Vector3d centre_enu = g.EnuFromScene(
+          {aoi.x0_m + 0.5 * o.size_m, aoi.y0_m + 0.5 * o.size_m, co.base_height_m});
+      for (int v = 0; v < o.views; ++v) {
+        geometries.push_back(MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v));
+        jacobians.push_back(ProjectionJacobian(geometries.back().camera, centre_enu));
+      }
+      const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()), jacobians);
       const fs::path image_dir = root / "Track3-RGB-crops" / aoi.name;
       const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
       for (int v = 0; v < o.views; ++v) {
@@ -545,7 +579,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
           with_cars.emplace(date, WithCars(r.city, o.cars_per_block * o.blocks_x * o.blocks_y,
                                            o.seed * 7919 + date));
         }
-        const ViewGeometry vg = MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v);
+        const ViewGeometry& vg = geometries[v];
         const Acquisition acq = ViewAcquisition(o, v);
         SynthView view;
         char name[64];

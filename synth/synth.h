@@ -53,16 +53,17 @@ struct SynthOptions {
   // Vendor RPCs point a few metres off the ground and off each other. Each
   // image's written RPC is off its true camera by a shift of up to
   // rpc_bias_px [px] (uniform in a disc) and a rotation about the image
-  // centre of up to rpc_bias_rotation_deg [deg]. The shifts of an AOI's
-  // images are drawn with zero mean: a bias common to all images cannot be
-  // seen without ground control, so the truth's frame is the images' average.
-  // Seeded by `seed`, recorded per image in synth_report.json.
+  // centre of up to rpc_bias_rotation_deg [deg, at most 0.1]. The part of
+  // an AOI's shifts that a shift of the whole scene would explain is removed:
+  // tie points cannot see it (only ground control could), so the truth's
+  // frame is the images' average, as bundle adjustment anchors it. Seeded by
+  // `seed`, recorded per image in synth_report.json.
   double rpc_bias_px = 0.0;
   double rpc_bias_rotation_deg = 0.0;
   // A three-line (along-track) camera instead of views from many orbits: when
   // > 0, the views lie on one orbit track with off-nadir angles spread evenly
   // from -along_track_deg (forward) to +along_track_deg (backward), taken on
-  // one pass (ZY-3: nadir and +-22 deg; a pair: +-along_track_deg) [deg].
+  // one pass (views_per_date = views; ZY-3: nadir and +-22 deg) [deg].
   double along_track_deg = 0.0;
   void Check() const;            // throws Error("synth", field, ...)
 };

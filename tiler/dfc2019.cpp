@@ -180,8 +180,10 @@ ImageRecord ReadImage(const std::string& stem, const std::string& path, const Ao
   im.dtype = info.dtype;
   im.radiometry = MeasureRadiometry(path, options.radiometry);
 
+  // A plain folder has no Sat-NeRF folder: an empty one would look for the
+  // JSON in the working directory.
   const fs::path json_path = fs::path(files.satnerf_dir) / (stem + ".json");
-  if (fs::exists(json_path)) *satnerf = ReadSatNerfCamera(json_path.string());
+  if (!files.satnerf_dir.empty() && fs::exists(json_path)) *satnerf = ReadSatNerfCamera(json_path.string());
 
   const std::string own_sidecar = info.rpc_metadata.empty() ? FindOwnRpcSidecar(path) : "";
   if (!info.rpc_metadata.empty()) {

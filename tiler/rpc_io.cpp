@@ -67,7 +67,10 @@ std::string CoeffList(const json& rpc, const std::string& key, const std::string
 }  // namespace
 
 RpcModel RpcFromGdalRpcDomain(const std::map<std::string, std::string>& rpc_metadata) {
-  RpcFromGdalMetadata(rpc_metadata);  // names a missing key or a malformed value
+  // Our reading names a missing key or a malformed value; GDAL's would read
+  // those as 0 (and a coefficient list it splits otherwise leaves all 20 at
+  // 0), so the two must agree field by field.
+  const RpcModel strict = RpcFromGdalMetadata(rpc_metadata);
   CPLStringList list;
   for (const auto& [key, value] : rpc_metadata) list.SetNameValue(key.c_str(), value.c_str());
   GDALRPCInfoV2 info{};
@@ -94,6 +97,12 @@ RpcModel RpcFromGdalRpcDomain(const std::map<std::string, std::string>& rpc_meta
   }
   rpc.err_bias_m = info.dfERR_BIAS;  // GDAL, like us, says -1 when unknown
   rpc.err_rand_m = info.dfERR_RAND;
+  const std::map<std::string, std::string> ours = RpcToGdalMetadata(strict), gdals = RpcToGdalMetadata(rpc);
+  for (const auto& [key, value] : gdals) {
+    if (ours.at(key) != value) {
+      throw Error("rpc", key, "GDAL reads '" + value + "' where the text says '" + ours.at(key) + "'");
+    }
+  }
   rpc.Validate();
   return rpc;
 }

@@ -36,7 +36,7 @@ struct TilingOptions {
   void Check() const;         // throws Error("tile", field, ...)
 };
 
-// Step of automatic tile sides [m]: tiles of imagery at 0.3-0.6 m keep
+// Step of automatic tile sides [m]: tiles of imagery finer than 0.75 m keep
 // the 256 m side that every accuracy figure was measured with.
 constexpr double kAutoTileStepM = 256.0;
 
