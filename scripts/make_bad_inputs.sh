@@ -94,9 +94,11 @@ head -c 3000 "$GOODIMG" >"$D/IMAGES_001_004_RGB.tif"                       # tru
 { printf 'NOTATIFF'; tail -c +9 "$GOODIMG"; } >"$D/IMAGES_001_005_RGB.tif"   # wrong magic
 rpb_edit "$GOODIMG" "$D/IMAGES_001_006_RGB.tif" '/heightOffset/ {print "\theightOffset = nan;"; next} {print}'
 rpb_edit "$GOODIMG" "$D/IMAGES_001_007_RGB.tif" '/longScale/ {print "\tlongScale = 0;"; next} {print}'
-# Vanishing denominator: the constant term of the line denominator is zero.
+# Vanishing denominator: the line denominator becomes 0 + 0.001 L, zero at
+# the normalization centre (the synthetic RPC's denominator may be its
+# constant term alone, so zeroing that term only would zero all 20).
 rpb_edit "$GOODIMG" "$D/IMAGES_001_008_RGB.tif" \
-  'den && /[0-9]/ {print "\t\t\t0,"; den = 0; next} /lineDenCoef/ {den = 1} {print}'
+  'den == 1 && /[0-9]/ {print "\t\t\t0,"; den = 2; next} den == 2 && /[0-9]/ {print "\t\t\t0.001,"; den = 0; next} /lineDenCoef/ {den = 1} {print}'
 cp "$GOODIMG" "$D/IMAGES_001_009_RGB.tif"                                   # duplicate image
 gdal_translate -q -srcwin 0 0 1 1 "$GOODIMG" "$D/IMAGES_001_010_RGB.tif"     # 1x1 image
 gdal_translate -q -scale 0 255 0 0 "$GOODIMG" "$D/IMAGES_001_011_RGB.tif"    # all black

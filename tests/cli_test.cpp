@@ -237,7 +237,8 @@ TEST(Cli, SynthIngestSfmChain) {
   // The report records what produced the heights, so that run-tile reuses them only for the same settings.
   EXPECT_TRUE(dense_report["extent_enu_m"].is_null());
   EXPECT_EQ(dense_report["options"]["visibility_pass"], true);
-  EXPECT_EQ(dense_report["options"]["cell_m"], 0.5);
+  EXPECT_EQ(dense_report["options"]["cell_m"], 0.0);   // automatic: follows the imagery
+  EXPECT_EQ(dense_report["metrics"]["cell_m"], 0.5);   // 0.5 m synthetic imagery keeps 0.5 m cells
   fs::create_directories(dir / "empty_sfm");
   const CommandResult no_sfm = RunCommand(Skyfall() + " dense --sfm " + (dir / "empty_sfm").string(), dir);
   EXPECT_EQ(no_sfm.exit_code, 1);
