@@ -185,7 +185,7 @@ double ImageGroundSampleM(const ImageRecord& image, double ellipsoid_height_m) {
   const double c = 0.5 * (image.width_px - 1), r = 0.5 * (image.height_px - 1);
   const Eigen::Vector2d o = Localize(image.rpc, c, r, ellipsoid_height_m);
   const EnuFrame frame({o.x(), o.y(), ellipsoid_height_m});
-  auto ground = [&](double dc, double dr) {
+  auto ground = [&](double dc, double dr) -> Eigen::Vector2d {  // a value: head<2>() of a temporary dangles
     const Eigen::Vector2d ll = Localize(image.rpc, c + dc, r + dr, ellipsoid_height_m);
     return frame.EnuFromGeodetic({ll.x(), ll.y(), ellipsoid_height_m}).head<2>();
   };
