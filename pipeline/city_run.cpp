@@ -528,7 +528,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   }
   progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m ({}; finest image GSD {:.2f} m, {:.0f} px a tile)",
                             plan.city, aois.size(), plan.grid.cols, plan.grid.rows, plan.grid.tile_m,
-                            plan.tile_side_source == "auto" ? "sized by the imagery" : "as given",
+                            plan.tile_side_automatic ? "sized by the imagery" : "as given",
                             plan.finest_gsd_m, plan.finest_gsd_m > 0 ? plan.grid.tile_m / plan.finest_gsd_m : 0.0));
   Emit("info", "city", plan.city, "", "start",
        {{"aois", static_cast<double>(aois.size())}, {"tiles", static_cast<double>(plan.grid.cols * plan.grid.rows)}});

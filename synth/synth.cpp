@@ -234,10 +234,7 @@ struct PointingBias {
   double rotation_deg = 0.0;
   Eigen::Vector2d Apply(const Eigen::Vector2d& px, const SatelliteCamera& cam) const {
     const Eigen::Vector2d centre(0.5 * (cam.width_px - 1), 0.5 * (cam.height_px - 1));
-    const double a = rotation_deg * M_PI / 180.0;
-    const Eigen::Vector2d d = px - centre;
-    return centre + Eigen::Vector2d(std::cos(a) * d.x() - std::sin(a) * d.y(),
-                                    std::sin(a) * d.x() + std::cos(a) * d.y()) + shift_px;
+    return centre + Eigen::Rotation2Dd(rotation_deg * M_PI / 180.0) * (px - centre) + shift_px;
   }
 };
 

@@ -662,7 +662,7 @@ TEST(Tiling, AutomaticTilesHoldAboutTilePxPixelsOfTheFinestImage) {
     const AoiCatalog& catalog = r.aois.at(0).catalog;
     const TilePlan plan = PlanTiles(TilingOptions{}, {catalog});
     EXPECT_EQ(plan.grid.tile_m, c.want_tile_m) << c.gsd_m;
-    EXPECT_EQ(plan.tile_side_source, "auto");
+    EXPECT_TRUE(plan.tile_side_automatic);
     // The nadir-most view's ground pixel: the nominal GSD stretched by at
     // most 1/cos(zenith) along one axis (SmallScene's views reach 30 deg).
     EXPECT_GE(plan.finest_gsd_m, 0.99 * c.gsd_m) << c.gsd_m;
@@ -671,7 +671,7 @@ TEST(Tiling, AutomaticTilesHoldAboutTilePxPixelsOfTheFinestImage) {
     given.tile_m = 128;
     const TilePlan fixed = PlanTiles(given, {catalog});
     EXPECT_EQ(fixed.grid.tile_m, 128.0);
-    EXPECT_EQ(fixed.tile_side_source, "option");
+    EXPECT_FALSE(fixed.tile_side_automatic);
     std::printf("[figures] GSD %.1f m scene: finest image %.3f m, automatic tile %.0f m (%.0f px)\n", c.gsd_m,
                 plan.finest_gsd_m, plan.grid.tile_m, plan.grid.tile_m / plan.finest_gsd_m);
   }

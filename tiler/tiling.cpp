@@ -231,7 +231,7 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
 
   TileGrid& g = plan.grid;
   g.tile_m = ChooseTileSideM(options, aois, &plan.finest_gsd_m);
-  plan.tile_side_source = options.tile_m > 0 ? "option" : "auto";
+  plan.tile_side_automatic = options.tile_m == 0;
   if (!(options.overlap_m < g.tile_m)) {
     throw Error("tile", "overlap_m", "must be below the tile side " + std::to_string(g.tile_m) + " m, got " +
                                          std::to_string(options.overlap_m));
@@ -328,7 +328,7 @@ nlohmann::json IndexJson(const TilePlan& plan) {
                           {"height_m", plan.enu_origin.height_m}}},
           {"bounds", BoxToJson(plan.bounds)},
           {"grid", {{"cols", plan.grid.cols}, {"rows", plan.grid.rows}, {"tile_m", plan.grid.tile_m},
-                    {"overlap_m", plan.grid.overlap_m}, {"tile_side", plan.tile_side_source},
+                    {"overlap_m", plan.grid.overlap_m}, {"tile_side", plan.tile_side_automatic ? "auto" : "option"},
                     {"finest_gsd_m", plan.finest_gsd_m}}},
           {"tiles", tiles}};
 }

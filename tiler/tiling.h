@@ -54,7 +54,7 @@ struct TilePlan {
   std::string city;
   GeodeticPoint enu_origin;   // shared by every tile
   double finest_gsd_m = 0;    // GSD of the finest image [m] (what an automatic tile side follows)
-  std::string tile_side_source;  // "option" (tile_m given) or "auto" (sized by tile_px)
+  bool tile_side_automatic = false;  // sized by tile_px (tile_m 0), not given
   GroundBox bounds;           // union of the AOI footprints in that frame
   TileGrid grid;
   std::vector<TileSpec> tiles;         // images without crop_path yet
