@@ -6,11 +6,11 @@
 #include "apps/commands.h"
 #include "catalogs/aoi_catalog.h"
 #include "core/error.h"
-#include "merge/dsm.h"
-#include "merge/dsm_report.h"
+#include "products/dsm.h"
+#include "products/dsm_report.h"
 #include "splat/ply.h"
-#include "tiler/dfc2019.h"
-#include "tiler/raster.h"
+#include "ingest/dfc2019.h"
+#include "ingest/raster.h"
 #include "core/atomic_file.h"
 
 namespace skyfall::cli {

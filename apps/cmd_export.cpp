@@ -11,8 +11,8 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "core/error.h"
-#include "merge/tiles3d.h"
-#include "pipeline/viewer.h"
+#include "products/tiles3d.h"
+#include "products/viewer.h"
 #include "pipeline/exit_codes.h"
 
 namespace skyfall::cli {

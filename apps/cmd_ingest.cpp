@@ -6,7 +6,7 @@
 
 #include "apps/commands.h"
 #include "apps/console.h"
-#include "tiler/dfc2019.h"
+#include "ingest/dfc2019.h"
 
 namespace skyfall::cli {
 namespace {

@@ -9,7 +9,7 @@
 #include "catalogs/aoi_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
-#include "merge/run_report.h"
+#include "products/run_report.h"
 
 namespace skyfall::cli {
 namespace {

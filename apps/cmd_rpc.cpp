@@ -7,9 +7,9 @@
 
 #include "apps/commands.h"
 #include "core/format.h"
-#include "tiler/gdal_rpc_check.h"
-#include "tiler/raster.h"
-#include "tiler/rpc_io.h"
+#include "ingest/gdal_rpc_check.h"
+#include "ingest/raster.h"
+#include "ingest/rpc_io.h"
 
 namespace skyfall::cli {
 namespace {

@@ -16,6 +16,7 @@ namespace skyfall::cli {
 void AddRunCommand(CLI::App& app, Runner* runner) {
   auto request = std::make_shared<RunRequest>();
   auto print_config = std::make_shared<bool>(false);
+  auto print_reference = std::make_shared<bool>(false);
   auto tiles3d = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "run", "The whole pipeline for every AOI of a DFC2019 tree: ingest, tile, per-tile SfM, dense heights and splat "
@@ -33,29 +34,26 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
                 "(exports.tiles3d)");
   cmd->add_flag("--print-config", *print_config,
                 "Print the effective configuration (defaults, --config, --set, flags) as JSON and exit");
-  flags->Add("--tile-m", +[](RunOptions& o) -> double& { return o.tiling.tile_m; }, "Tile core side [m]; 0: sized by the imagery (a multiple of 256 m holding about --tile-px px)");
-  flags->Add("--tile-px", +[](RunOptions& o) -> int& { return o.tiling.tile_px; },
-             "What an automatic tile holds a side [px]");
-  flags->Add("--overlap-m", +[](RunOptions& o) -> double& { return o.tiling.overlap_m; }, "Overlap margin [m]");
+  cmd->add_flag("--print-options-reference", *print_reference,
+                "Print every option of the run configuration (path, type, default, unit, meaning) as the Markdown "
+                "tables of docs/cli.md and exit");
+  flags->Add("--tile-m", "tiling.tile_m");
+  flags->Add("--tile-px", "tiling.tile_px");
+  flags->Add("--overlap-m", "tiling.overlap_m");
   flags->AddTileFlags();
-  flags->Add("--jobs", +[](RunOptions& o) -> int& { return o.executor.jobs; },
-             "Tiles run at once (0 = bounded by cores and memory)");
-  flags->Add("--executor", +[](RunOptions& o) -> std::string& { return o.executor.kind; },
-             "'local' (each tile its own process), 'inline' (tiles in this process, one at a time) or 'slurm' "
-             "(tiles as one sbatch array job, merge and DSM as a job depending on it)")
-      ->check(CLI::IsMember({"local", "inline", "slurm"}));
-  flags->Add("--slurm-partition", +[](RunOptions& o) -> std::string& { return o.executor.slurm.partition; },
-             "Slurm partition (empty = the cluster's default)");
-  flags->Add("--slurm-account", +[](RunOptions& o) -> std::string& { return o.executor.slurm.account; },
-             "Slurm account (empty = the user's default)");
-  flags->Add("--slurm-time", +[](RunOptions& o) -> std::string& { return o.executor.slurm.time_limit; },
-             "Time limit per tile job, Slurm syntax, e.g. 2:00:00 (empty = the partition's)");
-  flags->Add("--slurm-cpus", +[](RunOptions& o) -> int& { return o.executor.slurm.cpus_per_task; },
-             "CPUs (and threads) per tile job");
-  flags->Add("--slurm-mem-mb", +[](RunOptions& o) -> int& { return o.executor.slurm.mem_mb; },
-             "Memory per tile job [MB] (0 = the per-tile estimate)");
-  cmd->callback([runner, request, print_config, flags, tiles3d] {
-    *runner = [request, print_config, flags, tiles3d] {
+  flags->Add("--jobs", "executor.jobs");
+  flags->Add("--executor", "executor.kind")->check(CLI::IsMember({"local", "inline", "slurm"}));
+  flags->Add("--slurm-partition", "executor.slurm.partition");
+  flags->Add("--slurm-account", "executor.slurm.account");
+  flags->Add("--slurm-time", "executor.slurm.time_limit");
+  flags->Add("--slurm-cpus", "executor.slurm.cpus_per_task");
+  flags->Add("--slurm-mem-mb", "executor.slurm.mem_mb");
+  cmd->callback([runner, request, print_config, print_reference, flags, tiles3d] {
+    *runner = [request, print_config, print_reference, flags, tiles3d] {
+      if (*print_reference) {
+        std::cout << RunOptionsReferenceMarkdown();
+        return kExitOk;
+      }
       RunOptions options = flags->Resolve();
       if (*tiles3d) options.exports.tiles3d = true;
       options.Check();  // every field and mode, before any stage runs

@@ -6,7 +6,7 @@
 #include "apps/commands.h"
 #include "apps/console.h"
 #include "pipeline/stage_jobs.h"
-#include "pipeline/view_eval.h"
+#include "products/view_eval.h"
 #include "splat/trainer.h"
 
 namespace skyfall::cli {
@@ -92,7 +92,7 @@ void AddOrbit(CLI::App& splat, Runner* runner) {
   auto o = std::make_shared<EvalOrbitOptions>();
   CLI::App* cmd = splat.add_subcommand(
       "orbit", "Write orbit cameras around a tile (between the synthesis stage's look-at points) as a cameras.json");
-  cmd->add_option("--tile", *tile, "Tile folder (tile.json and sfm/dense.ply)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--tile", *tile, "Tile folder (tile.json and dense/dense.ply)")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", *out, "cameras.json to write")->required();
   cmd->add_option("--elevations", o->elevations_deg, "Elevations [deg]")->delimiter(',')->capture_default_str();
   cmd->add_option("--views", o->views_per_elevation, "Views per look-at point and elevation")->capture_default_str();

@@ -10,7 +10,7 @@
 #include "apps/console.h"
 #include "core/error.h"
 #include "splat/dataset.h"
-#include "synth/synth.h"
+#include "testcity/testcity.h"
 
 namespace skyfall::cli {
 

@@ -10,7 +10,7 @@
 #include "pipeline/merge_tiles.h"
 #include "pipeline/tile_run.h"
 #include "catalogs/aoi_catalog.h"
-#include "tiler/tiling.h"
+#include "tiling/tiling.h"
 
 namespace skyfall::cli {
 namespace {
@@ -80,8 +80,8 @@ void AddMerge(CLI::App& app, Runner* runner) {
   cmd->add_option("--tiles", *tiles, "Tiles folder written by `skyfall tile`")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", *out, "Output folder (DIR/scene)")->required();
   auto flags = std::make_shared<RunFlags>(cmd);
-  flags->Add("--voxel-m", +[](RunOptions& o) -> double& { return o.merge.stitch.voxel_m; }, "Occupancy voxel edge [m]");
-  flags->Add("--lod-levels", +[](RunOptions& o) -> int& { return o.merge.lod.max_levels; }, "Coarser LOD levels to build");
+  flags->Add("--voxel-m", "merge.stitch.voxel_m");
+  flags->Add("--lod-levels", "merge.lod.max_levels");
   cmd->callback([=] {
     *runner = [=] {
       const RunOptions options = flags->Resolve();

@@ -15,29 +15,29 @@ RunFlags::RunFlags(CLI::App* cmd) : cmd_(cmd) {
                   "Set any option by its path, e.g. --set dense.sgm_p2=1.5 (repeatable; see --print-config)");
 }
 
+CLI::Option* RunFlags::Add(const std::string& name, const std::string& path) {
+  const OptionDescription d = DescribeRunOption(path);
+  auto value = std::make_shared<std::string>();
+  const std::string unit = d.unit.empty() ? "" : " [" + d.unit + "]";
+  CLI::Option* option = cmd_->add_option(name, *value, d.help + unit + " (" + path + ")");
+  const bool quoted = d.default_json.size() >= 2 && d.default_json.front() == '"';
+  option->default_str(quoted ? d.default_json.substr(1, d.default_json.size() - 2) : d.default_json);
+  option->type_name(d.type == "integer" ? "INT" : d.type == "number" ? "FLOAT" : "TEXT");
+  flags_.push_back({option, path, value});
+  return option;
+}
+
 void RunFlags::AddTileFlags() {
-  Add("--iterations", +[](RunOptions& o) -> int& { return o.train.optimizer.iterations; }, "Splat training steps per tile");
-  Add("--resolution", +[](RunOptions& o) -> int& { return o.train.downscale; }, "Training image downscale factor");
-  Add("--depth-prior", +[](RunOptions& o) -> std::string& { return o.train.depth_prior; },
-      "Pseudo-camera depth prior: 'surface', 'none' or 'cmd:COMMAND' (see splat train)");
-  Add("--appearance", +[](RunOptions& o) -> std::string& { return o.train.appearance; },
-      "Per-image appearance model: 'auto' (on for multi-date views), 'on' or 'off'")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
-  Add("--init-max-scale", +[](RunOptions& o) -> double& { return o.train.init_max_scale_m; },
-      "Cap on the initial Gaussian size [m] (0 = none)");
-  Add("--init-pieces", +[](RunOptions& o) -> int& { return o.train.init_pieces; },
-      "Up to this many capped Gaussians per tie point");
-  Add("--init-points", +[](RunOptions& o) -> std::string& { return o.train.init_points; },
-      "Initial Gaussians from 'dense' heights, 'sparse' tie points (no dense stage) or 'auto'")
-      ->check(CLI::IsMember({"auto", "dense", "sparse"}));
-  Add("--densify", +[](RunOptions& o) -> std::string& { return o.train.densify; },
-      "Clone/split/prune: 'on', 'off' or 'auto' (off for dense starts)")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
-  Add("--idu", +[](RunOptions& o) -> std::string& { return o.idu.mode; },
-      "Synthesis stage (curriculum IDU): 'auto' (where the dense heights show facades), 'on' or 'off'")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
-  Add("--refiner", +[](RunOptions& o) -> std::string& { return o.idu.refiner; },
-      "IDU refiner: 'reproject' (built in) or 'cmd:COMMAND' (e.g. a FlowEdit script; see README)");
+  Add("--iterations", "train.iterations");
+  Add("--resolution", "train.downscale");
+  Add("--depth-prior", "train.depth_prior");
+  Add("--appearance", "train.appearance")->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--init-max-scale", "train.init_max_scale_m");
+  Add("--init-pieces", "train.init_pieces");
+  Add("--init-points", "train.init_points")->check(CLI::IsMember({"auto", "dense", "sparse"}));
+  Add("--densify", "train.densify")->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--idu", "idu.mode")->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--refiner", "idu.refiner");
 }
 
 RunOptions RunFlags::Resolve() {
@@ -52,8 +52,13 @@ RunOptions RunFlags::Resolve() {
     options = RunOptionsFromJson(text, config_path_ == "-" ? "standard input" : config_path_);
   }
   for (const std::string& a : assignments_) SetRunOption(&options, a);
-  for (auto& [option, copy] : given_) {
-    if (option->count() > 0) copy(options, scratch_);
+  for (const Flag& flag : flags_) {
+    if (flag.option->count() == 0) continue;
+    try {
+      SetRunOption(&options, flag.path + "=" + *flag.value);
+    } catch (const Error& e) {
+      throw Error("run", flag.option->get_name(), e.detail());
+    }
   }
   return options;
 }

@@ -4,7 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-#include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,14 +18,10 @@ class RunFlags {
   // Registers --config and --set on `cmd`.
   explicit RunFlags(CLI::App* cmd);
 
-  // A flag bound to the field `field` returns; its default shown in --help is
-  // the library's. Returns the option for further checks.
-  template <class T>
-  CLI::Option* Add(const std::string& name, T& (*field)(RunOptions&), const std::string& help) {
-    CLI::Option* option = cmd_->add_option(name, field(scratch_), help)->capture_default_str();
-    given_.emplace_back(option, [field](RunOptions& to, RunOptions& from) { field(to) = field(from); });
-    return option;
-  }
+  // A flag that sets the option at `path` (dotted, as --set takes it). Its
+  // help, unit and default come from the option registry, so a flag is
+  // described where its option is. Returns the option for further checks.
+  CLI::Option* Add(const std::string& name, const std::string& path);
 
   // The per-tile flags shared by `run` and `run-tile`.
   void AddTileFlags();
@@ -35,10 +31,14 @@ class RunFlags {
 
  private:
   CLI::App* cmd_;
-  RunOptions scratch_;  // CLI11 writes the flags' values here
   std::string config_path_;
   std::vector<std::string> assignments_;
-  std::vector<std::pair<CLI::Option*, std::function<void(RunOptions&, RunOptions&)>>> given_;
+  struct Flag {
+    CLI::Option* option;
+    std::string path;
+    std::shared_ptr<std::string> value;  // CLI11 writes the flag's text here
+  };
+  std::vector<Flag> flags_;
 };
 
 }  // namespace skyfall::cli

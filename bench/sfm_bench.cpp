@@ -2,7 +2,7 @@
 // runs: what scripts/bench.sh reports as dense_ms and match_ms.
 // - dense_ms: the dense sweep (both passes, SGM, filling) on `--views`
 //   satellite-like views (zenith 0-30 deg, every azimuth) of textured ground
-//   with a 20 m plateau, drawn exactly (sfm/dense_test_scene.h), every view
+//   with a 20 m plateau, drawn exactly (dense/dense_test_scene.h), every view
 //   pair at a usable angle, on a grid of `--grid-m`.
 // - match_ms: matching one image pair of `--descriptors` random SIFT-like
 //   descriptors each (a third with a true match), both ways with the ratio
@@ -23,8 +23,8 @@
 
 #include "core/simd.h"
 #include "core/stage.h"
-#include "sfm/dense.h"
-#include "sfm/dense_test_scene.h"
+#include "dense/dense.h"
+#include "dense/dense_test_scene.h"
 #include "sfm/features.h"
 
 namespace {

@@ -1,5 +1,6 @@
 #include "catalogs/tile_catalog.h"
 
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/json_doc.h"
@@ -97,6 +98,15 @@ TileSpec TileSpecFromJson(const std::string& text, const std::string& subject) {
 
 TileSpec ReadTileSpec(const std::string& path) {
   return TileSpecFromJson(ReadTextFile(path), path);
+}
+
+std::string TileReconstructionPath(const std::string& tile_dir) {
+  return (std::filesystem::path(tile_dir) / "splat" / "scene.ply").string();
+}
+
+std::string TileScenePath(const std::string& tile_dir) {
+  const std::filesystem::path idu = std::filesystem::path(tile_dir) / "idu" / "scene.ply";
+  return std::filesystem::exists(idu) ? idu.string() : TileReconstructionPath(tile_dir);
 }
 
 }  // namespace skyfall

@@ -20,4 +20,12 @@ std::string TileSpecToJson(const TileSpec& tile);
 TileSpec TileSpecFromJson(const std::string& text, const std::string& subject);
 TileSpec ReadTileSpec(const std::string& path);
 
+// The layout of a tile folder, read by the merge and the products.
+// The Gaussians a finished tile contributes to the merge: the synthesis
+// stage's scene when it ran, else the trained one.
+std::string TileScenePath(const std::string& tile_dir);
+// The Gaussians trained on the tile's real images alone (splat/scene.ply),
+// before any synthesis stage.
+std::string TileReconstructionPath(const std::string& tile_dir);
+
 }  // namespace skyfall

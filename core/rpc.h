@@ -7,7 +7,7 @@
 //  - Image output: (col, row) = (sample, line) in pixels with pixel centres at
 //    integer coordinates, the RPC00B convention used by rpcm, s2p and Sat-NeRF.
 //    (GDAL's pixel/line places the top-left pixel corner at 0; see
-//    tiler/gdal_rpc_check.h.)
+//    ingest/gdal_rpc_check.h.)
 //  - Everything in double: the normalized polynomial is evaluated near its
 //    offsets but the offsets themselves are large.
 #pragma once

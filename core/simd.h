@@ -7,7 +7,7 @@
 // Kernels that have per-path versions: the rasterizer's forward and backward
 // passes (splat/rasterizer.cpp), the appearance MLP's layers and weight
 // gradients (splat/appearance.cpp) and the dense sweep's warp, window
-// statistics, pair cost and SGM step (sfm/dense.cpp). Each path gives the
+// statistics, pair cost and SGM step (dense/dense.cpp). Each path gives the
 // baseline's results within the tolerances their tests name. How a kernel
 // source is compiled once per path: core/simd_target.h.
 #pragma once

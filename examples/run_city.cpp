@@ -4,7 +4,7 @@
 #include <string>
 
 #include "pipeline/city_run.h"
-#include "synth/synth.h"
+#include "testcity/testcity.h"
 
 int main(int argc, char** argv) {
   if (argc != 2) return std::fprintf(stderr, "usage: run_city OUT_DIR\n"), 2;

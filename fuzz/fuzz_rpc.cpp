@@ -5,7 +5,7 @@
 
 #include "core/rpc.h"
 #include "fuzz/fuzz_target.h"
-#include "tiler/rpc_io.h"
+#include "ingest/rpc_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace skyfall;

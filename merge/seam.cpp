@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "tiler/geo.h"
+#include "ingest/geo.h"
 
 namespace skyfall {
 namespace {

@@ -5,7 +5,7 @@
 #include <cstddef>
 
 #include "core/tile.h"
-#include "merge/dsm.h"
+#include "core/dsm_grid.h"
 #include "merge/ownership.h"
 
 namespace skyfall {

@@ -7,7 +7,7 @@
 #include <mutex>
 
 #include "core/error.h"
-#include "tiler/geo.h"
+#include "ingest/geo.h"
 
 namespace skyfall {
 namespace {

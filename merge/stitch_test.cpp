@@ -7,7 +7,7 @@
 #include <random>
 
 #include "core/error.h"
-#include "merge/dsm.h"
+#include "products/dsm.h"
 #include "merge/seam.h"
 
 namespace skyfall {

@@ -8,15 +8,15 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
-#include "merge/dsm.h"
+#include "products/dsm.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/merge_tiles.h"
 #include "pipeline/tile_run.h"
 #include "splat/ply.h"
-#include "synth/synth.h"
-#include "tiler/dfc2019.h"
+#include "testcity/testcity.h"
+#include "ingest/dfc2019.h"
 #include "tests/test_support.h"
-#include "tiler/geo.h"
+#include "ingest/geo.h"
 
 namespace skyfall {
 namespace {

@@ -11,12 +11,12 @@
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
-#include "merge/dsm.h"
+#include "products/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
 #include "pipeline/stage_jobs.h"
 #include "splat/ply.h"
-#include "tiler/geo.h"
+#include "ingest/geo.h"
 
 namespace skyfall {
 

@@ -2,6 +2,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <cstring>
+#include <new>
 #include <nlohmann/json.hpp>
 #include <limits>
 #include <set>
@@ -9,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/format.h"
+#include "pipeline/option_registry.h"
 
 namespace skyfall {
 namespace {
@@ -16,352 +19,8 @@ namespace {
 using json = nlohmann::json;
 constexpr const char* kSchema = "skyfall.run_options/1";
 
-// Every options struct is described once, by a Visit() that names each field;
-// the same description writes JSON and reads it strictly (Writer, Reader below).
-
-template <class IO> void Visit(IO& io, RadiometryOptions& o) {
-  io("low_percentile", o.low_percentile);
-  io("high_percentile", o.high_percentile);
-  io("stretch_byte", o.stretch_byte);
-  io("max_sample_px", o.max_sample_px);
-}
-template <class IO> void Visit(IO& io, IngestOptions& o) {
-  io("verify_pixels", o.verify_pixels);
-  io("radiometry", o.radiometry);
-  io("height_margin_m", o.height_margin_m);
-  io("rpc_height_half_range_m", o.rpc_height_half_range_m);
-  io("nominal_orbit_height_m", o.nominal_orbit_height_m);
-  io("view_ray_height_step_m", o.view_ray_height_step_m);
-}
-template <class IO> void Visit(IO& io, TilingOptions& o) {
-  io("tile_m", o.tile_m);
-  io("tile_px", o.tile_px);
-  io("overlap_m", o.overlap_m);
-  io("min_coverage", o.min_coverage);
-  io("min_images", o.min_images);
-  io("city", o.city);
-}
-template <class IO> void Visit(IO& io, PinholeFitOptions& o) {
-  io("grid_cols", o.grid_cols);
-  io("grid_rows", o.grid_rows);
-  io("grid_heights", o.grid_heights);
-  io("check_cols", o.check_cols);
-  io("check_rows", o.check_rows);
-  io("check_heights", o.check_heights);
-  io("hartley_normalization", o.hartley_normalization);
-  io("refine", o.refine);
-  io("estimate_skew", o.estimate_skew);
-}
-template <class IO> void Visit(IO& io, FeatureOptions& o) {
-  io("max_features", o.max_features);
-  io("contrast_threshold", o.contrast_threshold);
-  io("ratio", o.ratio);
-  io("clahe_clip", o.clahe_clip);
-  io("stretch_low", o.stretch_low);
-  io("stretch_high", o.stretch_high);
-}
-// The verification's height range comes from each catalog, so only its
-// tolerances are options.
-template <class IO> void Visit(IO& io, VerifyOptions& o) {
-  io("min_threshold_px", o.min_threshold_px);
-  io("mad_factor", o.mad_factor);
-  io("segment_slack", o.segment_slack);
-  io("height_pad_m", o.height_pad_m);
-}
-template <class IO> void Visit(IO& io, BundleOptions& o) {
-  io("huber_px", o.huber_px);
-  io("offset_prior_sigma_px", o.offset_prior_sigma_px);
-  io("max_iterations", o.max_iterations);
-}
-template <class IO> void Visit(IO& io, SfmOptions& o) {
-  io("pinhole", o.pinhole);
-  io("features", o.features);
-  io("verify", o.verify);
-  io("bundle", o.bundle);
-  io("min_matches_per_pair", o.min_matches_per_pair);
-  io("min_observations_per_image", o.min_observations_per_image);
-  io("max_reprojection_before_ba_px", o.max_reprojection_before_ba_px);
-  io("max_reprojection_after_ba_px", o.max_reprojection_after_ba_px);
-  io("min_triangulation_angle_deg", o.min_triangulation_angle_deg);
-  io("ba_rounds", o.ba_rounds);
-  io("anchor_image", o.anchor_image);
-}
-template <class IO> void Visit(IO& io, DenseOptions& o) {
-  io("cell_m", o.cell_m);
-  io("height_step_m", o.height_step_m);
-  io("height_margin_m", o.height_margin_m);
-  io("height_percentile", o.height_percentile);
-  io("max_heights", o.max_heights);
-  io("window_cells", o.window_cells);
-  io("max_pairs", o.max_pairs);
-  io("min_pair_matches", o.min_pair_matches);
-  io("min_pair_angle_deg", o.min_pair_angle_deg);
-  io("max_pair_angle_deg", o.max_pair_angle_deg);
-  io("cost_truncation", o.cost_truncation);
-  io("min_std", o.min_std);
-  io("sgm_p1", o.sgm_p1);
-  io("sgm_p2", o.sgm_p2);
-  io("max_cost", o.max_cost);
-  io("max_median_deviation_m", o.max_median_deviation_m);
-  io("fill_holes", o.fill_holes);
-  io("coarse_factor", o.coarse_factor);
-  io("coarse_window_cells", o.coarse_window_cells);
-  io("visibility_fill_seen_holes", o.visibility_fill_seen_holes);
-  io("refine_steps", o.refine_steps);
-  io("step_pull_run_cells", o.step_pull_run_cells);
-  io("step_pull_min_m", o.step_pull_min_m);
-  io("step_min_m", o.step_min_m);
-  io("step_reach_cells", o.step_reach_cells);
-  io("support_radius_cells", o.support_radius_cells);
-  io("support_grey_sigma", o.support_grey_sigma);
-  io("step_cost_margin", o.step_cost_margin);
-  io("decide_filled_sides", o.decide_filled_sides);
-  io("fill_radius_m", o.fill_radius_m);
-  io("fill_roof_rim_fraction", o.fill_roof_rim_fraction);
-  io("fill_roof_rim_occluded", o.fill_roof_rim_occluded);
-  io("fill_roof_enclosed", o.fill_roof_enclosed);
-  io("fill_far_raised_ground", o.fill_far_raised_ground);
-  io("fill_seen_ground_terrain", o.fill_seen_ground_terrain);
-  io("fill_edge_hides", o.fill_edge_hides);
-  io("floating_patch_max_m2", o.floating_patch_max_m2);
-  io("floating_patch_min_rise_m", o.floating_patch_min_rise_m);
-  io("max_fill_reach_m", o.max_fill_reach_m);
-  io("fill_ground_radius_m", o.fill_ground_radius_m);
-  io("fill_ground_max_rise_m", o.fill_ground_max_rise_m);
-  io("fill_ground_tolerance_m", o.fill_ground_tolerance_m);
-  io("visibility_pass", o.visibility_pass);
-  io("visibility_tolerance_m", o.visibility_tolerance_m);
-  io("visibility_near_cells", o.visibility_near_cells);
-  io("visibility_prior_pairs", o.visibility_prior_pairs);
-}
-template <class IO> void Visit(IO& io, PseudoCameraOptions& o) {
-  io("radius_m", o.radius_m);
-  io("look_at_sigma_m", o.look_at_sigma_m);
-  io("min_elevation_deg", o.min_elevation_deg);
-  io("max_elevation_deg", o.max_elevation_deg);
-  io("size_px", o.size_px);
-  io("fov_deg", o.fov_deg);
-}
-// `enabled` is decided by TrainStageOptions::appearance, so it is not listed.
-template <class IO> void Visit(IO& io, AppearanceOptions& o) {
-  io("model", o.model);
-  io("image_dim", o.image_dim);
-  io("gaussian_dim", o.gaussian_dim);
-  io("hidden", o.hidden);
-  io("lr_image", o.lr_image);
-  io("lr_gaussian", o.lr_gaussian);
-  io("lr_mlp", o.lr_mlp);
-  io("init_std", o.init_std);
-}
-// `median_depth` is an output choice of each caller, not a training option.
-template <class IO> void Visit(IO& io, RasterOptions& o) {
-  io("tile_px", o.tile_px);
-  io("min_alpha", o.min_alpha);
-  io("max_alpha", o.max_alpha);
-  io("min_transmittance", o.min_transmittance);
-  io("dilation_px2", o.dilation_px2);
-  io("near_m", o.near_m);
-  io("guard_band", o.guard_band);
-  io("sigma_extent", o.sigma_extent);
-  io("sh_degree", o.sh_degree);
-  io("background", o.background);
-}
-template <class IO> void Visit(IO& io, TrainStageOptions& o) {
-  TrainOptions& t = o.optimizer;
-  io("iterations", t.iterations);
-  io("downscale", o.downscale);
-  io("depth_prior", o.depth_prior);
-  io("appearance", o.appearance);
-  io("init_max_scale_m", o.init_max_scale_m);
-  io("init_pieces", o.init_pieces);
-  io("init_points", o.init_points);
-  io("init_spacing_m", o.init_spacing_m);
-  io("init_facade_step_m", o.init_facade_step_m);
-  io("mask_beyond_reconstruction", o.mask_beyond_reconstruction);
-  io("surface_filled_weight", o.anchor.filled_weight);
-  io("surface_step_weight", o.anchor.step_weight);
-  io("surface_step_reach_m", o.anchor.step_reach_m);
-  io("surface_step_min_m", o.anchor.step_min_m);
-  io("densify", o.densify);
-  io("seed", t.seed);
-  io("lambda_dssim", t.lambda_dssim);
-  io("lambda_opacity", t.lambda_opacity);
-  io("opacity_reg_from", t.opacity_reg_from);
-  io("lr_mean_initial", t.lr_mean_initial);
-  io("lr_mean_final", t.lr_mean_final);
-  io("lr_scale", t.lr_scale);
-  io("lr_rotation", t.lr_rotation);
-  io("lr_opacity", t.lr_opacity);
-  io("lr_sh_dc", t.lr_sh_dc);
-  io("lr_sh_rest", t.lr_sh_rest);
-  io("densify_from", t.densify_from);
-  io("densify_until", t.densify_until);
-  io("densify_interval", t.densify_interval);
-  io("densify_grad_threshold", t.densify_grad_threshold);
-  io("percent_dense", t.percent_dense);
-  io("min_opacity", t.min_opacity);
-  io("max_scale_m", t.max_scale_m);
-  io("max_gaussians", t.max_gaussians);
-  io("eval_interval", t.eval_interval);
-  io("checkpoint_interval", t.checkpoint_interval);
-  io("keep_snapshots", t.keep_snapshots);
-  io("lambda_depth", t.lambda_depth);
-  io("pseudo_interval", t.pseudo_interval);
-  io("pseudo_cameras", t.pseudo);
-  io("lambda_surface_depth", t.lambda_surface_depth);
-  io("lambda_surface_alpha", t.lambda_surface_alpha);
-  io("surface_huber_m", t.surface_huber_m);
-  io("lambda_surface_height", t.lambda_surface_height);
-  io("surface_height_band_m", t.surface_height_band_m);
-  io("surface_nadir_interval", t.surface_nadir_interval);
-  io("surface_nadir_size_px", t.surface_nadir_size_px);
-  io("surface_nadir_gsd_m", t.surface_nadir_gsd_m);
-  io("appearance_model", t.appearance);
-  io("appearance_image", t.appearance_image);
-  io("raster", t.raster);
-}
-template <class IO> void Visit(IO& io, OrbitOptions& o) {
-  io("grid", o.grid);
-  io("views_per_point", o.views_per_point);
-  io("episodes", o.episodes);
-  io("elevation_start_deg", o.elevation_start_deg);
-  io("elevation_end_deg", o.elevation_end_deg);
-  io("radius_start_per_core", o.radius_start_per_core);
-  io("radius_end_per_core", o.radius_end_per_core);
-  io("min_radius_m", o.min_radius_m);
-  io("fov_deg", o.fov_deg);
-  io("width_px", o.width_px);
-  io("height_px", o.height_px);
-}
-template <class IO> void Visit(IO& io, RefineRequest& o) {
-  io("source_prompt", o.source_prompt);
-  io("target_prompt", o.target_prompt);
-  io("n_min", o.n_min);
-  io("n_max", o.n_max);
-  io("n_avg", o.n_avg);
-  io("steps", o.steps);
-  io("source_guidance_scale", o.source_guidance_scale);
-  io("target_guidance_scale", o.target_guidance_scale);
-}
-template <class IO> void Visit(IO& io, ReprojectOptions& o) {
-  io("visibility_tolerance_m", o.visibility_tolerance_m);
-  io("angle_weight_power", o.angle_weight_power);
-  io("keep_probability", o.keep_probability);
-  io("weight_jitter", o.weight_jitter);
-  io("inpaint", o.inpaint);
-  io("inpaint_radius_px", o.inpaint_radius_px);
-  io("smooth_diameter_px", o.smooth_diameter_px);
-  io("smooth_sigma_colour", o.smooth_sigma_colour);
-  io("smooth_sigma_space_px", o.smooth_sigma_space_px);
-}
-template <class IO> void Visit(IO& io, IduAutoOptions& o) {
-  io("step_m", o.step_m);
-  io("min_facade_ratio", o.min_facade_ratio);
-  io("min_measured_fraction", o.min_measured_fraction);
-}
-template <class IO> void Visit(IO& io, IduStageOptions& o) {
-  IduOptions& i = o.options;
-  io("mode", o.mode);
-  io("refiner", o.refiner);
-  io("orbit", i.orbit);
-  io("iterations_per_episode", i.iterations_per_episode);
-  io("samples", i.samples);
-  io("synthetic_fraction", i.synthetic_fraction);
-  io("lambda_depth", i.lambda_depth);
-  io("lambda_opacity", i.lambda_opacity);
-  io("densify", i.densify);
-  io("densify_from_fraction", i.densify_from_fraction);
-  io("densify_until_fraction", i.densify_until_fraction);
-  io("densify_interval", i.densify_interval);
-  io("geometry", i.geometry);
-  io("anchor_refined_views", i.anchor_refined_views);
-  io("fill_holes", i.fill_holes);
-  io("fill_voxel_m", i.fill_voxel_m);
-  io("hold_geometry", i.hold_geometry);
-  io("seed", i.seed);
-  io("prompts", i.request);
-  io("reproject", o.reproject);
-  io("auto", o.auto_decision);
-}
-template <class IO> void Visit(IO& io, SeamLineOptions& o) {
-  io("enabled", o.enabled);
-  io("cell_m", o.cell_m);
-  io("band_fraction", o.band_fraction);
-  io("max_step_m", o.max_step_m);
-  io("bend_m", o.bend_m);
-  io("centre_pull_m", o.centre_pull_m);
-}
-template <class IO> void Visit(IO& io, StitchOptions& o) {
-  io("voxel_m", o.voxel_m);
-  io("min_opacity", o.min_opacity);
-  io("match_radius_voxels", o.match_radius_voxels);
-  io("occupancy_columns", o.occupancy_columns);
-  io("seam_lines", o.seam_lines);
-}
-template <class IO> void Visit(IO& io, LodOptions& o) {
-  io("max_levels", o.max_levels);
-  io("base_voxel_m", o.base_voxel_m);
-  io("min_reduction", o.min_reduction);
-  io("min_gaussians", o.min_gaussians);
-}
-template <class IO> void Visit(IO& io, MergeOptions& o) {
-  io("stitch", o.stitch);
-  io("lod", o.lod);
-  io("seam_gsd_m", o.seam_gsd_m);
-}
-template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
-  io("leaf_m", o.leaf_m);
-  io("max_fractional_bits", o.max_fractional_bits);
-}
-template <class IO> void Visit(IO& io, ExportOptions& o) {
-  io("tiles3d", o.tiles3d);
-  io("tiles3d_options", o.tiles3d_options);
-}
-template <class IO> void Visit(IO& io, DsmExportOptions& o) {
-  io("camera_height_m", o.camera_height_m);
-  io("min_alpha", o.min_alpha);
-  io("median_depth", o.median_depth);
-}
-template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
-  io("max_shift_px", o.max_shift_px);
-  io("pyramid_levels", o.pyramid_levels);
-  io("mask_water", o.mask_water);
-  io("within_m", o.within_m);
-  io("rim_width_m", o.breakdown.rim_width_m);
-  io("edge_band_m", o.breakdown.edge_band_m);
-  io("edge_bands", o.breakdown.edge_bands);
-}
-template <class IO> void Visit(IO& io, DsmOptions& o) {
-  io("source", o.source);
-  io("export", o.export_options);
-  io("compare", o.compare);
-}
-template <class IO> void Visit(IO& io, SlurmOptions& o) {
-  io("partition", o.partition);
-  io("account", o.account);
-  io("time_limit", o.time_limit);
-  io("cpus_per_task", o.cpus_per_task);
-  io("mem_mb", o.mem_mb);
-  io("poll_s", o.poll_s);
-}
-template <class IO> void Visit(IO& io, ExecutorOptions& o) {
-  io("kind", o.kind);
-  io("jobs", o.jobs);
-  io("program", o.program);
-  io("slurm", o.slurm);
-}
-template <class IO> void Visit(IO& io, RunOptions& o) {
-  io("ingest", o.ingest);
-  io("tiling", o.tiling);
-  io("sfm", o.sfm);
-  io("dense", o.dense);
-  io("train", o.train);
-  io("idu", o.idu);
-  io("merge", o.merge);
-  io("dsm", o.dsm);
-  io("exports", o.exports);
-  io("executor", o.executor);
-}
+// The IO objects the registry (option_registry.h) is visited with: JSON
+// writer and strict reader, the option describer and the completeness check.
 
 template <class T>
 constexpr bool kIsLeaf = std::is_arithmetic_v<T> || std::is_same_v<T, std::string> || std::is_same_v<T, Eigen::Vector3d>;
@@ -370,7 +29,7 @@ class Writer {
  public:
   explicit Writer(json* out) : out_(out) {}
   template <class T>
-  void operator()(const char* key, const T& value) {
+  void operator()(const char* key, const T& value, const char* /*help*/ = nullptr) {
     if constexpr (std::is_same_v<T, Eigen::Vector3d>) {
       (*out_)[key] = {value.x(), value.y(), value.z()};
     } else if constexpr (kIsLeaf<T>) {
@@ -382,6 +41,9 @@ class Writer {
       (*out_)[key] = nested;
     }
   }
+
+ template <class T>
+  void NotAnOption(const T&) {}
 
  private:
   json* out_;
@@ -396,7 +58,7 @@ class Reader {
     if (!in_.is_object()) Fail(path_.empty() ? "the document" : path_, "must be a JSON object");
   }
   template <class T>
-  void operator()(const char* key, T& value) {
+  void operator()(const char* key, T& value, const char* /*help*/ = nullptr) {
     seen_.insert(key);
     const auto it = in_.find(key);
     if (it == in_.end()) return;
@@ -433,6 +95,8 @@ class Reader {
       inner.RejectUnknown();
     }
   }
+  template <class T>
+  void NotAnOption(const T&) {}
   void RejectUnknown(const std::set<std::string>& also_allowed = {}) const {
     for (const auto& [key, unused] : in_.items()) {
       if (!seen_.count(key) && !also_allowed.count(key))
@@ -447,6 +111,81 @@ class Reader {
   const json& in_;
   std::string path_, subject_;
   std::set<std::string> seen_;
+};
+
+// Marks the bytes of every visited field of one object, recursively; the
+// innermost struct around each byte names it in a report.
+class Coverage {
+ public:
+  Coverage(const unsigned char* base, std::vector<bool>* claimed, std::vector<std::string>* owner, std::string path)
+      : base_(base), claimed_(claimed), owner_(owner), path_(std::move(path)) {}
+  template <class T>
+  void operator()(const char* key, T& value, const char* /*help*/ = nullptr) {
+    const std::string path = path_.empty() ? key : path_ + "." + key;
+    if constexpr (kIsLeaf<T>) {
+      Claim(value);
+    } else {
+      Own(value, path);
+      Coverage inner(base_, claimed_, owner_, path);
+      Visit(inner, value);
+    }
+  }
+  template <class T>
+  void NotAnOption(T& value) { Claim(value); }
+  // The struct at `path` owns its bytes until a deeper one claims them.
+  template <class T>
+  void Own(T& value, const std::string& path) {
+    const std::size_t at = Offset(value);
+    for (std::size_t k = at; k < at + sizeof(T); ++k) (*owner_)[k] = path;
+  }
+
+ private:
+  template <class T>
+  std::size_t Offset(T& value) const {
+    return static_cast<std::size_t>(reinterpret_cast<const unsigned char*>(&value) - base_);
+  }
+  template <class T>
+  void Claim(T& value) {
+    const std::size_t at = Offset(value);
+    for (std::size_t k = at; k < at + sizeof(T); ++k) (*claimed_)[k] = true;
+  }
+  const unsigned char* base_;
+  std::vector<bool>* claimed_;
+  std::vector<std::string>* owner_;
+  std::string path_;
+};
+
+// One row per option: dotted path, type, default and help.
+class Describer {
+ public:
+  Describer(std::vector<OptionDescription>* rows, std::string path) : rows_(rows), path_(std::move(path)) {}
+  template <class T>
+  void operator()(const char* key, T& value, const char* help = nullptr) {
+    const std::string path = path_.empty() ? key : path_ + "." + key;
+    if constexpr (kIsLeaf<T>) {
+      json holder = json::object();
+      Writer w(&holder);
+      w(key, value);
+      rows_->push_back({path, TypeName<T>(), holder[key].dump(), UnitOfKey(key), help ? help : ""});
+    } else {
+      Describer inner(rows_, path);
+      Visit(inner, value);
+    }
+  }
+  template <class T>
+  void NotAnOption(const T&) {}
+
+ private:
+  template <class T>
+  static std::string TypeName() {
+    if constexpr (std::is_same_v<T, bool>) return "bool";
+    else if constexpr (std::is_integral_v<T>) return "integer";
+    else if constexpr (std::is_floating_point_v<T>) return "number";
+    else if constexpr (std::is_same_v<T, std::string>) return "string";
+    else return "3 numbers";
+  }
+  std::vector<OptionDescription>* rows_;
+  std::string path_;
 };
 
 template <class T>
@@ -650,5 +389,89 @@ std::string IduEpisodesJson(const RunOptions& o) {
 }
 
 std::string SfmOptionsJson(const SfmOptions& options) { return ToJson(options).dump(); }
+
+std::string UnitOfKey(const std::string& key) {
+  static const std::pair<const char*, const char*> kSuffixes[] = {
+      {"_m2", "m²"}, {"_px2", "px²"}, {"_m", "m"}, {"_px", "px"}, {"_deg", "deg"}, {"_s", "s"},
+      {"_mb", "MB"}, {"_cells", "cells"}, {"_voxels", "voxels"}, {"_db", "dB"}};
+  for (const auto& [suffix, unit] : kSuffixes) {
+    const std::size_t n = std::strlen(suffix);
+    if (key.size() > n && key.compare(key.size() - n, n, suffix) == 0) return unit;
+  }
+  return "";
+}
+
+std::vector<OptionDescription> DescribeRunOptions() {
+  std::vector<OptionDescription> rows;
+  RunOptions defaults;
+  Describer d(&rows, "");
+  Visit(d, defaults);
+  return rows;
+}
+
+OptionDescription DescribeRunOption(const std::string& path) {
+  for (OptionDescription& row : DescribeRunOptions())
+    if (row.path == path) return row;
+  throw Error("run options", path, "is not a known option (see `skyfall run --print-config`)");
+}
+
+std::string RunOptionsReferenceMarkdown() {
+  std::string out, section;
+  for (const OptionDescription& row : DescribeRunOptions()) {
+    const std::string top = row.path.substr(0, row.path.find('.'));
+    if (top != section) {
+      section = top;
+      out += (out.empty() ? "" : "\n") + std::string("#### `") + section + "`\n\n" +
+             "| option | type | default | unit | meaning |\n|---|---|---|---|---|\n";
+    }
+    std::string help = row.help;
+    for (std::size_t at = help.find('|'); at != std::string::npos; at = help.find('|', at + 2)) help.replace(at, 1, "\\|");
+    out += "| `" + row.path + "` | " + row.type + " | `" + row.default_json + "` | " + row.unit + " | " + help + " |\n";
+  }
+  return out;
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> UnclaimedFieldBytes(const std::vector<unsigned char>& a,
+                                                                     const std::vector<unsigned char>& b,
+                                                                     const std::vector<bool>& claimed) {
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;
+  for (std::size_t k = 0; k < claimed.size(); ++k) {
+    if (claimed[k] || a[k] != b[k]) continue;
+    if (!ranges.empty() && ranges.back().second == k) {
+      ranges.back().second = k + 1;
+    } else {
+      ranges.emplace_back(k, k + 1);
+    }
+  }
+  return ranges;
+}
+
+std::vector<std::string> RunOptionsRegistryGaps() {
+  constexpr std::size_t n = sizeof(RunOptions);
+  constexpr std::align_val_t align{alignof(RunOptions)};
+  unsigned char* buffer = static_cast<unsigned char*>(::operator new(n, align));
+  // Two constructions at one address over different fill patterns: padding
+  // keeps the fill, every initialized field writes the same bytes both times.
+  std::vector<unsigned char> first(n), second(n);
+  for (std::vector<unsigned char>* snapshot : {&first, &second}) {
+    std::memset(buffer, snapshot == &first ? 0xA5 : 0x5A, n);
+    RunOptions* o = new (buffer) RunOptions;  // default-initialized: padding is left alone
+    std::memcpy(snapshot->data(), buffer, n);
+    o->~RunOptions();
+  }
+  RunOptions* o = new (buffer) RunOptions;  // default-initialized: padding is left alone
+  std::vector<bool> claimed(n, false);
+  std::vector<std::string> owner(n);
+  Coverage coverage(buffer, &claimed, &owner, "");
+  coverage.Own(*o, "(run options)");
+  Visit(coverage, *o);
+  std::vector<std::string> gaps;
+  for (const auto& [begin, end] : UnclaimedFieldBytes(first, second, claimed))
+    gaps.push_back(owner[begin] + ": bytes " + std::to_string(begin) + "-" + std::to_string(end - 1) +
+                   " are in no registry entry");
+  o->~RunOptions();
+  ::operator delete(buffer, align);
+  return gaps;
+}
 
 }  // namespace skyfall

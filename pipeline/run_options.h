@@ -6,19 +6,21 @@
 // restates them.
 #pragma once
 
+#include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "merge/dsm.h"
+#include "products/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
-#include "merge/tiles3d.h"
-#include "sfm/dense.h"
+#include "products/tiles3d.h"
+#include "dense/dense.h"
 #include "sfm/sfm.h"
-#include "splat/idu.h"
+#include "synthesis/idu.h"
 #include "splat/trainer.h"
-#include "tiler/dfc2019.h"
-#include "tiler/tiling.h"
+#include "ingest/dfc2019.h"
+#include "tiling/tiling.h"
 
 namespace skyfall {
 
@@ -181,5 +183,36 @@ std::string DenseOptionsJson(const DenseOptions& options);
 // only under the same value.
 std::string IduEpisodesJson(const RunOptions& options);
 std::string SfmOptionsJson(const SfmOptions& options);
+
+// The option registry (option_registry.h): every field of RunOptions, listed
+// once with its help; the JSON form, --set, --print-config, the flags of
+// `skyfall run` and the reference tables of docs/cli.md all come from it.
+struct OptionDescription {
+  std::string path;          // dotted, as --set takes it: "dense.sgm_p2"
+  std::string type;          // bool, integer, number, string, 3 numbers
+  std::string default_json;  // the library default, as JSON
+  std::string unit;          // from the name's suffix ("m" for *_m), empty when none
+  std::string help;
+};
+std::vector<OptionDescription> DescribeRunOptions();
+// The description of one option; throws Error naming `path` when there is none.
+OptionDescription DescribeRunOption(const std::string& path);
+// The unit a field's name states by its suffix: "cell_m" -> "m", "fov_deg" ->
+// "deg"; empty for a name without one.
+std::string UnitOfKey(const std::string& key);
+// The reference of every option as Markdown, one table per section (the
+// block between the options markers of docs/cli.md).
+std::string RunOptionsReferenceMarkdown();
+
+// Fields of RunOptions that the registry does not list: each entry names the
+// innermost listed section around the bytes and their offsets. Empty when
+// the registry is complete.
+std::vector<std::string> RunOptionsRegistryGaps();
+// The byte ranges [begin, end) no field claims that are not padding: bytes
+// two default constructions over different fill patterns (`a`, `b`) agree on
+// were written by an initializer, so they belong to a field.
+std::vector<std::pair<std::size_t, std::size_t>> UnclaimedFieldBytes(const std::vector<unsigned char>& a,
+                                                                     const std::vector<unsigned char>& b,
+                                                                     const std::vector<bool>& claimed);
 
 }  // namespace skyfall

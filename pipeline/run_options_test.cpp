@@ -2,8 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <new>
 #include <nlohmann/json.hpp>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 
 namespace skyfall {
@@ -146,6 +151,87 @@ TEST(RunOptions, TileOptionsFollowWhatDecidesATilesProducts) {
   EXPECT_EQ(TileOptionsJson(executed), TileOptionsJson(base));  // how tiles run does not change them
   EXPECT_EQ(TileOptionsJson(merged), TileOptionsJson(base));
   EXPECT_EQ(json::parse(DenseOptionsJson(base.dense))["cell_m"], base.dense.cell_m);
+}
+
+TEST(OptionRegistry, ListsEveryFieldOfTheRunOptions) {
+  // A field added to an options struct but not to its Visit() would be left
+  // out of the JSON form, --set, the docs and the resume stamps.
+  const std::vector<std::string> gaps = RunOptionsRegistryGaps();
+  std::string listing;
+  for (const std::string& g : gaps) listing += g + "\n";
+  EXPECT_TRUE(gaps.empty()) << "add these fields to their Visit() in pipeline/option_registry.h (or mark them "
+                               "io.NotAnOption with the reason):\n"
+                            << listing;
+}
+
+// The completeness check itself can fail: bytes an initializer wrote that no
+// entry claims are found, padding is not.
+struct RegistrySample {
+  double listed = 1.5;
+  bool forgotten = false;  // then 3 bytes of padding
+  std::int32_t also_forgotten = 0;
+  double other = 2.0;
+};
+
+TEST(OptionRegistry, AFieldLeftOutOfTheRegistryIsFoundAndPaddingIsNot) {
+  static_assert(offsetof(RegistrySample, also_forgotten) == 12 && sizeof(RegistrySample) == 24, "layout assumed below");
+  constexpr std::size_t n = sizeof(RegistrySample);
+  alignas(RegistrySample) unsigned char buffer[n];
+  std::vector<unsigned char> a(n), b(n);
+  for (std::vector<unsigned char>* snapshot : {&a, &b}) {
+    std::memset(buffer, snapshot == &a ? 0xA5 : 0x5A, n);
+    new (buffer) RegistrySample;  // default-initialized: padding is left alone
+    std::memcpy(snapshot->data(), buffer, n);
+  }
+  std::vector<bool> claimed(n, false);
+  for (std::size_t k : {offsetof(RegistrySample, listed), offsetof(RegistrySample, other)})
+    for (std::size_t j = 0; j < sizeof(double); ++j) claimed[k + j] = true;
+  const auto ranges = UnclaimedFieldBytes(a, b, claimed);
+  ASSERT_EQ(ranges.size(), 2u);
+  EXPECT_EQ(ranges[0], std::make_pair(std::size_t{8}, std::size_t{9}));    // the bool
+  EXPECT_EQ(ranges[1], std::make_pair(std::size_t{12}, std::size_t{16}));  // the int, after the padding
+  for (std::size_t k = 0; k < n; ++k) claimed[k] = k < 8 || k >= 16 || k == 8 || (k >= 12 && k < 16);
+  EXPECT_TRUE(UnclaimedFieldBytes(a, b, claimed).empty());
+}
+
+TEST(OptionRegistry, EveryListedOptionIsReachableBySetAndKeepsItsDefault) {
+  const std::string defaults = RunOptionsToJson(RunOptions{});
+  const std::vector<OptionDescription> rows = DescribeRunOptions();
+  EXPECT_GT(rows.size(), 240u);
+  for (const OptionDescription& row : rows) {
+    RunOptions o;
+    const json value = json::parse(row.default_json);
+    SetRunOption(&o, row.path + "=" + (value.is_string() ? value.get<std::string>() : row.default_json));
+    EXPECT_EQ(RunOptionsToJson(o), defaults) << row.path;
+    EXPECT_EQ(DescribeRunOption(row.path).default_json, row.default_json);
+  }
+  EXPECT_NE(ErrorOf([] { DescribeRunOption("dense.no_such_field"); }).find("dense.no_such_field"), std::string::npos);
+}
+
+TEST(OptionRegistry, EveryOptionSaysWhatItDoes) {
+  for (const OptionDescription& row : DescribeRunOptions()) EXPECT_GE(row.help.size(), 10u) << row.path;
+}
+
+TEST(OptionRegistry, UnitsComeFromTheNamesSuffix) {
+  EXPECT_EQ(UnitOfKey("cell_m"), "m");
+  EXPECT_EQ(UnitOfKey("fov_deg"), "deg");
+  EXPECT_EQ(UnitOfKey("floating_patch_max_m2"), "m²");
+  EXPECT_EQ(UnitOfKey("poll_s"), "s");
+  EXPECT_EQ(UnitOfKey("mem_mb"), "MB");
+  EXPECT_EQ(UnitOfKey("ratio"), "");
+  EXPECT_EQ(UnitOfKey("keep_snapshots"), "");
+  EXPECT_EQ(DescribeRunOption("dense.cell_m").unit, "m");
+}
+
+TEST(OptionRegistry, DocsCliHoldsTheGeneratedReference) {
+  const std::string doc = ReadTextFile(std::string(SKYFALL_SOURCE_DIR) + "/docs/cli.md");
+  const std::string begin = "<!-- options:begin (generated: skyfall run --print-options-reference) -->\n";
+  const std::string end = "<!-- options:end -->";
+  const std::size_t a = doc.find(begin), b = doc.find(end);
+  ASSERT_NE(a, std::string::npos) << "docs/cli.md lacks the options markers";
+  ASSERT_NE(b, std::string::npos);
+  const bool current = doc.substr(a + begin.size(), b - a - begin.size()) == RunOptionsReferenceMarkdown();
+  EXPECT_TRUE(current) << "docs/cli.md's option tables are stale: run scripts/update_cli_docs.sh";
 }
 
 }  // namespace

@@ -17,7 +17,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
-#include "pipeline/stac.h"
+#include "products/stac.h"
 #include "pipeline/tile_run.h"
 
 extern char** environ;

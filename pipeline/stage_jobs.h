@@ -11,7 +11,8 @@
 #include "core/aoi.h"
 #include "core/stage.h"
 #include "pipeline/run_options.h"
-#include "sfm/dense.h"
+#include "dense/dense.h"
+#include "dense/dense_cells.h"
 #include "sfm/sfm.h"
 #include "splat/trainer.h"
 
@@ -29,15 +30,6 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
 DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
                         const std::optional<GroundBox>& extent_enu_m = std::nullopt);
 
-// The cells of a dense.ply written by RunDenseJob: ENU positions, colours in
-// [0, 1], whether each was filled rather than matched, and the cell size.
-struct DenseCells {
-  double cell_m = 0;
-  std::vector<Eigen::Vector3f> points;
-  std::vector<Eigen::Vector3f> colours;
-  std::vector<std::uint8_t> filled;
-};
-DenseCells ReadDenseCells(const std::string& dense_ply);
 // Per cell confidence for SurfaceDepthPrior: 1, less for filled cells and
 // for cells beside a step (AnchorWeightOptions); empty when every weight
 // is 1 (no weighting).
@@ -91,13 +83,6 @@ struct IduJobResult {
 IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& train, const std::string& sfm_dir,
                        const std::string& scene_ply, const GroundBox& core, const std::string& out_dir,
                        const std::string& episodes_stamp, Progress& progress);
-
-// The Gaussians a finished tile contributes to the merge: the synthesis
-// stage's scene when it ran, else the trained one.
-std::string TileScenePath(const std::string& tile_dir);
-// The Gaussians trained on the tile's real images alone (splat/scene.ply),
-// before any synthesis stage.
-std::string TileReconstructionPath(const std::string& tile_dir);
 
 // Renders the scene (Inria PLY) from every camera of a cameras.json into
 // out_dir: <name>_rgb.png, <name>_depth.png (visualization) and

@@ -181,7 +181,7 @@ for name in sorted(os.listdir(out)):
         "seconds": float(open(os.path.join(out, name, "wall_seconds")).read())
                    if os.path.isfile(os.path.join(out, name, "wall_seconds")) else summary.get("seconds"),
         # The part of the MAE each truth class and each building-rim band
-        # accounts for (merge/dsm_breakdown.h), trained and dense-only.
+        # accounts for (products/dsm_breakdown.h), trained and dense-only.
         "mae_parts_m": mae_parts(d),
         "dense_mae_parts_m": mae_parts(d.get("dense") or {}),
         # The mean signed error in bands (0.5 m by default) from the building outlines,

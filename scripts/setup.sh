@@ -13,6 +13,7 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libssl-dev python3 python3-jsonschema
+  clang libclang-rt-14-dev
   slurm-wlm munge
   chromium
 )

@@ -11,8 +11,8 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "catalogs/aoi_catalog.h"
-#include "tiler/radiometry.h"
-#include "tiler/raster.h"
+#include "ingest/radiometry.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 namespace {

@@ -5,11 +5,11 @@
 #include <Eigen/Geometry>
 #include <limits>
 
-#include "synth/synth.h"
+#include "testcity/testcity.h"
 #include "tests/test_support.h"
-#include "tiler/geo.h"
-#include "tiler/raster.h"
-#include "tiler/rpc_io.h"
+#include "ingest/geo.h"
+#include "ingest/raster.h"
+#include "ingest/rpc_io.h"
 
 namespace skyfall {
 namespace {

@@ -10,9 +10,9 @@
 
 #include "core/error.h"
 #include "core/format.h"
-#include "tiler/geo.h"
-#include "tiler/radiometry.h"
-#include "tiler/raster.h"
+#include "ingest/geo.h"
+#include "ingest/radiometry.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 namespace {

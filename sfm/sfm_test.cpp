@@ -10,13 +10,13 @@
 
 #include "catalogs/aoi_catalog.h"
 #include "core/error.h"
-#include "sfm/dense.h"
+#include "dense/dense.h"
 #include "sfm/export.h"
-#include "synth/synth.h"
+#include "testcity/testcity.h"
 #include "tests/test_support.h"
-#include "tiler/dfc2019.h"
-#include "tiler/geo.h"
-#include "tiler/raster.h"
+#include "ingest/dfc2019.h"
+#include "ingest/geo.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 namespace {

@@ -12,9 +12,9 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "catalogs/aoi_catalog.h"
-#include "tiler/radiometry.h"
+#include "ingest/radiometry.h"
 #include "catalogs/json_doc.h"
-#include "tiler/raster.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 namespace {

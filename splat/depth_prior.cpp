@@ -12,7 +12,7 @@
 #include <random>
 
 #include "core/error.h"
-#include "tiler/raster.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 

@@ -6,9 +6,9 @@
 #include <random>
 
 #include "splat/dataset.h"
-#include "synth/synth.h"
+#include "testcity/testcity.h"
 #include "tests/test_support.h"
-#include "tiler/raster.h"
+#include "ingest/raster.h"
 
 namespace skyfall {
 namespace {

@@ -1,0 +1,271 @@
+// Dense heights for satellite views: a plane sweep in ground space. Each
+// image is warped onto a horizontal grid at every candidate height; image
+// pairs score each height with windowed normalized cross-correlation (so a
+// change of gain and offset between dates costs nothing); the pair costs are
+// averaged after truncation (an occluded pair adds the same constant at every
+// height, so it does not bias the choice) and semi-global matching
+// regularizes the cost volume before the best height per cell is taken.
+// This is what s2p does per pair in rectified image space; in ground space
+// the pairs share one volume and the result is directly a height field.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/pinhole.h"
+#include "core/stage.h"
+#include "core/tile.h"
+#include "dense/hole_fill.h"
+
+namespace skyfall {
+
+struct DenseOptions {
+  // Ground sampling of the height grid [m]; 0 (the default): follows the
+  // imagery, AutomaticCellM.
+  double cell_m = 0.0;
+  double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
+  double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
+  double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
+  int max_heights = 600;            // longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)
+  int window_cells = 5;             // NCC window side [cells], odd
+  int max_pairs = 200;              // pairs kept, most verified tie points first
+  int min_pair_matches = 50;        // verified tie points for a pair to be considered
+  double min_pair_angle_deg = 4.0;  // below, heights are too weakly constrained
+  double max_pair_angle_deg = 40.0; // above, the views differ too much to correlate
+  double cost_truncation = 0.8;     // per-pair cost (1 - NCC) is capped here
+  double min_std = 0.004;           // window standard deviation (of the normalized image) below which NCC is undefined
+  double sgm_p1 = 0.06;             // SGM penalty for a one-step height change between cells [cost units]
+  double sgm_p2 = 2.0;              // SGM penalty for a larger change (walls)
+  double max_cost = 0.55;           // cells whose matching cost at the chosen height exceeds this get no height
+  double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
+  // Holes (cells without a height) are filled (FillHoles): ground no pair
+  // can see (OccludedAtGround) takes the terrain; any other hole looks for
+  // the lowest height above the ground within fill_radius_m (doubled until
+  // something is in reach): ground takes the terrain, a raised height is
+  // added to the opening at the hole. Filled cells are flagged.
+  bool fill_holes = true;
+  // Whether ground whose ray toward a view leaves the grid counts as hidden
+  // from that view (as if the grid's highest surface stood just outside):
+  // the city goes on beyond the grid, and a street near the edge seen only
+  // through the edge was taken for seen ground and filled from the roofs
+  // beside it (docs/benchmarks.md, "Hidden ground").
+  bool fill_edge_hides = true;
+  // Before filling, small patches of matched cells (under
+  // floating_patch_max_m2) standing wholly more than floating_patch_min_rise_m
+  // above the terrain model are made holes (RemoveFloatingPatches): matches
+  // in the air above hidden streets, on what two views see behind the point.
+  // 0 = off.
+  double floating_patch_max_m2 = 25.0;
+  double floating_patch_min_rise_m = 20.0;
+  // Before filling, holes get a second chance at a coarser scale: a sweep
+  // on a grid of coarse_factor x cell_m, with windows as many cells wide, on
+  // images blurred to that cell. A weakly textured surface (a tiled roof
+  // whose courses alias, a plain slab) that no 5-cell window correlates
+  // often does over a window this much wider. Ground no pair sees
+  // (OccludedAtGround) is not taken from it. 1 = off.
+  int coarse_factor = 3;
+  int coarse_window_cells = 5;      // the coarse sweep's NCC window side [coarse cells], odd
+  // Windows fatten what they straddle: beside a roof's edge the roof's
+  // texture fills most of a ground cell's window, and a band of ground
+  // about a window radius wide takes the roof's height. Cells within
+  // step_reach_cells of a step (measured heights differing by more than
+  // step_min_m) are decided again between the step's low and high side,
+  // each scored with adaptive support weights (Yoon and Kweon's): a window
+  // of support_radius_cells whose cells weigh by how like the centre they
+  // look in the most nadir view that sees it (support_grey_sigma, on grey
+  // scaled so its 99th percentile is 1) and by distance, so the centre's
+  // own surface decides, not the wall's other side.
+  // Off by default: it narrows the band on every synthetic scene but costs
+  // JAX_068 2.5% of dense MAE (docs/benchmarks.md, "Cells beside steps").
+  bool refine_steps = false;
+  double step_min_m = 2.0;          // [m] a rise beyond this within step_reach_cells is a step
+  int step_reach_cells = 3;         // [cells] the band re-decided: window radius (2) + 1
+  int support_radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
+  double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
+  double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
+  // After filling, each filled cell (not from the coarse sweep) is scored
+  // at the ground (the terrain model) and at a roof (its fill where raised,
+  // else the lowest raised measured height in reach) with the same
+  // adaptive support weights, and takes the other side where that matches
+  // clearly better (step_min_m, step_cost_margin, max_cost); a cell filled
+  // at the ground with measured ground within step_reach_cells keeps it
+  // (beside a step the roof wins by fattening). The fill rules decide from
+  // geometry alone: holes in roofs that join the unmatched streets beside
+  // them took the terrain (docs/benchmarks.md, "Filled cells decided by
+  // the views").
+  bool decide_filled_sides = true;
+  // After filling, steps onto the ground move back by one cell where the
+  // windows fattened them (PullStepsToGround): a cell whose next
+  // step_pull_run_cells cells in one of 8 directions all lie more than
+  // step_pull_min_m lower, were matched (not filled) and lie on the ground
+  // (within fill_ground_tolerance_m of the ground surface) takes their
+  // median. Steps onto lower roofs and the rims of holes filled with the
+  // ground are left alone: pulling those cost JAX_068 and gable roofs.
+  // Off by default: with the surface anchor off beside steps
+  // (train.surface_step_weight 0) it gains nothing that holds across the
+  // tuning scenes (docs/benchmarks.md, "Steps onto matched ground" and "No
+  // anchor beside steps"). 0 = off.
+  int step_pull_run_cells = 0;
+  double step_pull_min_m = 2.0;
+  double fill_radius_m = 5.0;
+  // A seen hole whose rim of measured cells is at least this share roof
+  // (more than 2 m above the ground) takes the roof, though ground is
+  // within fill_radius_m (HoleFillOptions::roof_rim_fraction). 0 = off.
+  double fill_roof_rim_fraction = 0.9;
+  // Whether the rule also counts holes whose ground no pair sees: a hole in
+  // the middle of a roof hides its own ground behind the roof around it,
+  // and the occluded-ground rule alone would fill it with the terrain
+  // (HoleFillOptions::roof_rim_occluded).
+  bool fill_roof_rim_occluded = true;
+  // A hole cell enclosed by roof on all sides (HoleFillOptions::roof_enclosed)
+  // takes the roof even where its piece of holes reaches hidden ground
+  // beyond the roof's edge.
+  bool fill_roof_enclosed = true;
+  // A seen hole cell with nothing measured within fill_radius_m, whose
+  // lowest measured neighbour further out is raised, takes the ground
+  // (HoleFillOptions::far_raised_takes_ground): a street between tall
+  // buildings, seen along its length but matched by no pair, took the
+  // roofs' height (docs/benchmarks.md, "Streets far from measured ground").
+  bool fill_far_raised_ground = true;
+  // A seen hole cell whose lowest measured neighbour in reach is ground
+  // takes the terrain model (HoleFillOptions::seen_ground_takes_terrain):
+  // on a hillside with little ground measured between tall buildings, the
+  // plain opening it took before stood metres above the ground downhill
+  // (docs/benchmarks.md, "Seen holes at the ground take the terrain").
+  bool fill_seen_ground_terrain = true;
+  // Cells further than this from every measured cell stay empty: beyond
+  // the area the views share there is nothing to fill from, and filling it
+  // would only add Gaussians to train.
+  double max_fill_reach_m = 20.0;
+  // [m] The ground surface is a morphological opening of this radius
+  // (larger than half the widest building): it keeps planes and smooth
+  // terrain and removes buildings and trees.
+  double fill_ground_radius_m = 30.0;
+  // [m] Where the ground surface stands more than this above the opening of
+  // twice fill_ground_radius_m, its squares held roofs only (the ground
+  // hidden between tall buildings): no ground there, and the terrain model
+  // spans it from the ground measured further away. 0 = off.
+  double fill_ground_max_rise_m = 10.0;
+  // [m] A measured cell at most this far above the ground surface is ground
+  // (it shapes the terrain model).
+  double fill_ground_tolerance_m = 1.0;
+  // A second sweep that scores each height of a cell only with the pairs
+  // whose two views see that point, judged against the first sweep's
+  // surface (holes filled): beside a wall half the views see the ground and
+  // the other half the wall, and averaging them all favours the roof.
+  bool visibility_pass = true;
+  // Surface cells this near a cell (along the ray) do not hide it; -1 = the
+  // NCC window's radius. Beside a step they are the band that the windows
+  // fatten (ground at the roof's height), and counted as occluders they
+  // hid the ground under them from every view, so that the roof won there
+  // for want of a rival. 0 = every cell hides.
+  int visibility_near_cells = -1;
+  // A point counts as seen when the first surface rises at most this much
+  // above the ray toward the camera [m]: the first surface's own error.
+  double visibility_tolerance_m = 1.0;
+  // Whether holes the views see, filled from their surroundings, hide what
+  // is behind them in the visibility pass. Off: only the measured surface
+  // and the occluded ground (filled with the terrain) do. A street between
+  // two roofs that the first sweep missed is filled at the roofs' height
+  // (the nearest measured surface); with that fill hiding it, no view sees
+  // the street's own heights in the second sweep, and it stays a roof.
+  bool visibility_fill_seen_holes = false;
+  // Heights seen by few pairs get a noisy mean whose chance minima would
+  // win: the mean is taken as if this many more pairs had added the
+  // truncation cost.
+  double visibility_prior_pairs = 2.0;
+  void Check() const;               // throws Error("dense", field, ...)
+};
+
+// One view: its camera in the frame of the grid (ENU) and its pixels.
+struct DenseView {
+  std::string name;
+  PinholeCamera camera;
+  int width_px = 0, height_px = 0;
+  int bands = 0;
+  std::vector<float> pixels;  // `bands` values per pixel, row-major, any radiometric range
+};
+
+// A candidate pair (indices into the views) with its verified tie points.
+struct DensePair {
+  int a = 0, b = 0;
+  int verified = 0;
+};
+
+// A height field on a regular ENU grid: cell (i, j) is centred at
+// (x0_m + i * cell_m, y0_m + j * cell_m); i grows east, j north.
+struct HeightGrid {
+  double x0_m = 0, y0_m = 0, cell_m = 0;
+  int nx = 0, ny = 0;
+  std::vector<float> height_m;                  // ENU up [m]; NaN where there is no answer
+  std::vector<float> cost;                      // matching cost at that height [0, cost_truncation]
+  std::vector<std::uint8_t> filled;             // 1 where the height was filled in, not measured
+  std::vector<std::array<std::uint8_t, 3>> rgb; // colour of the surface (0 where no height)
+  std::size_t Index(int i, int j) const { return static_cast<std::size_t>(j) * nx + i; }
+};
+
+struct DenseResult {
+  HeightGrid grid;
+  std::vector<DensePair> pairs_used;
+  StageReport report;
+};
+
+// The grid covers the tie points' horizontal extent, clipped to
+// `extent_enu_m` when given (a tile's core plus overlap: the views' margins
+// beyond it are another tile's work); the heights of the tie points inside
+// set the sweep range. Status "degenerate" when fewer than 3 tie points lie
+// inside or no pair qualifies.
+// The automatic cell: kDenseCellStepM for imagery finer than 0.75 m (where
+// every setting was measured), else the whole multiple of it nearest the finest
+// view's GSD at `centre_enu_m` (depth / focal length): a 2.1 m sensor gets
+// 2 m cells, not 0.5 m cells 16 times as many for the same detail.
+constexpr double kDenseCellStepM = 0.5;
+double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m);
+
+DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<DenseView>& views,
+                            const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& tie_points_enu_m,
+                            Progress& progress, const std::optional<GroundBox>& extent_enu_m = std::nullopt);
+
+// The pairs the sweep would use: qualifying pairs by decreasing verified count.
+std::vector<DensePair> SelectDensePairs(const DenseOptions& options, const std::vector<DenseView>& views,
+                                        const std::vector<DensePair>& pairs, const Eigen::Vector3d& scene_centre_enu_m);
+
+// Per cell of `grid`, the height above which a point on the cell's vertical
+// is seen from a camera in direction `to_camera` (ENU, from the scene; an
+// orthographic approximation, fine for satellites): the highest point of
+// `surface_m` (nx x ny, NaN = unknown, ignored) along the ray, less the
+// ray's rise to it. -infinity where nothing hides the cell; the march stops
+// once the ray is below `floor_m` (heights below it are never asked). The
+// first `near_cells` cells along the ray hide nothing. With
+// `edge_hides`, a ray that leaves the grid is taken to pass the grid's
+// highest surface just outside: what stands beyond the grid is unknown.
+std::vector<float> VisibleAbove(const HeightGrid& grid, const std::vector<float>& surface_m,
+                                const Eigen::Vector3d& to_camera, double floor_m, int near_cells = 0,
+                                bool edge_hides = false);
+
+// Cells of `surface_m` (nx x ny, NaN = hole) whose ground point (the
+// terrain's height plus `tolerance_m`) no image pair sees past the measured
+// surface with both its views (`to_cameras`: ENU directions toward the
+// views; `pairs`: the pairs the sweep matches with, as indices into
+// `to_cameras`): holes that no pair can measure, whatever the texture. Two
+// views that each see a street between tall buildings but are too far apart
+// to be matched (or were not selected) do not make it measurable. 0 for
+// measured cells. With `edge_hides`, a view whose ray leaves the grid
+// below its highest surface does not see the point (VisibleAbove). Throws
+// Error for a pair index out of range.
+std::vector<std::uint8_t> OccludedAtGround(const HeightGrid& grid, const std::vector<float>& surface_m,
+                                           const std::vector<float>& terrain_m,
+                                           const std::vector<Eigen::Vector3d>& to_cameras,
+                                           const std::vector<std::array<int, 2>>& pairs, double tolerance_m,
+                                           double floor_m, bool edge_hides);
+
+// Semi-global matching over a cost volume laid out cell-major
+// (cost[(j * nx + i) * heights + d]); returns the aggregated volume (sum over
+// 8 directions). Exposed for its tests.
+std::vector<float> AggregateSgm(const std::vector<float>& cost, int nx, int ny, int heights, float p1, float p2);
+
+}  // namespace skyfall

@@ -1,0 +1,738 @@
+#include "dense/dense.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <utility>
+
+#include "core/error.h"
+#include "core/simd.h"
+#include "dense/dense_test_scene.h"
+
+namespace skyfall {
+namespace {
+
+using testing::LookingDown;
+using testing::TexturedView;
+
+int ArgMin(const std::vector<float>& volume, std::size_t cell, int heights) {
+  const float* s = volume.data() + cell * heights;
+  return static_cast<int>(std::min_element(s, s + heights) - s);
+}
+
+TEST(Dense, SgmWithoutPenaltiesIsEightTimesTheCost) {
+  // With P1 = P2 = 0 each path adds exactly its own cost (the previous
+  // cell's minimum is added and subtracted), so any difference is a bug in
+  // the traversal, not a rounding question: the check is exact.
+  const int nx = 7, ny = 5, nh = 6;
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> level(0, 64);
+  std::vector<float> cost(static_cast<std::size_t>(nx) * ny * nh);
+  for (float& c : cost) c = static_cast<float>(level(rng)) / 64.0f;  // exact in float, sums stay exact
+  const std::vector<float> total = AggregateSgm(cost, nx, ny, nh, 0.0f, 0.0f);
+  for (std::size_t k = 0; k < cost.size(); ++k) ASSERT_EQ(total[k], 8.0f * cost[k]) << k;
+}
+
+TEST(Dense, SgmRecoversABuildingFromCorruptedCosts) {
+  // A 12-step "building" on a ground plane at step 3; every cell's cost is
+  // |d - truth| / heights plus noise, and 20% of the cells are matching
+  // failures (textureless or occluded): a flat, noisy cost whose minimum
+  // falls at a random height. Winner-take-all keeps those errors; SGM must
+  // fix nearly all of them without moving the walls.
+  const int nx = 48, ny = 40, nh = 20;
+  auto truth = [](int i, int j) { return (i >= 15 && i < 33 && j >= 10 && j < 28) ? 15 : 3; };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<float> cost(static_cast<std::size_t>(nx) * ny * nh);
+  int corrupted = 0;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const bool bad = unit(rng) < 0.2f;
+      const std::size_t cell = static_cast<std::size_t>(j) * nx + i;
+      for (int d = 0; d < nh; ++d)
+        cost[cell * nh + d] = bad ? 0.5f + 0.1f * unit(rng)
+                                  : static_cast<float>(std::abs(d - truth(i, j))) / nh + 0.05f * unit(rng);
+      corrupted += std::abs(ArgMin(cost, cell, nh) - truth(i, j)) > 1;
+    }
+  ASSERT_GT(corrupted, nx * ny / 10);
+  const std::vector<float> total = AggregateSgm(cost, nx, ny, nh, 0.02f, 0.3f);
+  int wrong = 0;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i)
+      wrong += std::abs(ArgMin(total, static_cast<std::size_t>(j) * nx + i, nh) - truth(i, j)) > 1;
+  // Wrong = more than one step off (within a step, the cost noise decides
+  // between neighbouring heights, as it does for winner-take-all). 1% of the
+  // cells: failures at the building's corners, where two walls meet and few
+  // paths carry the right height, may stay wrong.
+  EXPECT_LE(wrong, nx * ny / 100) << "corrupted " << corrupted;
+}
+
+TEST(Dense, SgmRejectsAVolumeOfTheWrongSize) {
+  EXPECT_THROW(AggregateSgm(std::vector<float>(10), 2, 2, 3, 0.1f, 0.2f), Error);
+}
+
+TEST(Dense, OptionsNameTheBadField) {
+  DenseOptions o;
+  o.window_cells = 4;
+  try {
+    o.Check();
+    FAIL() << "an even window was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("window_cells"), std::string::npos) << e.what();
+  }
+  o = DenseOptions{};
+  o.cell_m = std::nan("");
+  EXPECT_THROW(o.Check(), Error);
+  o = DenseOptions{};
+  o.sgm_p2 = 0.01;
+  EXPECT_THROW(o.Check(), Error);
+  auto message = [](const DenseOptions& bad) -> std::string {
+    try {
+      bad.Check();
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  o = DenseOptions{};
+  o.support_grey_sigma = 0;
+  EXPECT_NE(message(o).find("support_grey_sigma"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.step_reach_cells = 0;
+  EXPECT_NE(message(o).find("step_reach_cells"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.visibility_near_cells = -2;
+  EXPECT_NE(message(o).find("visibility_near_cells"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.support_radius_cells = -1;
+  EXPECT_NE(message(o).find("support_radius_cells"), std::string::npos) << message(o);
+  o = DenseOptions{};
+  o.step_min_m = std::nan("");
+  EXPECT_NE(message(o).find("step_min_m"), std::string::npos) << message(o);
+}
+
+DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
+  return testing::UniformView(name, camera, 100.0f);  // no texture: no height can be told from another
+}
+
+// The automatic cell follows the finest view: a sub-metre sensor keeps the
+// 0.5 m cells every setting was measured with (exactly 0.5, not a near
+// value that would move the grid), a 2.1 m sensor gets 2 m cells.
+TEST(Dense, AutomaticCellFollowsTheFinestViewInStepsOfHalfAMetre) {
+  auto view_at_gsd = [](double gsd_m) {
+    DenseView v;
+    v.camera.cam_from_world_rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();  // looking down
+    v.camera.cam_from_world_translation = Eigen::Vector3d(0, 0, 617000.0);
+    v.camera.fx = v.camera.fy = 617000.0 / gsd_m;
+    return v;
+  };
+  const Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.31)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.5000001)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(0.7), view_at_gsd(3.0)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(2.1)}, centre), 2.0);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(1.5), view_at_gsd(2.5)}, centre), 1.5);
+  EXPECT_EQ(AutomaticCellM({}, centre), kDenseCellStepM);  // nothing to follow
+}
+
+TEST(Dense, PairsAreChosenByAngleAndTiePoints) {
+  const std::vector<DenseView> views = {FlatView("nadir", LookingDown(0, 0)), FlatView("a", LookingDown(20, 90)),
+                                        FlatView("b", LookingDown(1, 90)), FlatView("c", LookingDown(30, 270))};
+  // Angles: nadir-a 20, nadir-b 1 (too small), nadir-c 30, a-c 50 (too large).
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 900}, {0, 3, 300}, {1, 3, 500}, {1, 2, 20}};
+  DenseOptions o;
+  const std::vector<DensePair> kept = SelectDensePairs(o, views, pairs, Eigen::Vector3d::Zero());
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(kept[0].b, 3);  // 300 tie points before 100
+  EXPECT_EQ(kept[1].b, 1);
+  o.max_pairs = 1;
+  EXPECT_EQ(SelectDensePairs(o, views, pairs, Eigen::Vector3d::Zero()).size(), 1u);
+  EXPECT_THROW(SelectDensePairs(o, views, {{0, 7, 100}}, Eigen::Vector3d::Zero()), Error);
+}
+
+TEST(Dense, TooLittleInputIsDegenerateAndBadBuffersNameTheView) {
+  NullProgress progress;
+  const std::vector<DenseView> views = {FlatView("v0", LookingDown(0, 0)), FlatView("v1", LookingDown(20, 90))};
+  const std::vector<Eigen::Vector3d> points = {{0, 0, 0}, {10, 0, 1}, {0, 10, 2}};
+  EXPECT_EQ(RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, {{0, 0, 0}}, progress).report.status,
+            StageStatus::kDegenerate);
+  const DenseResult no_pair = RunDenseHeights(DenseOptions{}, views, {{0, 1, 3}}, points, progress);
+  EXPECT_EQ(no_pair.report.status, StageStatus::kDegenerate);
+  EXPECT_NE(no_pair.report.message.find("pair"), std::string::npos);
+  // Textureless views: every height costs the same, so no cell may get one.
+  const DenseResult flat = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress);
+  ASSERT_EQ(flat.report.status, StageStatus::kOk) << flat.report.message;
+  EXPECT_EQ(flat.report.metrics.at("valid_fraction"), 0.0);
+  std::vector<DenseView> broken = views;
+  broken[1].pixels.resize(17);
+  try {
+    RunDenseHeights(DenseOptions{}, broken, {{0, 1, 100}}, points, progress);
+    FAIL() << "a short pixel buffer was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("v1"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Dense, ABuildingHidesTheGroundBehindItFromObliqueViewsOnly) {
+  // 40 x 10 cells of 1 m; a 10 m high block over columns 20-24, ground at 0.
+  HeightGrid g;
+  g.cell_m = 1.0;
+  g.nx = 40;
+  g.ny = 10;
+  std::vector<float> surface(static_cast<std::size_t>(g.nx) * g.ny, 0.0f);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 20; i < 25; ++i) surface[g.Index(i, j)] = 10.0f;
+  // A camera to the east, 45 deg off nadir: the ray rises 1 m per metre east.
+  const std::vector<float> east = VisibleAbove(g, surface, Eigen::Vector3d(1, 0, 1), -5.0);
+  const int j = 5;
+  // West of the block, a point at column i is seen above 10 - (20 - i): the
+  // wall's top edge, one metre lower per metre further away.
+  for (int i = 10; i < 20; ++i) EXPECT_FLOAT_EQ(east[g.Index(i, j)], 10.0f - static_cast<float>(20 - i)) << i;
+  // The roof is seen above the roof (its own eastern neighbours, one step lower).
+  EXPECT_FLOAT_EQ(east[g.Index(22, j)], 9.0f);
+  // East of the block nothing hides the ground from an eastern camera.
+  for (int i = 25; i < 39; ++i) EXPECT_LE(east[g.Index(i, j)], -1.0f) << i;
+  // Far enough west the wall is below the ground: seen.
+  EXPECT_LT(east[g.Index(5, j)], 0.0f);
+  // Straight down nothing hides anything; unknown cells (NaN) hide nothing.
+  for (float h : VisibleAbove(g, surface, Eigen::Vector3d(0, 0, 1), -5.0)) EXPECT_TRUE(std::isinf(h) && h < 0);
+  std::vector<float> unknown = surface;
+  for (int i = 20; i < 25; ++i) unknown[g.Index(i, j)] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_LE(VisibleAbove(g, unknown, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], -1.0f);
+  EXPECT_THROW(VisibleAbove(g, std::vector<float>(7), Eigen::Vector3d(1, 0, 1), 0.0), Error);
+  // Past two near cells, the cell just west of the wall is hidden only by
+  // the third roof cell on (column 22, 3 m along the ray), further west
+  // nothing changes, and a band of two raised cells hides nothing next to it.
+  const std::vector<float> past_two = VisibleAbove(g, surface, Eigen::Vector3d(1, 0, 1), -5.0, 2);
+  EXPECT_FLOAT_EQ(past_two[g.Index(19, j)], 7.0f);
+  for (int i = 10; i < 17; ++i) EXPECT_FLOAT_EQ(past_two[g.Index(i, j)], east[g.Index(i, j)]) << i;
+  std::vector<float> band(surface.size(), 0.0f);
+  for (int b = 0; b < g.ny; ++b)
+    for (int i = 20; i < 22; ++i) band[g.Index(i, b)] = 10.0f;
+  EXPECT_LE(VisibleAbove(g, band, Eigen::Vector3d(1, 0, 1), -5.0, 2)[g.Index(19, j)], -1.0f);
+  EXPECT_FLOAT_EQ(VisibleAbove(g, band, Eigen::Vector3d(1, 0, 1), -5.0)[g.Index(19, j)], 9.0f);
+  // With the edge hiding, a ray leaving the grid (east of column 39) passes
+  // the grid's highest surface (10 m) just outside: the ground east of the
+  // block is seen above 10 - (40 - i); west of it the block decides first.
+  const std::vector<float> edge = VisibleAbove(g, surface, Eigen::Vector3d(1, 0, 1), -5.0, 0, true);
+  for (int i = 30; i < 40; ++i) EXPECT_FLOAT_EQ(edge[g.Index(i, j)], static_cast<float>(i - 30)) << i;
+  for (int i = 5; i < 25; ++i) EXPECT_FLOAT_EQ(edge[g.Index(i, j)], east[g.Index(i, j)]) << i;
+  for (float h : VisibleAbove(g, surface, Eigen::Vector3d(0, 0, 1), -5.0, 0, true))
+    EXPECT_TRUE(std::isinf(h) && h < 0);
+}
+
+TEST(Dense, GroundNoMatchedPairSeesIsOccludedAndOpenHolesAreNot) {
+  // 60 x 40 cells of 0.5 m, flat ground at 0 m; a 20 m block over columns
+  // 20-39, rows 20-29; an empty strip south of it (rows 12-19) and an empty
+  // patch in the open (columns 5-8, rows 5-8).
+  HeightGrid g;
+  g.cell_m = 0.5;
+  g.nx = 60;
+  g.ny = 40;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> surface(static_cast<std::size_t>(g.nx) * g.ny, 0.0f);
+  for (int j = 20; j < 30; ++j)
+    for (int i = 20; i < 40; ++i) surface[g.Index(i, j)] = 20.0f;
+  for (int j = 12; j < 20; ++j)
+    for (int i = 20; i < 40; ++i) surface[g.Index(i, j)] = nan;
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) surface[g.Index(i, j)] = nan;
+  const std::vector<float> terrain(surface.size(), 0.0f);
+  // Views from the north at about 63 deg elevation: the block hides 10 m of
+  // ground south of it, the whole strip.
+  std::vector<Eigen::Vector3d> views = {{0, 1, 2}, {0.3, 1, 2}, {0, -1, 2}};
+  constexpr double kTolM = 1.0;
+  auto occluded = [&](int i, int j, const std::vector<std::uint8_t>& o) { return o[g.Index(i, j)] == 1; };
+  // Two northern views and one southern: the strip is seen by one view only
+  // (but at its east end, where the north-north-eastern view looks past the
+  // block's corner).
+  const std::vector<std::array<int, 2>> pairs_of_three = {{0, 1}, {0, 2}, {1, 2}};
+  const std::vector<std::uint8_t> three = OccludedAtGround(g, surface, terrain, views, pairs_of_three, kTolM, -5.0, false);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, three)) << i << "," << j;
+  EXPECT_FALSE(occluded(38, 12, three));
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) EXPECT_FALSE(occluded(i, j, three)) << i << "," << j;
+  for (std::size_t k = 0; k < surface.size(); ++k)
+    if (std::isfinite(surface[k])) {
+      EXPECT_EQ(three[k], 0);
+    }
+  // A second southern view sees the strip too, but only a pair that is
+  // matched measures it: without the pair of the two southern views the
+  // strip stays occluded, with it the strip is seen.
+  views.emplace_back(0.3, -1, 2);
+  const std::vector<std::array<int, 2>> without_south_pair = {{0, 1}, {0, 2}, {1, 2}, {0, 3}, {1, 3}};
+  const std::vector<std::uint8_t> unmatched =
+      OccludedAtGround(g, surface, terrain, views, without_south_pair, kTolM, -5.0, false);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, unmatched)) << i << "," << j;
+  std::vector<std::array<int, 2>> all_pairs = without_south_pair;
+  all_pairs.push_back({2, 3});
+  const std::vector<std::uint8_t> four = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0, false);
+  for (int j = 12; j < 20; ++j)
+    for (int i = 21; i < 39; ++i) EXPECT_FALSE(occluded(i, j, four)) << i << "," << j;
+  // With the edge hiding, the southern views' rays leave the grid within
+  // 13-17 m of the strip, below the block's 20 m: beyond the grid anything
+  // up to that could stand, and the strip's southern half is occluded again;
+  // the open patch stays seen by the northern pair.
+  const std::vector<std::uint8_t> edge = OccludedAtGround(g, surface, terrain, views, all_pairs, kTolM, -5.0, true);
+  for (int j = 12; j < 17; ++j)
+    for (int i = 21; i < 36; ++i) EXPECT_TRUE(occluded(i, j, edge)) << i << "," << j;
+  for (int j = 5; j < 9; ++j)
+    for (int i = 5; i < 9; ++i) EXPECT_FALSE(occluded(i, j, edge)) << i << "," << j;
+  EXPECT_THROW(OccludedAtGround(g, std::vector<float>(7), terrain, views, all_pairs, kTolM, -5.0, false), Error);
+  EXPECT_THROW(OccludedAtGround(g, surface, terrain, views, {{0, 4}}, kTolM, -5.0, false), Error);
+}
+
+TEST(Dense, TheTileExtentClipsTheGridAndTheHeightRange) {
+  NullProgress progress;
+  const std::vector<DenseView> views = {FlatView("v0", LookingDown(0, 0)), FlatView("v1", LookingDown(20, 90))};
+  // Four tie points inside a 20 m box, one far outside and 50 m higher.
+  const std::vector<Eigen::Vector3d> points = {{0, 0, 0}, {10, 0, 1}, {0, 10, 2}, {10, 10, 1}, {60, 60, 50}};
+  GroundBox extent;
+  extent.min_m = {-5, -5};
+  extent.max_m = {15, 12};
+  const DenseResult all = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress);
+  const DenseResult clipped = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress, extent);
+  ASSERT_EQ(clipped.report.status, StageStatus::kOk) << clipped.report.message;
+  const HeightGrid& g = clipped.grid;
+  // The grid starts at the tie points' corner (inside the extent) and stops at the extent.
+  EXPECT_DOUBLE_EQ(g.x0_m, 0.0);
+  EXPECT_DOUBLE_EQ(g.y0_m, 0.0);
+  EXPECT_LE(g.x0_m + (g.nx - 1) * g.cell_m, extent.max_m.x());
+  EXPECT_LE(g.y0_m + (g.ny - 1) * g.cell_m, extent.max_m.y());
+  EXPECT_GT(g.x0_m + g.nx * g.cell_m, extent.max_m.x());
+  EXPECT_GT(all.grid.nx, 100);  // unclipped, the outlier at 60 m widens the grid
+  // The sweep covers the inside heights (0-2 m plus the margin), not the outlier's 50 m.
+  EXPECT_LT(clipped.report.metrics.at("height_max_m"), 2.0 + DenseOptions{}.height_margin_m + 1e-9);
+  EXPECT_GT(all.report.metrics.at("height_max_m"), 40.0);
+  // Fewer than 3 tie points inside is degenerate, and says where it looked.
+  extent.max_m = {5, 5};
+  const DenseResult tiny = RunDenseHeights(DenseOptions{}, views, {{0, 1, 100}}, points, progress, extent);
+  EXPECT_EQ(tiny.report.status, StageStatus::kDegenerate);
+  EXPECT_NE(tiny.report.message.find("inside the tile extent"), std::string::npos) << tiny.report.message;
+}
+
+// A height range longer than max_heights steps (towers, hills) is swept in
+// coarser steps, not refused; the report says so. The scene's plateau and
+// ground are still found within the coarser step.
+TEST(Dense, ARangeBeyondMaxHeightsIsSweptInCoarserSteps) {
+  NullProgress progress;
+  const std::vector<DenseView> views = {TexturedView("v0", LookingDown(0, 0), 6.0, 8.0), TexturedView("v1", LookingDown(15, 90), 6.0, 8.0),
+                                        TexturedView("v2", LookingDown(20, 200), 6.0, 8.0)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-20, -20, 0}, {20, -20, 0}, {-20, 20, 0}, {20, 20, 6}, {0, 0, 6}};
+  DenseOptions o;
+  const DenseResult fine = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(fine.report.status, StageStatus::kOk) << fine.report.message;
+  EXPECT_EQ(fine.report.metrics.at("height_step_m"), o.height_step_m);
+  const int fine_heights = static_cast<int>(fine.report.metrics.at("heights"));
+  o.max_heights = fine_heights / 3;
+  const DenseResult coarse = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(coarse.report.status, StageStatus::kOk) << coarse.report.message;
+  const double step_m = coarse.report.metrics.at("height_step_m");
+  EXPECT_GT(step_m, 2.5 * o.height_step_m);
+  EXPECT_LE(coarse.report.metrics.at("heights"), o.max_heights);
+  EXPECT_NE(coarse.report.message.find("swept in steps of"), std::string::npos) << coarse.report.message;
+  const HeightGrid& g = coarse.grid;
+  auto height_at = [&](double x, double y) {
+    return g.height_m[g.Index(static_cast<int>(std::lround((x - g.x0_m) / g.cell_m)),
+                              static_cast<int>(std::lround((y - g.y0_m) / g.cell_m)))];
+  };
+  EXPECT_NEAR(height_at(0, 0), 6.0f, step_m);
+  EXPECT_NEAR(height_at(-3, 4), 6.0f, step_m);
+  EXPECT_NEAR(height_at(14, -12), 0.0f, step_m);
+  EXPECT_NEAR(height_at(-13, 15), 0.0f, step_m);
+}
+
+// A tiled roof: courses of dark tiles every 0.6 m, finer than the views'
+// 0.5 m pixels (point-sampled: each view aliases them into its own
+// pattern), over the ground's value noise stretched to a 2 m lattice and
+// at +-20 grey levels (the ground's: +-75). Over a 5-cell window the aliased courses
+// differ from view to view; blurred to 1.5 m cells they are gone and the
+// 2 m noise remains.
+float TiledRoofTexture(double x_m, double y_m) {
+  const float courses = std::fmod(std::abs(y_m), 0.6) < 0.12 ? -40.0f : 0.0f;
+  return 140.0f + courses + (20.0f / 75.0f) * (testing::GroundTexture(x_m / 2.0, y_m / 2.0) - 125.0f);
+}
+
+TEST(Dense, ATiledRoofNoFineWindowMatchesIsMeasuredAtTheCoarseScale) {
+  NullProgress progress;
+  constexpr double kRoofM = 6.0, kHalfM = 15.0;
+  constexpr int kSizePx = 160;  // 80 m of ground at 0.5 m
+  const std::vector<DenseView> views = {
+      TexturedView("v0", LookingDown(0, 0, kSizePx), kRoofM, kHalfM, TiledRoofTexture),
+      TexturedView("v1", LookingDown(15, 90, kSizePx), kRoofM, kHalfM, TiledRoofTexture),
+      TexturedView("v2", LookingDown(20, 200, kSizePx), kRoofM, kHalfM, TiledRoofTexture)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-30, -30, 0}, {30, -30, 0}, {-30, 30, 0}, {30, 30, 0}, {0, 0, kRoofM}};
+  DenseOptions o;
+  o.coarse_factor = 1;
+  const DenseResult fine_only = RunDenseHeights(o, views, pairs, points, progress);
+  o.coarse_factor = 3;
+  const DenseResult with_coarse = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(with_coarse.report.status, StageStatus::kOk) << with_coarse.report.message;
+  // Share of the cells in a region (of those the fine sweep did not measure,
+  // with only_filled) within tol_m of the true height.
+  auto share_within = [](const HeightGrid& g, auto&& in_region, double truth_m, double tol_m, bool only_filled) {
+    int n = 0, good = 0;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+        const std::size_t k = g.Index(i, j);
+        if (!in_region(x, y) || (only_filled && !g.filled[k])) continue;
+        ++n;
+        good += std::abs(g.height_m[k] - truth_m) <= tol_m;
+      }
+    return n > 0 ? static_cast<double>(good) / n : 0.0;
+  };
+  // The roof more than 4 m inside its edges, its middle 10 m, and the
+  // ground 4-12 m outside it.
+  auto inner_roof = [&](double x, double y) { return std::max(std::abs(x), std::abs(y)) <= kHalfM - 4; };
+  auto roof_middle = [&](double x, double y) { return std::max(std::abs(x), std::abs(y)) <= 5; };
+  auto ground_ring = [&](double x, double y) {
+    const double d = std::max(std::abs(x), std::abs(y));
+    return d >= kHalfM + 4 && d <= kHalfM + 12;
+  };
+  constexpr double kTolM = 0.5;  // two sweep steps
+  // The fine sweep alone leaves the roof to the filling, which takes the
+  // ground around it.
+  EXPECT_LT(share_within(fine_only.grid, inner_roof, kRoofM, kTolM, false), 0.05);
+  EXPECT_LT(share_within(fine_only.grid, roof_middle, kRoofM, kTolM, true), 0.05);
+  // With the coarse sweep the roof's middle is measured: the cells the fine
+  // sweep left empty take the roof's height. (A band of about 6 m inside
+  // the roof's edges stays to the filling: the ground's texture fattens
+  // over the roof's at the wide windows, and cells within two coarse cells
+  // of a step keep no coarse height. The cells the fine sweep matched
+  // wrongly, a third of the roof here, keep their heights.)
+  EXPECT_GT(share_within(with_coarse.grid, roof_middle, kRoofM, kTolM, true), 0.9);
+  EXPECT_GT(share_within(with_coarse.grid, inner_roof, kRoofM, kTolM, false), 0.3);
+  EXPECT_GT(with_coarse.report.metrics.at("coarse_fraction"), 0.05);
+  // The wide windows do not carry the roof onto the ground around it.
+  EXPECT_GE(share_within(with_coarse.grid, ground_ring, 0.0, kTolM, false),
+            share_within(fine_only.grid, ground_ring, 0.0, kTolM, false) - 0.01);
+}
+
+// A bright roof over darker ground, both textured: windows that straddle
+// the roof's edge match the roof's texture, so without the step decision a
+// band of ground about a window radius wide takes the roof's height (2 cells
+// on every side here; measured: 280-320 of the 327 cells 0.25-1.25 m outside
+// the edge on the roof's side, 49 with the decision).
+float BrightRoofTexture(double x_m, double y_m) {
+  return 205.0f + 0.25f * (testing::GroundTexture(x_m * 0.8 + 31.0, y_m * 0.8 - 17.0) - 125.0f);
+}
+
+// Views of the bright roof (`roof_m` high, kBrightRoofHalfM half-side) on
+// darker ground, their pairs and tie points.
+constexpr double kBrightRoofHalfM = 10.0;
+struct BrightRoofScene {
+  double roof_m;
+  std::vector<DenseView> views;
+  std::vector<DensePair> pairs;  // every pair of the views
+  std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}};
+  // The first `view_count` (at most 8) of the views below.
+  explicit BrightRoofScene(double roof_height_m = 12.0, int view_count = 4) : roof_m(roof_height_m) {
+    points.emplace_back(0, 0, roof_m);
+    const double zenith_deg[] = {0, 15, 20, 25, 15, 20, 25, 10}, azimuth_deg[] = {0, 90, 200, 320, 270, 30, 140, 180};
+    for (int a = 0; a < view_count; ++a)
+      for (int b = a + 1; b < view_count; ++b) pairs.push_back({a, b, 100});
+    for (int v = 0; v < view_count; ++v) {
+      views.push_back(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
+                                   roof_m, kBrightRoofHalfM, BrightRoofTexture));
+      // The ground darker than the roof (the plateau keeps its own texture).
+      DenseView& view = views.back();
+      const DenseView flat = TexturedView("g", view.camera, -1000.0, 0.0);  // ground everywhere
+      for (std::size_t k = 0; k < view.pixels.size(); ++k)
+        if (view.pixels[k] == flat.pixels[k]) view.pixels[k] = 0.6f * flat.pixels[k];
+    }
+  }
+};
+
+// Measured cells of `g` in a band of distances from the bright roof's edge
+// (positive outside) that are on the wrong side of the step (nearer the
+// other height), and how many were measured.
+struct StepBand {
+  int wrong = 0, measured = 0;
+};
+StepBand BrightRoofBand(const HeightGrid& g, double roof_m, double from_m, double to_m) {
+  StepBand b;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const double d = std::max(std::abs(g.x0_m + i * g.cell_m), std::abs(g.y0_m + j * g.cell_m)) - kBrightRoofHalfM;
+      const float h = g.height_m[g.Index(i, j)];
+      if (d < from_m || d >= to_m || !std::isfinite(h)) continue;
+      ++b.measured;
+      b.wrong += (d > 0) != (h < 0.5 * roof_m);
+    }
+  return b;
+}
+
+TEST(Dense, CellsBesideAStepTakeTheirOwnSide) {
+  NullProgress progress;
+  const BrightRoofScene scene;
+  const std::vector<DenseView>& views = scene.views;
+  const std::vector<DensePair>& pairs = scene.pairs;
+  const std::vector<Eigen::Vector3d>& points = scene.points;
+  DenseOptions o;
+  o.fill_holes = false;  // only what the sweep measured
+  o.refine_steps = false;
+  const DenseResult plain = RunDenseHeights(o, views, pairs, points, progress);
+  o.refine_steps = true;
+  const DenseResult refined = RunDenseHeights(o, views, pairs, points, progress);
+  ASSERT_EQ(refined.report.status, StageStatus::kOk) << refined.report.message;
+  EXPECT_GT(refined.report.metrics.at("step_changed_fraction"), 0.0);
+  auto band = [&](const HeightGrid& g, double from_m, double to_m) { return BrightRoofBand(g, scene.roof_m, from_m, to_m); };
+  // Ground 0.25-2 m outside the edge: the fattened band.
+  const StepBand ground_plain = band(plain.grid, 0.25, 2.0), ground_refined = band(refined.grid, 0.25, 2.0);
+  ASSERT_GT(ground_plain.measured, 100);
+  ASSERT_GT(ground_plain.wrong, ground_plain.measured / 4) << "the scene no longer fattens the roof";
+  EXPECT_LT(ground_refined.wrong, ground_plain.wrong / 4);
+  // The roof's own rim (within 2 m inside the edge) stays roof.
+  const StepBand rim_plain = band(plain.grid, -2.0, -0.25), rim_refined = band(refined.grid, -2.0, -0.25);
+  EXPECT_LE(rim_refined.wrong, rim_plain.wrong + rim_plain.measured / 50);
+  // Away from the step nothing changes.
+  const StepBand far_plain = band(plain.grid, 4.0, 100.0), far_refined = band(refined.grid, 4.0, 100.0);
+  EXPECT_EQ(far_refined.wrong, far_plain.wrong);
+  EXPECT_EQ(far_refined.measured, far_plain.measured);
+}
+
+// One band view of two buildings (boxes with textured roofs and walls)
+// either side of a narrow street running north-south, on textured ground:
+// rays stop at the first roof, wall or ground they meet.
+DenseView TwoBuildingsView(const std::string& name, const PinholeCamera& camera, double street_half_m,
+                           double building_m) {
+  DenseView v = testing::UniformView(name, camera, 0.0f);
+  const Eigen::Vector3d centre = camera.Centre();
+  const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
+  const double boxes[2][4] = {{-street_half_m - 12, -12, -street_half_m, 12}, {street_half_m, -12, street_half_m + 12, 12}};
+  for (int row = 0; row < v.height_px; ++row)
+    for (int col = 0; col < v.width_px; ++col) {
+      const Eigen::Vector3d ray =
+          world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
+      double t_hit = -centre.z() / ray.z();  // the ground
+      int face = 0;                          // 0 ground, 1 roof, 2 wall
+      for (const auto& b : boxes) {
+        // Slab intersection with the box [b0, b2] x [b1, b3] x [0, building_m].
+        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+        int entry_axis = -1;
+        const double lo[3] = {b[0], b[1], 0.0}, hi[3] = {b[2], b[3], building_m};
+        bool miss = false;
+        for (int a = 0; a < 3 && !miss; ++a) {
+          double ta = (lo[a] - centre[a]) / ray[a], tb = (hi[a] - centre[a]) / ray[a];
+          if (ta > tb) std::swap(ta, tb);
+          if (ta > t0) {
+            t0 = ta;
+            entry_axis = a;
+          }
+          t1 = std::min(t1, tb);
+          miss = t0 > t1;
+        }
+        if (!miss && t0 < t_hit) {
+          t_hit = t0;
+          face = entry_axis == 2 ? 1 : 2;
+        }
+      }
+      const Eigen::Vector3d p = centre + t_hit * ray;
+      float grey = testing::GroundTexture(p.x(), p.y());
+      if (face == 1) grey = 0.8f * testing::GroundTexture(p.x() + 50.0, p.y() - 40.0) + 40.0f;
+      if (face == 2) grey = 0.5f * testing::GroundTexture(p.x() + p.y(), p.z()) + 20.0f;
+      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = grey;
+    }
+  return v;
+}
+
+// A 4 m street between two 20 m buildings: only the views along it see its
+// floor, so the first sweep (all pairs) leaves much of it to the filling,
+// which takes the roofs. If that filling hides the street in the visibility
+// pass, no view sees the street's floor there and it stays a roof.
+TEST(Dense, AStreetBetweenRoofsIsNotHiddenByItsOwnFilling) {
+  NullProgress progress;
+  constexpr double kStreetHalfM = 2.0, kBuildingM = 20.0;
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 12, 18, 22, 15, 10}, azimuth_deg[] = {0, 90, 270, 0, 180, 180};
+  for (int v = 0; v < 6; ++v)
+    views.push_back(TwoBuildingsView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
+                                     kStreetHalfM, kBuildingM));
+  std::vector<DensePair> pairs;
+  for (int a = 0; a < 6; ++a)
+    for (int b = a + 1; b < 6; ++b) pairs.push_back({a, b, 100});
+  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
+  auto street_share = [&](bool fill_seen_holes, double* roof_share) {
+    DenseOptions o;
+    o.visibility_fill_seen_holes = fill_seen_holes;
+    const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
+    EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+    const HeightGrid& g = r.grid;
+    int n = 0, ground = 0, roof = 0;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+        if (std::abs(x) > kStreetHalfM - 0.5 || std::abs(y) > 8) continue;  // the street's middle, between the roofs
+        ++n;
+        ground += std::abs(g.height_m[g.Index(i, j)]) <= 1.0f;
+        roof += g.height_m[g.Index(i, j)] > 0.5f * kBuildingM;
+      }
+    *roof_share = static_cast<double>(roof) / n;
+    return static_cast<double>(ground) / n;
+  };
+  double roof_hidden = 0, roof_open = 0;
+  const double hidden = street_share(true, &roof_hidden), open = street_share(false, &roof_open);
+  // Measured: with the filled holes hiding, 74.9% of the street's middle at
+  // the ground and 25.1% at the roofs; without, 84.4% and 15.6%.
+  ASSERT_GT(roof_hidden, 0.15) << "the scene no longer fills its street at the roofs' height";
+  EXPECT_GE(open, hidden + 0.05);
+  EXPECT_LE(roof_open, roof_hidden - 0.05);
+}
+
+// A 20 m roof, textured but for a plain patch 2 m inside its east edge:
+// no window there correlates, and with the rim and enclosure rules off the fill takes the
+// ground within reach beyond the edge for the patch. Scored at the ground
+// and at the roof with adaptive support weights (whose window reaches the
+// roof's texture around the patch), the patch matches the roof clearly
+// better and takes it; the roof around and the ground are left as they are.
+float RoofWithPlainPatch(double x_m, double y_m) {
+  if (x_m >= 4.0 && x_m <= 10.0 && std::abs(y_m) <= 3.0) return 120.0f;
+  return 0.8f * testing::GroundTexture(x_m + 50.0, y_m - 40.0) + 40.0f;
+}
+
+TEST(Dense, FilledCellsTakeTheSideTheViewsMatchBetter) {
+  NullProgress progress;
+  constexpr double kRoofM = 20.0, kRoofHalfM = 12.0;
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 15, 20, 25, 15, 20, 25, 10}, azimuth_deg[] = {0, 90, 200, 320, 270, 30, 140, 180};
+  for (int v = 0; v < 8; ++v)
+    views.push_back(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128), kRoofM,
+                                 kRoofHalfM, RoofWithPlainPatch));
+  std::vector<DensePair> pairs;
+  for (int a = 0; a < 8; ++a)
+    for (int b = a + 1; b < 8; ++b) pairs.push_back({a, b, 100});
+  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {0, 0, kRoofM}};
+  struct Counts {
+    int patch = 0, patch_roof = 0, elsewhere_changed = 0;
+    double changed = 0;
+  };
+  auto run = [&](bool decide, const HeightGrid* compare) {
+    DenseOptions o;
+    o.coarse_factor = 1;             // the patch stays a hole
+    o.fill_roof_rim_fraction = 0.0;  // and the fill takes the ground within reach
+    o.fill_roof_enclosed = false;    // (the patch is enclosed by roof)
+    o.decide_filled_sides = decide;
+    const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
+    EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+    const HeightGrid& g = r.grid;
+    Counts c;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+        const float h = g.height_m[g.Index(i, j)];
+        if (x >= 5.0 && x <= 9.0 && std::abs(y) <= 2.0) {  // the patch, a window's radius off its edge
+          ++c.patch;
+          c.patch_roof += std::abs(h - kRoofM) <= 1.0f;
+        } else if (compare && std::max(std::abs(x), std::abs(y)) < 20.0) {
+          const float before = compare->height_m[compare->Index(i, j)];
+          c.elsewhere_changed += !(std::abs(h - before) <= 1.0f) && !(std::isnan(h) && std::isnan(before));
+        }
+      }
+    c.changed = r.report.metrics.at("filled_sides_changed_fraction");
+    return std::make_pair(c, g);
+  };
+  const auto [rules, rules_grid] = run(false, nullptr);
+  const auto [decided, decided_grid] = run(true, &rules_grid);
+  // Measured: 34 of the patch's 81 cells at the roof by the rules, 72
+  // decided, nothing changed elsewhere. The bar, three quarters, leaves
+  // room for cells a SIMD path's rounding may move.
+  ASSERT_LT(rules.patch_roof, rules.patch / 2) << "the fill no longer takes the ground for the patch";
+  EXPECT_EQ(rules.changed, 0.0);
+  EXPECT_GT(decided.changed, 0.0);
+  EXPECT_GE(decided.patch_roof, rules.patch * 3 / 4);
+  EXPECT_EQ(decided.elsewhere_changed, 0);
+}
+
+// Windows straddling the bright roof's edge give a band of ground beside it
+// the roof's height. Counted as occluders in the visibility pass, the
+// band's cells hid the ground under them from every view (from the views
+// beyond the roof by the roof, from the others by the band itself), so the
+// ground had no pair to score it and the roof kept the band.
+TEST(Dense, TheFattenedBandBesideAStepDoesNotHideItsOwnGround) {
+  NullProgress progress;
+  const BrightRoofScene scene(25.0, 8);
+  auto measured = [&](int near_cells) {
+    DenseOptions o;
+    o.fill_holes = false;  // only what the sweeps measured
+    o.visibility_near_cells = near_cells;
+    const DenseResult r = RunDenseHeights(o, scene.views, scene.pairs, scene.points, progress);
+    EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+    return r.grid;
+  };
+  const HeightGrid every_cell_hides = measured(0), window_does_not = measured(-1);
+  // Ground 0.25-2 m outside the edge. Measured: 241 of 527 cells at the
+  // roof's height with every cell hiding, 192 of 525 past the window's
+  // radius. The bar, a tenth fewer, leaves room for the few cells a SIMD
+  // path's rounding may move.
+  const StepBand before = BrightRoofBand(every_cell_hides, scene.roof_m, 0.25, 2.0);
+  const StepBand after = BrightRoofBand(window_does_not, scene.roof_m, 0.25, 2.0);
+  ASSERT_GT(before.wrong, before.measured / 3) << "the scene no longer fattens the roof";
+  EXPECT_LE(after.wrong, 0.9 * before.wrong);
+  // The roof's own rim stays roof, and away from the step nothing changes.
+  EXPECT_EQ(BrightRoofBand(window_does_not, scene.roof_m, -2.0, -0.25).wrong,
+            BrightRoofBand(every_cell_hides, scene.roof_m, -2.0, -0.25).wrong);
+  EXPECT_EQ(BrightRoofBand(window_does_not, scene.roof_m, 4.0, 100.0).wrong, 0);
+}
+
+TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
+  // The sweep's kernels run the same float operations per cell at every
+  // width and reorder no sum (window sums run in the same order; the only
+  // reduction across heights is a minimum), but the wider paths may fuse
+  // multiply-adds (GCC contracts them in C++ by default), which rounds once
+  // instead of twice. Costs are means of 1 - NCC over 25-cell window sums of
+  // values near 1, so a few roundings of 6e-8 each: within 1e-5 (AVX2
+  // measured 7.5e-6). Heights: the parabola through three aggregated costs
+  // moves with them; within 1e-3 m, 1/250 of the sweep step (AVX2 measured
+  // 6.6e-5 m), and the same cells must have a height.
+  constexpr double kCostTol = 1e-5, kHeightTolM = 1e-3;
+  NullProgress progress;
+  const std::vector<DenseView> views = {TexturedView("v0", LookingDown(0, 0), 6.0, 8.0), TexturedView("v1", LookingDown(15, 90), 6.0, 8.0),
+                                        TexturedView("v2", LookingDown(20, 200), 6.0, 8.0),
+                                        TexturedView("v3", LookingDown(25, 320), 6.0, 8.0)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {0, 3, 100}, {1, 2, 100}, {2, 3, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-20, -20, 0}, {20, -20, 0}, {-20, 20, 0}, {20, 20, 6}, {0, 0, 6}};
+  const SimdPath active = ActiveSimdPath();
+  SetSimdPath(SimdPath::kBaseline);
+  const DenseResult base = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  ASSERT_EQ(base.report.status, StageStatus::kOk) << base.report.message;
+  // The scene itself is recovered (so the comparison is of a working sweep):
+  // the plateau's inner cells at 6 m, the ground's at 0 m, within a sweep step.
+  const HeightGrid& g = base.grid;
+  auto height_at = [&](double x, double y) {
+    return g.height_m[g.Index(static_cast<int>(std::lround((x - g.x0_m) / g.cell_m)),
+                              static_cast<int>(std::lround((y - g.y0_m) / g.cell_m)))];
+  };
+  const float step = static_cast<float>(DenseOptions{}.height_step_m);
+  EXPECT_NEAR(height_at(0, 0), 6.0f, step);
+  EXPECT_NEAR(height_at(-3, 4), 6.0f, step);
+  EXPECT_NEAR(height_at(14, -12), 0.0f, step);
+  EXPECT_NEAR(height_at(-13, 15), 0.0f, step);
+  for (SimdPath path : SupportedSimdPaths()) {
+    SetSimdPath(path);
+    const DenseResult r = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+    ASSERT_EQ(r.grid.height_m.size(), g.height_m.size());
+    std::size_t differ = 0;
+    double max_cost_diff = 0, max_height_diff_m = 0;
+    for (std::size_t k = 0; k < g.height_m.size(); ++k) {
+      const float a = g.height_m[k], b = r.grid.height_m[k];
+      if (std::isnan(a) != std::isnan(b)) ++differ;
+      if (!std::isnan(a) && !std::isnan(b)) max_height_diff_m = std::max(max_height_diff_m, std::abs(double{a} - b));
+      max_cost_diff = std::max(max_cost_diff, std::abs(double{g.cost[k]} - r.grid.cost[k]));
+    }
+    EXPECT_EQ(differ, 0u) << SimdPathName(path) << ": cells with a height on one path only";
+    EXPECT_LE(max_cost_diff, kCostTol) << SimdPathName(path);
+    EXPECT_LE(max_height_diff_m, kHeightTolM) << SimdPathName(path);
+  }
+  SetSimdPath(active);
+}
+
+}  // namespace
+}  // namespace skyfall

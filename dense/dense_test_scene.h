@@ -1,0 +1,89 @@
+// Scenes for the dense sweep's tests and benchmark: satellite-like pinhole
+// views of textured ground with a raised square plateau, drawn exactly.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdint>
+#include <string>
+
+#include "core/pinhole.h"
+#include "dense/dense.h"
+
+namespace skyfall::testing {
+
+// A camera 600 km from the origin looking at it, at `zenith_deg` from the
+// vertical towards azimuth `azimuth_deg`, with `size_px` square pixels of
+// `gsd_m` at the ground.
+inline PinholeCamera LookingDown(double zenith_deg, double azimuth_deg, int size_px = 128, double gsd_m = 0.5) {
+  const double z = zenith_deg * M_PI / 180, a = azimuth_deg * M_PI / 180;
+  const Eigen::Vector3d centre = 6e5 * Eigen::Vector3d(std::sin(z) * std::sin(a), std::sin(z) * std::cos(a), std::cos(z));
+  const Eigen::Vector3d forward = -centre.normalized();
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized().eval();
+  const Eigen::Vector3d right_or_east = right.norm() > 0.5 ? right : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d down = forward.cross(right_or_east);
+  PinholeCamera c;
+  c.cam_from_world_rotation.row(0) = right_or_east;
+  c.cam_from_world_rotation.row(1) = down;
+  c.cam_from_world_rotation.row(2) = forward;
+  c.cam_from_world_translation = -c.cam_from_world_rotation * centre;
+  c.fx = c.fy = 6e5 / gsd_m;
+  c.cx = c.cy = 0.5 * (size_px - 1);
+  c.width_px = c.height_px = size_px;
+  return c;
+}
+
+// Value noise on a 1 m lattice, bilinear between lattice points: texture
+// without repeats, so each height has one best match. Grey levels 50-200.
+inline float GroundTexture(double x_m, double y_m) {
+  auto lattice = [](long i, long j) {
+    std::uint32_t h = static_cast<std::uint32_t>(i * 73856093L ^ j * 19349663L);
+    h ^= h >> 13;
+    h *= 0x5bd1e995u;
+    h ^= h >> 15;
+    return static_cast<float>(h % 1000u) / 1000.0f;
+  };
+  const double fx = std::floor(x_m), fy = std::floor(y_m);
+  const long i = static_cast<long>(fx), j = static_cast<long>(fy);
+  const float u = static_cast<float>(x_m - fx), v = static_cast<float>(y_m - fy);
+  const float top = lattice(i, j) + u * (lattice(i + 1, j) - lattice(i, j));
+  const float bottom = lattice(i, j + 1) + u * (lattice(i + 1, j + 1) - lattice(i, j + 1));
+  return 50.0f + 150.0f * (top + v * (bottom - top));
+}
+
+// A one-band view of the camera's size, every pixel `grey`.
+inline DenseView UniformView(const std::string& name, const PinholeCamera& camera, float grey) {
+  DenseView v;
+  v.name = name;
+  v.camera = camera;
+  v.width_px = camera.width_px;
+  v.height_px = camera.height_px;
+  v.bands = 1;
+  v.pixels.assign(static_cast<std::size_t>(v.width_px) * v.height_px, grey);
+  return v;
+}
+
+// A one-band view of textured ground at 0 m with a square plateau of
+// half-side `plateau_half_m` at `plateau_m` (its walls are not drawn: what
+// matters is texture at two heights), the plateau's texture
+// `plateau_texture` (the ground's by default).
+inline DenseView TexturedView(const std::string& name, const PinholeCamera& camera, double plateau_m,
+                              double plateau_half_m, float (*plateau_texture)(double, double) = GroundTexture) {
+  DenseView v = UniformView(name, camera, 0.0f);
+  const Eigen::Vector3d centre = camera.Centre();
+  const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
+  for (int row = 0; row < v.height_px; ++row)
+    for (int col = 0; col < v.width_px; ++col) {
+      const Eigen::Vector3d ray =
+          world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
+      const Eigen::Vector3d top = centre + ray * ((plateau_m - centre.z()) / ray.z());
+      const bool on_plateau = std::abs(top.x()) <= plateau_half_m && std::abs(top.y()) <= plateau_half_m;
+      const Eigen::Vector3d hit = on_plateau ? top : Eigen::Vector3d(centre + ray * (-centre.z() / ray.z()));
+      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] =
+          on_plateau ? plateau_texture(hit.x(), hit.y()) : GroundTexture(hit.x(), hit.y());
+    }
+  return v;
+}
+
+}  // namespace skyfall::testing

@@ -1,0 +1,663 @@
+// The option registry: every option of a run, declared once, with its key
+// and help, in the order --print-config writes them. Included by
+// run_options.cpp only.
+#pragma once
+
+#include "pipeline/run_options.h"
+
+namespace skyfall {
+
+// Every options struct is described once, by a Visit() that names each
+// field: io(key, field, help). The same description writes
+// JSON and reads it strictly (Writer, Reader), lists every option with its
+// default and unit for the docs (Describer), and proves itself complete
+// (Coverage: every byte of RunOptions is a listed field, a field marked
+// io.NotAnOption(field) with the reason beside it, or padding). Defaults are
+// the structs' own initializers; units are the names' suffixes (UnitOfKey).
+
+template <class IO> void Visit(IO& io, RadiometryOptions& o) {
+  io("low_percentile", o.low_percentile,
+     "The raw value at this fraction of an image's valid pixels maps to 0");
+  io("high_percentile", o.high_percentile,
+     "The raw value at this fraction of an image's valid pixels maps to 1");
+  io("stretch_byte", o.stretch_byte,
+     "Also stretch Byte images between the percentiles (off: their 0-255 values map to 0-1 as they are; other data "
+     "types are always stretched)");
+  io("max_sample_px", o.max_sample_px,
+     "The percentiles come from a decimated read of at most this many pixels");
+}
+template <class IO> void Visit(IO& io, IngestOptions& o) {
+  io.NotAnOption(o.aois);  // which AOIs is part of the request, not of the options
+  io("verify_pixels", o.verify_pixels,
+     "Read every pixel once at ingest, so that corrupt rasters are found early");
+  io("radiometry", o.radiometry);
+  io("height_margin_m", o.height_margin_m,
+     "Margin added on both sides of the height range given by the truth DSM or the Sat-NeRF JSONs");
+  io("rpc_height_half_range_m", o.rpc_height_half_range_m,
+     "Half-width of the height range around the RPC's HEIGHT_OFF when only the RPC is known (at most its "
+     "HEIGHT_SCALE)");
+  io("nominal_orbit_height_m", o.nominal_orbit_height_m,
+     "Orbit height assumed for each image's off-nadir angle");
+  io("view_ray_height_step_m", o.view_ray_height_step_m,
+     "Vertical separation of the two points that define each image's viewing ray");
+}
+template <class IO> void Visit(IO& io, TilingOptions& o) {
+  io("tile_m", o.tile_m,
+     "Tile core side; 0: sized by the imagery (a multiple of 256 m holding about tile_px pixels of the finest image)");
+  io("tile_px", o.tile_px,
+     "What an automatic tile (tile_m 0) holds along a side, in pixels of the finest image");
+  io("overlap_m", o.overlap_m,
+     "Overlap margin around each tile's core");
+  io("min_coverage", o.min_coverage,
+     "An image is used for a tile when at least this fraction of the tile's 3D box (extent x height range) projects "
+     "inside it");
+  io("min_images", o.min_images,
+     "A tile seen by fewer images is kept empty and skipped");
+  io("city", o.city,
+     "Name of the city (empty = the AOI's name, or the AOIs' common prefix)");
+}
+template <class IO> void Visit(IO& io, PinholeFitOptions& o) {
+  io("grid_cols", o.grid_cols,
+     "Columns of the image-space grid of RPC correspondences the pinhole camera is fitted to (edges included)");
+  io("grid_rows", o.grid_rows,
+     "Rows of the fit grid (edges included)");
+  io("grid_heights", o.grid_heights,
+     "Heights of the fit grid, spread across the height range");
+  io("check_cols", o.check_cols,
+     "Columns of the check grid (the cell centres of a finer grid) on which the fit's error against the RPC is "
+     "measured");
+  io("check_rows", o.check_rows,
+     "Rows of the check grid");
+  io("check_heights", o.check_heights,
+     "Heights of the check grid");
+  io("hartley_normalization", o.hartley_normalization,
+     "Normalize both point sets (Hartley) before the DLT; without it the DLT loses most of its precision");
+  io("refine", o.refine,
+     "Refine the DLT's camera by nonlinear least squares");
+  io("estimate_skew", o.estimate_skew,
+     "Let the skew K(0,1) vary during the refinement");
+}
+template <class IO> void Visit(IO& io, FeatureOptions& o) {
+  io("max_features", o.max_features,
+     "Strongest SIFT keypoints kept per image");
+  io("contrast_threshold", o.contrast_threshold,
+     "SIFT contrast threshold (OpenCV's default is 0.04; satellite crops are low in contrast)");
+  io("ratio", o.ratio,
+     "Lowe's ratio test: a match is kept when its descriptor distance is below this fraction of the second best's");
+  io("clahe_clip", o.clahe_clip,
+     "CLAHE clip limit, applied after the percentile stretch");
+  io("stretch_low", o.stretch_low,
+     "Percentile, as a fraction, of the grey image mapped to 0 before CLAHE");
+  io("stretch_high", o.stretch_high,
+     "Percentile, as a fraction, of the grey image mapped to 255 before CLAHE");
+}
+// The verification's height range comes from each catalog, so only its
+// tolerances are options.
+template <class IO> void Visit(IO& io, VerifyOptions& o) {
+  io.NotAnOption(o.min_up);  // the height range comes from each catalog
+  io.NotAnOption(o.max_up);
+  io("min_threshold_px", o.min_threshold_px,
+     "Smallest accepted distance of a match from its epipolar line");
+  io("mad_factor", o.mad_factor,
+     "The epipolar threshold is max(min_threshold_px, this x 1.4826 x the median absolute deviation of the pair's "
+     "distances)");
+  io("segment_slack", o.segment_slack,
+     "Overshoot allowed beyond the ends of the epipolar segment of the height range, as a fraction of its length");
+  io("height_pad_m", o.height_pad_m,
+     "Added above and below the AOI's height range, so that tie points on what stands around the AOI are kept");
+}
+template <class IO> void Visit(IO& io, BundleOptions& o) {
+  io("huber_px", o.huber_px,
+     "Scale of the Huber robust loss on reprojection errors");
+  io("offset_prior_sigma_px", o.offset_prior_sigma_px,
+     "Standard deviation of the prior that keeps each image's offset near zero");
+  io("max_iterations", o.max_iterations,
+     "Most solver iterations per bundle adjustment round");
+}
+template <class IO> void Visit(IO& io, SfmOptions& o) {
+  io("pinhole", o.pinhole);
+  io("features", o.features);
+  io("verify", o.verify);
+  io("bundle", o.bundle);
+  io("min_matches_per_pair", o.min_matches_per_pair,
+     "Verified matches an image pair needs to count");
+  io("min_observations_per_image", o.min_observations_per_image,
+     "An image with fewer tie-point observations is left out");
+  io("max_reprojection_before_ba_px", o.max_reprojection_before_ba_px,
+     "Points that reproject worse than this before bundle adjustment are dropped (RPC biases reach tens of pixels)");
+  io("max_reprojection_after_ba_px", o.max_reprojection_after_ba_px,
+     "Outlier cut on the reprojection error between bundle adjustment rounds");
+  io("min_triangulation_angle_deg", o.min_triangulation_angle_deg,
+     "Points triangulated from rays meeting at a smaller angle are dropped");
+  io("ba_rounds", o.ba_rounds,
+     "Bundle adjustment rounds, with an outlier cut between them");
+  io("anchor_image", o.anchor_image,
+     "What fixes the absolute position: empty = the robust average of all images' RPCs; else the name of one image "
+     "whose RPC fixes the horizontal position (a tile without it falls back to the average)");
+}
+template <class IO> void Visit(IO& io, DenseOptions& o) {
+  io("cell_m", o.cell_m,
+     "Height grid cell; 0 = automatic from the imagery (0.5 m for sub-metre sensors, else the multiple of 0.5 m "
+     "nearest the finest view's GSD)");
+  io("height_step_m", o.height_step_m,
+     "Step between the candidate heights of the plane sweep");
+  io("height_margin_m", o.height_margin_m,
+     "Added beyond the tie points' height percentiles to form the sweep's height range");
+  io("height_percentile", o.height_percentile,
+     "Tie-point heights outside the [p, 1-p] percentiles are ignored for the height range");
+  io("max_heights", o.max_heights,
+     "Most candidate heights per sweep; longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)");
+  io("window_cells", o.window_cells,
+     "Side of the NCC window, odd");
+  io("max_pairs", o.max_pairs,
+     "Image pairs used, most verified tie points first");
+  io("min_pair_matches", o.min_pair_matches,
+     "Verified tie points an image pair needs to be considered");
+  io("min_pair_angle_deg", o.min_pair_angle_deg,
+     "Pairs with a smaller intersection angle are not used (heights too weakly constrained)");
+  io("max_pair_angle_deg", o.max_pair_angle_deg,
+     "Pairs with a larger intersection angle are not used (views too different to correlate)");
+  io("cost_truncation", o.cost_truncation,
+     "Each pair's matching cost (1 - NCC) is capped at this value");
+  io("min_std", o.min_std,
+     "Window standard deviation (of the normalized image) below which NCC is undefined and the pair adds the capped "
+     "cost");
+  io("sgm_p1", o.sgm_p1,
+     "SGM penalty for a one-step height change between neighbouring cells, in cost units");
+  io("sgm_p2", o.sgm_p2,
+     "SGM penalty for a larger height change (walls), in cost units");
+  io("max_cost", o.max_cost,
+     "Cells whose matching cost at the chosen height exceeds this get no height");
+  io("max_median_deviation_m", o.max_median_deviation_m,
+     "Cells further than this from their 3x3 median get no height (speckle)");
+  io("fill_holes", o.fill_holes,
+     "Fill cells without a height from their surroundings and the terrain model (filled cells are flagged)");
+  io("coarse_factor", o.coarse_factor,
+     "Before filling, holes get a second sweep on a grid this many times coarser, on images blurred to it; 1 = off");
+  io("coarse_window_cells", o.coarse_window_cells,
+     "NCC window side of the coarse sweep, in coarse cells, odd");
+  io("visibility_fill_seen_holes", o.visibility_fill_seen_holes,
+     "In the visibility pass, filled holes that the views see also hide what is behind them (off: only the measured "
+     "surface and the occluded ground do)");
+  io("refine_steps", o.refine_steps,
+     "Decide cells within step_reach_cells of a step again, between the step's low and high side, with adaptive "
+     "support weights");
+  io("step_pull_run_cells", o.step_pull_run_cells,
+     "After filling, a cell whose next this many cells in one of 8 directions are all matched ground more than "
+     "step_pull_min_m lower takes their median; 0 = off");
+  io("step_pull_min_m", o.step_pull_min_m,
+     "How much lower the cells beyond a step must lie for step_pull_run_cells to pull the step back");
+  io("step_min_m", o.step_min_m,
+     "A rise beyond this within step_reach_cells is a step (for refine_steps and decide_filled_sides)");
+  io("step_reach_cells", o.step_reach_cells,
+     "Width of the band beside a step that is decided again");
+  io("support_radius_cells", o.support_radius_cells,
+     "Radius of the adaptive support-weight window");
+  io("support_grey_sigma", o.support_grey_sigma,
+     "Grey difference at which a cell's support weight falls to 1/e (on grey scaled so that its 99th percentile is "
+     "1)");
+  io("step_cost_margin", o.step_cost_margin,
+     "A cell changes side only when the other side's cost is lower by this much (and at most max_cost)");
+  io("decide_filled_sides", o.decide_filled_sides,
+     "After filling, score each filled cell at the ground and at a roof, and let it take the other side where that "
+     "matches clearly better");
+  io("fill_radius_m", o.fill_radius_m,
+     "A seen hole takes the lowest height above the ground within this distance (doubled while nothing is in reach)");
+  io("fill_roof_rim_fraction", o.fill_roof_rim_fraction,
+     "A seen hole whose rim of measured cells is at least this share roof takes the roof, even with ground in reach; "
+     "0 = off");
+  io("fill_roof_rim_occluded", o.fill_roof_rim_occluded,
+     "The roof-rim rule also counts holes whose ground no pair sees (a hole in the middle of a roof)");
+  io("fill_roof_enclosed", o.fill_roof_enclosed,
+     "A hole cell enclosed by roof on all sides takes the roof, even where its hole reaches hidden ground beyond the "
+     "roof's edge");
+  io("fill_far_raised_ground", o.fill_far_raised_ground,
+     "A seen hole cell with nothing measured within fill_radius_m, whose lowest measured neighbour further out is "
+     "raised, takes the ground");
+  io("fill_seen_ground_terrain", o.fill_seen_ground_terrain,
+     "A seen hole cell whose lowest measured neighbour in reach is ground takes the terrain model's height");
+  io("fill_edge_hides", o.fill_edge_hides,
+     "Ground whose ray toward a view leaves the grid counts as hidden from that view (the city goes on beyond the "
+     "grid)");
+  io("floating_patch_max_m2", o.floating_patch_max_m2,
+     "Before filling, patches of matched cells smaller than this that stand wholly more than "
+     "floating_patch_min_rise_m above the terrain model become holes; 0 = off");
+  io("floating_patch_min_rise_m", o.floating_patch_min_rise_m,
+     "Height above the terrain model beyond which a small patch counts as floating (see floating_patch_max_m2)");
+  io("max_fill_reach_m", o.max_fill_reach_m,
+     "Cells further than this from every measured cell stay empty");
+  io("fill_ground_radius_m", o.fill_ground_radius_m,
+     "Radius of the morphological opening that gives the ground surface (larger than half the widest building)");
+  io("fill_ground_max_rise_m", o.fill_ground_max_rise_m,
+     "Where the ground surface stands more than this above the opening of twice fill_ground_radius_m, it holds roofs "
+     "only and the terrain model spans it; 0 = off");
+  io("fill_ground_tolerance_m", o.fill_ground_tolerance_m,
+     "Measured cells at most this far above the ground surface are ground and shape the terrain model");
+  io("visibility_pass", o.visibility_pass,
+     "Run a second sweep that scores each height only with the pairs whose two views see that point");
+  io("visibility_tolerance_m", o.visibility_tolerance_m,
+     "A point counts as seen when the first surface rises at most this much above its ray toward the camera");
+  io("visibility_near_cells", o.visibility_near_cells,
+     "Surface cells this near a cell along the ray do not hide it; -1 = the NCC window's radius, 0 = every cell "
+     "hides");
+  io("visibility_prior_pairs", o.visibility_prior_pairs,
+     "In the visibility pass, each height's mean cost is taken as if this many more pairs had added the capped cost");
+}
+template <class IO> void Visit(IO& io, PseudoCameraOptions& o) {
+  io("radius_m", o.radius_m,
+     "Distance of a pseudo camera from its look-at point");
+  io("look_at_sigma_m", o.look_at_sigma_m,
+     "Standard deviation of the look-at points' horizontal offset from the scene centre (also for the surface "
+     "anchor's nadir patches)");
+  io("min_elevation_deg", o.min_elevation_deg,
+     "Lowest elevation of a pseudo camera (azimuths are random)");
+  io("max_elevation_deg", o.max_elevation_deg,
+     "Highest elevation of a pseudo camera");
+  io("size_px", o.size_px,
+     "Side of a pseudo view (square)");
+  io("fov_deg", o.fov_deg,
+     "Field of view of a pseudo camera");
+}
+template <class IO> void Visit(IO& io, AppearanceOptions& o) {
+  io.NotAnOption(o.enabled);  // decided by train.appearance
+  io("model", o.model,
+     "'mlp' (the paper's MLP on both embeddings and the colour) or 'bilinear' (a cheaper MLP on the image embedding "
+     "alone)");
+  io("image_dim", o.image_dim,
+     "Size of the per-image embedding");
+  io("gaussian_dim", o.gaussian_dim,
+     "Size of the per-Gaussian embedding");
+  io("hidden", o.hidden,
+     "Width of the MLP's hidden layers");
+  io("lr_image", o.lr_image,
+     "Adam learning rate of the per-image embeddings");
+  io("lr_gaussian", o.lr_gaussian,
+     "Adam learning rate of the per-Gaussian embeddings");
+  io("lr_mlp", o.lr_mlp,
+     "Adam learning rate of the MLP's weights");
+  io("init_std", o.init_std,
+     "Standard deviation of the embeddings' random start, N(0, init_std^2)");
+}
+template <class IO> void Visit(IO& io, RasterOptions& o) {
+  io.NotAnOption(o.median_depth);  // an output choice of each caller
+  io("tile_px", o.tile_px,
+     "Side of the square screen tiles the Gaussians are binned into");
+  io("min_alpha", o.min_alpha,
+     "Contributions with a smaller alpha are skipped");
+  io("max_alpha", o.max_alpha,
+     "Alpha is clamped to this, which keeps transmittance invertible");
+  io("min_transmittance", o.min_transmittance,
+     "A pixel stops blending once its transmittance falls below this");
+  io("dilation_px2", o.dilation_px2,
+     "Added to the diagonal of each projected 2D covariance (anti-aliasing)");
+  io("near_m", o.near_m,
+     "Gaussians closer than this to the camera plane are culled");
+  io("guard_band", o.guard_band,
+     "Gaussians whose centre projects further than this fraction of the image size beyond its edges are culled");
+  io("sigma_extent", o.sigma_extent,
+     "A Gaussian blends the pixels within this many standard deviations (Mahalanobis)");
+  io("sh_degree", o.sh_degree,
+     "Degree of the spherical-harmonics colours: 0 or 1");
+  io("background", o.background,
+     "Colour behind the Gaussians: red, green, blue, each in [0, 1]");
+}
+template <class IO> void Visit(IO& io, TrainStageOptions& o) {
+  TrainOptions& t = o.optimizer;
+  // Set by the synthesis stage for its episodes from idu.* (IduOptions).
+  io.NotAnOption(t.synthetic_fraction);
+  io.NotAnOption(t.lambda_view_depth);
+  io.NotAnOption(t.anchor_synthetic_views);
+  io.NotAnOption(t.fixed_geometry_count);
+  io("iterations", t.iterations,
+     "Splat training steps per tile");
+  io("downscale", o.downscale,
+     "Training image downscale factor (SfM and dense heights use full resolution)");
+  io("depth_prior", o.depth_prior,
+     "Pseudo-camera depth prior: 'surface', 'none' or 'cmd:COMMAND' (see splat train)");
+  io("appearance", o.appearance,
+     "Per-image appearance model: 'auto' (on for views from more than one date), 'on' or 'off'");
+  io("init_max_scale_m", o.init_max_scale_m,
+     "Cap on the initial Gaussian size (0 = none)");
+  io("init_pieces", o.init_pieces,
+     "Up to this many capped Gaussians per tie point (1 = one per point)");
+  io("init_points", o.init_points,
+     "Initial Gaussians from 'dense' heights, 'sparse' tie points (no dense stage) or 'auto' (dense when dense "
+     "heights exist)");
+  io("init_spacing_m", o.init_spacing_m,
+     "A dense start keeps one dense point per cell of this size");
+  io("init_facade_step_m", o.init_facade_step_m,
+     "With a dense start, also put Gaussians on the walls of the dense heights where neighbouring cells differ by "
+     "this much; 0 = none");
+  io("mask_beyond_reconstruction", o.mask_beyond_reconstruction,
+     "With a dense start, leave the pixels that see past the tile's dense heights out of the loss and the scores");
+  io("surface_filled_weight", o.anchor.filled_weight,
+     "Weight of the surface anchor's depth term where the ray meets a filled cell (one no pair matched), against 1 "
+     "for matched cells");
+  io("surface_step_weight", o.anchor.step_weight,
+     "Weight of the surface anchor's depth term within surface_step_reach_m of a step; 0 leaves edges to the "
+     "photometric loss, 1 = no weighting");
+  io("surface_step_reach_m", o.anchor.step_reach_m,
+     "Distance from a step within which surface_step_weight applies");
+  io("surface_step_min_m", o.anchor.step_min_m,
+     "Neighbouring dense cells that differ by more than this form a step");
+  io("densify", o.densify,
+     "Clone/split/prune: 'on', 'off' or 'auto' (on for tie-point starts, off for dense starts)");
+  io("seed", t.seed,
+     "Random seed of training");
+  io("lambda_dssim", t.lambda_dssim,
+     "Weight of the (1 - SSIM) term of the photometric loss; L1 weighs 1 minus this");
+  io("lambda_opacity", t.lambda_opacity,
+     "Weight of the entropy opacity regularization; 0 = off");
+  io("opacity_reg_from", t.opacity_reg_from,
+     "First step of the entropy opacity term");
+  io("lr_mean_initial", t.lr_mean_initial,
+     "Adam learning rate of the centres at the first step, times the scene extent; it decays exponentially to "
+     "lr_mean_final");
+  io("lr_mean_final", t.lr_mean_final,
+     "Learning rate of the centres at the last step, times the scene extent");
+  io("lr_scale", t.lr_scale,
+     "Adam learning rate of the Gaussians' scales");
+  io("lr_rotation", t.lr_rotation,
+     "Adam learning rate of the Gaussians' rotations");
+  io("lr_opacity", t.lr_opacity,
+     "Adam learning rate of the Gaussians' opacities");
+  io("lr_sh_dc", t.lr_sh_dc,
+     "Adam learning rate of the degree-0 spherical-harmonics colour");
+  io("lr_sh_rest", t.lr_sh_rest,
+     "Adam learning rate of the higher spherical-harmonics coefficients");
+  io("densify_from", t.densify_from,
+     "First step of adaptive density control (clone, split, prune)");
+  io("densify_until", t.densify_until,
+     "Last step that adds Gaussians by cloning or splitting");
+  io("densify_interval", t.densify_interval,
+     "Steps between densification passes");
+  io("densify_grad_threshold", t.densify_grad_threshold,
+     "Mean view-space gradient of a Gaussian's centre above which it is cloned or split, in the 3DGS reference's "
+     "normalized units");
+  io("percent_dense", t.percent_dense,
+     "Gaussians smaller than this fraction of the scene extent are cloned, larger ones split");
+  io("min_opacity", t.min_opacity,
+     "Gaussians more transparent than this are pruned");
+  io("max_scale_m", t.max_scale_m,
+     "Gaussians larger than this are pruned");
+  io("max_gaussians", t.max_gaussians,
+     "Densification adds no Gaussians beyond this count");
+  io("eval_interval", t.eval_interval,
+     "Steps between held-out PSNR evaluations, recorded in the report");
+  io("checkpoint_interval", t.checkpoint_interval,
+     "Steps between resumable checkpoints");
+  io("keep_snapshots", t.keep_snapshots,
+     "Also keep scene_<iteration>.ply under checkpoints/snapshots at every checkpoint (for skyfall report)");
+  io("lambda_depth", t.lambda_depth,
+     "Weight of the pseudo views' Pearson depth loss");
+  io("pseudo_interval", t.pseudo_interval,
+     "Steps between pseudo views; 0 = none (takes effect only with a depth prior)");
+  io("pseudo_cameras", t.pseudo);
+  io("lambda_surface_depth", t.lambda_surface_depth,
+     "Weight of the surface anchor's Huber depth loss, per metre of depth error; 0 = off");
+  io("lambda_surface_alpha", t.lambda_surface_alpha,
+     "Weight of the surface anchor's (1 - accumulated opacity) term where the surface is seen; 0 = off");
+  io("surface_huber_m", t.surface_huber_m,
+     "Scale of the surface anchor's Huber loss: depth errors beyond it count linearly");
+  io("lambda_surface_height", t.lambda_surface_height,
+     "Weight of the loss that holds Gaussian centres near the dense surface to its height, per m^2 and averaged over "
+     "the Gaussians; 0 = off");
+  io("surface_height_band_m", t.surface_height_band_m,
+     "Gaussians whose centre is within this of the surface height below it are held by lambda_surface_height");
+  io("surface_nadir_interval", t.surface_nadir_interval,
+     "Steps between the nadir patches the surface anchor also holds; 0 = never");
+  io("surface_nadir_size_px", t.surface_nadir_size_px,
+     "Side of the surface anchor's square nadir patch");
+  io("surface_nadir_gsd_m", t.surface_nadir_gsd_m,
+     "Ground pixel size of the surface anchor's nadir patch");
+  io("appearance_model", t.appearance);
+  io("appearance_image", t.appearance_image,
+     "Training view whose appearance is fused into scene.ply (empty = the view whose embedding is nearest the mean)");
+  io("raster", t.raster);
+}
+template <class IO> void Visit(IO& io, OrbitOptions& o) {
+  io("grid", o.grid,
+     "The look-at points form a grid x grid square over the tile's core");
+  io("views_per_point", o.views_per_point,
+     "Orbit views per look-at point in each episode");
+  io("episodes", o.episodes,
+     "Episodes of the curriculum, from high to low elevation");
+  io("elevation_start_deg", o.elevation_start_deg,
+     "Elevation of the orbit views in the first episode");
+  io("elevation_end_deg", o.elevation_end_deg,
+     "Elevation of the orbit views in the last episode");
+  io("radius_start_per_core", o.radius_start_per_core,
+     "Orbit radius in the first episode, as a multiple of the core's side");
+  io("radius_end_per_core", o.radius_end_per_core,
+     "Orbit radius in the last episode, as a multiple of the core's side");
+  io("min_radius_m", o.min_radius_m,
+     "Smallest orbit radius, which keeps the cameras of small tiles above the rooftops");
+  io("fov_deg", o.fov_deg,
+     "Field of view of the orbit views");
+  io("width_px", o.width_px,
+     "Width of an orbit view");
+  io("height_px", o.height_px,
+     "Height of an orbit view");
+}
+template <class IO> void Visit(IO& io, RefineRequest& o) {
+  // Set per episode by the synthesis stage from its own options (idu.samples, idu.seed).
+  io.NotAnOption(o.samples);
+  io.NotAnOption(o.seed);
+  io.NotAnOption(o.episode);
+  io("source_prompt", o.source_prompt,
+     "Prompt that describes the rendered views, for external (diffusion) refiners");
+  io("target_prompt", o.target_prompt,
+     "Prompt that describes the refined views wanted, for external (diffusion) refiners");
+  io("n_min", o.n_min,
+     "FlowEdit's n_min, for external refiners: the last this many steps are plain sampling with the target prompt");
+  io("n_max", o.n_max,
+     "FlowEdit's n_max, for external refiners: editing starts this many steps before the end");
+  io("n_avg", o.n_avg,
+     "FlowEdit's n_avg, for external refiners: noise samples averaged per step");
+  io("steps", o.steps,
+     "Diffusion sampling steps, for external refiners");
+  io("source_guidance_scale", o.source_guidance_scale,
+     "Classifier-free guidance scale of the source prompt, for external refiners");
+  io("target_guidance_scale", o.target_guidance_scale,
+     "Classifier-free guidance scale of the target prompt, for external refiners");
+}
+template <class IO> void Visit(IO& io, ReprojectOptions& o) {
+  io("visibility_tolerance_m", o.visibility_tolerance_m,
+     "A satellite view sees an orbit pixel's surface point when the point's depth in that view is within this of the "
+     "depth the scene renders there");
+  io("angle_weight_power", o.angle_weight_power,
+     "A satellite view weighs (cos of the angle between its ray and the orbit ray)^this, so views from similar "
+     "directions count most");
+  io("keep_probability", o.keep_probability,
+     "Each sample keeps each satellite view with this probability (at least one view is kept)");
+  io("weight_jitter", o.weight_jitter,
+     "Each kept view's weight is scaled by a factor drawn from [1 - this, 1 + this]");
+  io("inpaint", o.inpaint,
+     "Pixels no satellite view sees: 'telea' or 'ns' (OpenCV inpainting) or 'render' (the rendered colour is kept)");
+  io("inpaint_radius_px", o.inpaint_radius_px,
+     "Radius of the OpenCV inpainting");
+  io("smooth_diameter_px", o.smooth_diameter_px,
+     "Diameter of the final edge-preserving bilateral filter; 0 = off");
+  io("smooth_sigma_colour", o.smooth_sigma_colour,
+     "Colour sigma of the bilateral filter, in colour units of 0 to 1");
+  io("smooth_sigma_space_px", o.smooth_sigma_space_px,
+     "Spatial sigma of the bilateral filter");
+}
+template <class IO> void Visit(IO& io, IduAutoOptions& o) {
+  io("step_m", o.step_m,
+     "A height step between neighbouring dense cells at least this tall counts as a facade");
+  io("min_facade_ratio", o.min_facade_ratio,
+     "Tiles with less facade than this, in m^2 of facade per m^2 of ground, are flat or low-rise and skipped");
+  io("min_measured_fraction", o.min_measured_fraction,
+     "Tiles whose dense heights matched a smaller fraction of the grid (water, featureless or empty) are skipped");
+}
+template <class IO> void Visit(IO& io, IduStageOptions& o) {
+  IduOptions& i = o.options;
+  io("mode", o.mode,
+     "Synthesis stage (curriculum IDU): 'auto' (where the dense heights show facades), 'on' or 'off'");
+  io("refiner", o.refiner,
+     "IDU refiner: 'reproject' (built in, no model weights) or 'cmd:COMMAND' (an external refiner such as a FlowEdit "
+     "script; see README)");
+  io("orbit", i.orbit);
+  io("iterations_per_episode", i.iterations_per_episode,
+     "Training steps per episode");
+  io("samples", i.samples,
+     "Refined images per orbit view");
+  io("synthetic_fraction", i.synthetic_fraction,
+     "Share of the training steps on refined views; the others use satellite views");
+  io("lambda_depth", i.lambda_depth,
+     "Weight of the Pearson depth loss on refined views");
+  io("lambda_opacity", i.lambda_opacity,
+     "Weight of the entropy opacity regularization during the episodes; 0 = off");
+  io("densify", i.densify,
+     "Adaptive density control (clone, split, prune) within each episode");
+  io("densify_from_fraction", i.densify_from_fraction,
+     "Densification starts at this fraction of each episode");
+  io("densify_until_fraction", i.densify_until_fraction,
+     "Densification ends at this fraction of each episode");
+  io("densify_interval", i.densify_interval,
+     "Steps between densification passes within an episode");
+  io("geometry", i.geometry,
+     "Where refined views get their geometry: 'surface' (the dense heights' height field, walls included) or "
+     "'render' (the depth the scene renders at the episode's start)");
+  io("anchor_refined_views", i.anchor_refined_views,
+     "With geometry 'surface', also hold the refined views to the height field with the surface anchor");
+  io("fill_holes", i.fill_holes,
+     "With geometry 'surface', also refine and train on orbit pixels where the height field has a surface but the "
+     "scene is transparent, adding Gaussians there");
+  io("fill_voxel_m", i.fill_voxel_m,
+     "Edge of the cubes in which fill_holes adds one Gaussian each");
+  io("hold_geometry", i.hold_geometry,
+     "The reconstruction's Gaussians keep their geometry through the episodes and train only their colours");
+  io("seed", i.seed,
+     "Random seed of the stage's training and refined samples");
+  io("prompts", i.request);
+  io("reproject", o.reproject);
+  io("auto", o.auto_decision);
+}
+template <class IO> void Visit(IO& io, SeamLineOptions& o) {
+  io("enabled", o.enabled,
+     "Cut between tiles along seam lines where their DSMs agree; off: the straight core boundaries");
+  io("cell_m", o.cell_m,
+     "Cell of the height maps and of the seam line");
+  io("band_fraction", o.band_fraction,
+     "Seam lines stay within this fraction of the overlap margin of the core boundary");
+  io("max_step_m", o.max_step_m,
+     "Height disagreements are capped at this, and a cell only one tile covers costs this much");
+  io("bend_m", o.bend_m,
+     "Cost added per cell the line moves sideways, so that it stays straight where the tiles agree");
+  io("centre_pull_m", o.centre_pull_m,
+     "Cost added per cell along the line for each cell it is off the core boundary, so that a detour ends where the "
+     "disagreement does");
+}
+template <class IO> void Visit(IO& io, StitchOptions& o) {
+  io("voxel_m", o.voxel_m,
+     "Occupancy voxel edge");
+  io("min_opacity", o.min_opacity,
+     "Gaussians more transparent than this neither mark occupancy nor fill holes");
+  io("match_radius_voxels", o.match_radius_voxels,
+     "A neighbour's Gaussian is a duplicate when the owner's occupancy has an active voxel within this distance");
+  io("occupancy_columns", o.occupancy_columns,
+     "Occupancy by ground column (a neighbour's Gaussian over ground the owner covers, at any height, is a "
+     "duplicate); off: by voxel");
+  io("seam_lines", o.seam_lines);
+}
+template <class IO> void Visit(IO& io, LodOptions& o) {
+  io("max_levels", o.max_levels,
+     "Coarser LOD levels to build");
+  io("base_voxel_m", o.base_voxel_m,
+     "Smallest voxel edge tried; it doubles per attempt");
+  io("min_reduction", o.min_reduction,
+     "A level is kept only when it has at most this fraction of the previous level's Gaussians; otherwise the voxel "
+     "doubles again");
+  io("min_gaussians", o.min_gaussians,
+     "No coarser level is built from a level of this many Gaussians or fewer");
+}
+template <class IO> void Visit(IO& io, MergeOptions& o) {
+  io("stitch", o.stitch);
+  io("lod", o.lod);
+  io("seam_gsd_m", o.seam_gsd_m,
+     "Spacing of the city DSM (dsm_city.tif) the seam metric is measured on");
+}
+template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
+  io("leaf_m", o.leaf_m,
+     "A node splits into quadrants while it is wider than this");
+  io("max_fractional_bits", o.max_fractional_bits,
+     "The finest SPZ position step is 2^-bits metres (fewer bits when coordinates are large)");
+}
+template <class IO> void Visit(IO& io, ExportOptions& o) {
+  io("tiles3d", o.tiles3d,
+     "Write OUT/<city>/3dtiles, 3D Tiles 1.1 with SPZ Gaussian splats, at the end of each city's run");
+  io("tiles3d_options", o.tiles3d_options);
+}
+template <class IO> void Visit(IO& io, DsmExportOptions& o) {
+  io("camera_height_m", o.camera_height_m,
+     "Height of the nadir camera the DSM is rendered from (far, so nearly orthographic)");
+  io("min_alpha", o.min_alpha,
+     "Pixels whose accumulated opacity is below this are nodata");
+  io("median_depth", o.median_depth,
+     "A pixel's height is the depth where the accumulated opacity reaches 0.5; off: the opacity-weighted expected "
+     "depth");
+}
+template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
+  io.NotAnOption(o.breakdown.building_class);  // the LiDAR classes' code (ASPRS 6), not a choice
+  io("max_shift_px", o.max_shift_px,
+     "Search radius of the horizontal alignment shift per pyramid level");
+  io("pyramid_levels", o.pyramid_levels,
+     "Levels of the 2x pyramid the shift is searched on, coarse to fine");
+  io("mask_water", o.mask_water,
+     "Leave water (class 9) out of the comparison");
+  io("within_m", o.within_m,
+     "The comparison reports the fraction of pixels whose error is at most this");
+  io("rim_width_m", o.breakdown.rim_width_m,
+     "With classes: width of the bands inside and outside building outlines whose error is reported apart");
+  io("edge_band_m", o.breakdown.edge_band_m,
+     "With classes: width of each band of the edge profile");
+  io("edge_bands", o.breakdown.edge_bands,
+     "With classes: bands of the edge profile on each side of the building outlines");
+}
+template <class IO> void Visit(IO& io, DsmOptions& o) {
+  io("source", o.source,
+     "Gaussians the DSMs are rasterized from: 'reconstruction' (each tile's scene trained on the real images) or "
+     "'final' (the scene after the synthesis stage)");
+  io("export", o.export_options);
+  io("compare", o.compare);
+}
+template <class IO> void Visit(IO& io, SlurmOptions& o) {
+  io("partition", o.partition,
+     "Slurm partition (empty = the cluster's default)");
+  io("account", o.account,
+     "Slurm account (empty = the user's default)");
+  io("time_limit", o.time_limit,
+     "Time limit per tile job, Slurm syntax, e.g. 2:00:00 (empty = the partition's)");
+  io("cpus_per_task", o.cpus_per_task,
+     "CPUs (and threads) per tile job");
+  io("mem_mb", o.mem_mb,
+     "Memory per tile job (0 = the per-tile estimate, at least 1024 MB)");
+  io("poll_s", o.poll_s,
+     "How often the scheduler is asked while waiting");
+}
+template <class IO> void Visit(IO& io, ExecutorOptions& o) {
+  io("kind", o.kind,
+     "'local' (each tile its own process), 'inline' (tiles in this process, one at a time) or 'slurm' (tiles as one "
+     "sbatch array job, merge and DSM as a job depending on it)");
+  io("jobs", o.jobs,
+     "Tiles run at once with the local executor (0 = bounded by cores and memory)");
+  io("program", o.program,
+     "The skyfall executable for the local and slurm executors (empty = the one beside this program)");
+  io("slurm", o.slurm);
+}
+template <class IO> void Visit(IO& io, RunOptions& o) {
+  io("ingest", o.ingest);
+  io("tiling", o.tiling);
+  io("sfm", o.sfm);
+  io("dense", o.dense);
+  io("train", o.train);
+  io("idu", o.idu);
+  io("merge", o.merge);
+  io("dsm", o.dsm);
+  io("exports", o.exports);
+  io("executor", o.executor);
+}
+
+}  // namespace skyfall

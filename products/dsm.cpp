@@ -1,0 +1,381 @@
+#include "products/dsm.h"
+
+#include <gdal.h>
+#include <Eigen/Geometry>
+#include <ogr_srs_api.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/format.h"
+#include "core/stats.h"
+#include "splat/rasterizer.h"
+#include "ingest/dfc2019.h"
+#include "ingest/geo.h"
+#include "ingest/raster.h"
+
+namespace skyfall {
+namespace {
+
+constexpr float kNoData = std::numeric_limits<float>::quiet_NaN();
+constexpr int kWaterClass = 9;
+
+// 2x downsampling that averages the finite values of each 2x2 block.
+DsmGrid Downsample(const DsmGrid& g) {
+  DsmGrid out = g;
+  out.width_px = std::max(1, g.width_px / 2);
+  out.height_px = std::max(1, g.height_px / 2);
+  out.gsd_m = 2 * g.gsd_m;
+  out.height_m.assign(static_cast<size_t>(out.width_px) * out.height_px, kNoData);
+  for (int r = 0; r < out.height_px; ++r)
+    for (int c = 0; c < out.width_px; ++c) {
+      double sum = 0;
+      int n = 0;
+      for (int dr = 0; dr < 2; ++dr)
+        for (int dc = 0; dc < 2; ++dc) {
+          const int cc = 2 * c + dc, rr = 2 * r + dr;
+          if (cc >= g.width_px || rr >= g.height_px) continue;
+          const float v = g.At(cc, rr);
+          if (std::isfinite(v)) {
+            sum += v;
+            ++n;
+          }
+        }
+      if (n) out.height_m[static_cast<size_t>(r) * out.width_px + c] = static_cast<float>(sum / n);
+    }
+  return out;
+}
+
+// NCC of truth(c, r) against prediction(c + dx, r + dy) over pixels valid in both.
+double Ncc(const DsmGrid& pred, const DsmGrid& truth, int dx, int dy, int* overlap) {
+  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  int n = 0;
+  for (int r = 0; r < truth.height_px; ++r) {
+    const int pr = r + dy;
+    if (pr < 0 || pr >= pred.height_px) continue;
+    for (int c = 0; c < truth.width_px; ++c) {
+      const int pc = c + dx;
+      if (pc < 0 || pc >= pred.width_px) continue;
+      const double a = truth.At(c, r), b = pred.At(pc, pr);
+      if (!std::isfinite(a) || !std::isfinite(b)) continue;
+      sa += a;
+      sb += b;
+      saa += a * a;
+      sbb += b * b;
+      sab += a * b;
+      ++n;
+    }
+  }
+  *overlap = n;
+  if (n < 16) return -2.0;
+  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n, cov = sab - sa * sb / n;
+  if (va <= 0 || vb <= 0) return -2.0;
+  return cov / std::sqrt(va * vb);
+}
+
+}  // namespace
+
+DsmGrid GridOfTruth(const TruthGrid& t) {
+  DsmGrid g;
+  g.width_px = t.width_px;
+  g.height_px = t.height_px;
+  g.upper_left_easting_m = t.lower_left_easting_m;
+  g.upper_left_northing_m = t.UpperLeftNorthing();
+  g.gsd_m = t.gsd_m;
+  g.epsg = t.epsg;
+  g.height_m.assign(static_cast<size_t>(g.width_px) * g.height_px, kNoData);
+  return g;
+}
+
+DsmGrid GridOfDsmTxt(const DsmTxt& t, int epsg) {
+  DsmGrid g;
+  g.width_px = g.height_px = t.size_px;
+  g.gsd_m = t.gsd_m;
+  g.upper_left_easting_m = t.easting_m;
+  g.upper_left_northing_m = t.northing_m + t.size_px * t.gsd_m;
+  g.epsg = epsg;
+  g.height_m.assign(static_cast<size_t>(g.width_px) * g.height_px, kNoData);
+  return g;
+}
+
+DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) {
+  const FloatBand band = ReadFloatBand(path);
+  DsmGrid g;
+  g.width_px = band.width_px;
+  g.height_px = band.height_px;
+  g.height_m = band.values;
+  if (band.has_nodata)
+    for (float& v : g.height_m)
+      if (v == static_cast<float>(band.nodata)) v = kNoData;
+  if (!grid_txt.empty()) {
+    const DsmTxt txt = ParseDsmTxt(ReadTextFile(grid_txt), grid_txt);
+    if (txt.size_px != g.width_px || txt.size_px != g.height_px) {
+      throw Error("dsm", grid_txt + ": size", "is " + std::to_string(txt.size_px) + " but " + path + " is " +
+                                                  std::to_string(g.width_px) + "x" + std::to_string(g.height_px));
+    }
+    DsmGrid grid = GridOfDsmTxt(txt, epsg);
+    grid.height_m = std::move(g.height_m);
+    return grid;
+  }
+  GDALAllRegister();
+  GDALDatasetH ds = GDALOpen(path.c_str(), GA_ReadOnly);
+  double gt[6];
+  const bool georeferenced = ds && GDALGetGeoTransform(ds, gt) == CE_None && !(gt[1] == 1 && gt[5] == 1);
+  if (georeferenced) {
+    g.upper_left_easting_m = gt[0];
+    g.upper_left_northing_m = gt[3];
+    g.gsd_m = gt[1];
+    if (std::abs(gt[5] + gt[1]) > 1e-9 || gt[2] != 0 || gt[4] != 0) {
+      GDALClose(ds);
+      throw Error("dsm", path, "is not a north-up grid with square pixels");
+    }
+    OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+    const char* code = srs ? OSRGetAuthorityCode(srs, nullptr) : nullptr;
+    g.epsg = code ? std::atoi(code) : epsg;
+  }
+  if (ds) GDALClose(ds);
+  if (!georeferenced) throw Error("dsm", path, "has no georeferencing; give its _DSM.txt grid file");
+  return g;
+}
+
+void WriteDsm(const std::string& path, const DsmGrid& g) {
+  WriteFloatCog(path, g.width_px, g.height_px, g.height_m.data(),
+                {g.upper_left_easting_m, g.upper_left_northing_m, g.gsd_m, g.epsg});
+}
+
+void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,
+                  DsmGrid* grid) {
+  const EnuFrame frame(enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(grid->epsg);
+  const int W = grid->width_px, H = grid->height_px;
+  // ENU position of a grid pixel centre at the frame's height.
+  auto enu_of_pixel = [&](double col, double row) {
+    const Eigen::Vector2d ll = GeodeticFromUtm(zone, grid->upper_left_easting_m + (col + 0.5) * grid->gsd_m,
+                                               grid->upper_left_northing_m - (row + 0.5) * grid->gsd_m);
+    return frame.EnuFromGeodetic({ll.x(), ll.y(), enu_origin.height_m});
+  };
+  // Image axes: one grid pixel along each, measured in ENU (UTM's scale
+  // factor and grid convergence make them differ from gsd and from east/north).
+  const Eigen::Vector3d centre = enu_of_pixel(0.5 * (W - 1), 0.5 * (H - 1));
+  const Eigen::Vector3d du = (enu_of_pixel(W - 1, 0.5 * (H - 1)) - enu_of_pixel(0, 0.5 * (H - 1))) / std::max(1, W - 1);
+  const Eigen::Vector3d dv = (enu_of_pixel(0.5 * (W - 1), H - 1) - enu_of_pixel(0.5 * (W - 1), 0)) / std::max(1, H - 1);
+  PinholeCamera cam;
+  const Eigen::Vector3d right = du.normalized();
+  const Eigen::Vector3d forward = -Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d down = forward.cross(right).normalized();
+  const Eigen::Vector3d right_orth = down.cross(forward).normalized();
+  cam.cam_from_world_rotation.row(0) = right_orth.transpose();
+  cam.cam_from_world_rotation.row(1) = down.transpose();
+  cam.cam_from_world_rotation.row(2) = forward.transpose();
+  const Eigen::Vector3d eye = centre + o.camera_height_m * Eigen::Vector3d::UnitZ();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  // Focal lengths so that one pixel spans |du| and |dv| at the ground; the
+  // small skew absorbs a non-orthogonal grid.
+  const double depth = o.camera_height_m;
+  cam.fx = depth / du.dot(right_orth);
+  cam.fy = depth / dv.dot(down);
+  cam.skew = -cam.fx * dv.dot(right_orth) / dv.dot(down);
+  cam.cx = 0.5 * (W - 1);
+  cam.cy = 0.5 * (H - 1);
+  cam.width_px = W;
+  cam.height_px = H;
+  RasterOptions ro;
+  ro.median_depth = o.median_depth;
+  const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
+  grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
+  for (int row = 0; row < H; ++row)
+    for (int col = 0; col < W; ++col) {
+      const size_t p = static_cast<size_t>(row) * W + col;
+      if (r.alpha[p] < o.min_alpha) continue;
+      const float rel_depth = o.median_depth ? r.median_depth[p] : r.depth[p];
+      if (!std::isfinite(rel_depth)) continue;
+      const double z_cam = rel_depth + r.reference_depth_m;
+      // The pixel's ray with unit camera-z, so that z_cam scales it to the hit.
+      const double yn = (row - cam.cy) / cam.fy;
+      const Eigen::Vector3d dir = cam.cam_from_world_rotation.transpose() *
+                                  Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
+      const Eigen::Vector3d hit = eye + z_cam * dir;
+      grid->height_m[p] = static_cast<float>(frame.GeodeticFromEnu(hit).height_m);
+    }
+}
+
+DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std::vector<float>* cls,
+                         const DsmCompareOptions& o) {
+  if (pred.width_px != truth_in.width_px || pred.height_px != truth_in.height_px) {
+    throw Error("dsm", "compare", "prediction is " + std::to_string(pred.width_px) + "x" + std::to_string(pred.height_px) +
+                                      " px, truth is " + std::to_string(truth_in.width_px) + "x" +
+                                      std::to_string(truth_in.height_px) + ": resample the prediction to the truth grid");
+  }
+  DsmGrid truth = truth_in;
+  if (cls && o.mask_water) {
+    if (cls->size() != truth.height_m.size()) throw Error("dsm", "compare", "CLS raster size differs from the truth");
+    for (size_t p = 0; p < truth.height_m.size(); ++p)
+      if (ClassCodeOf((*cls)[p]) == kWaterClass) truth.height_m[p] = kNoData;
+  }
+  // Coarse-to-fine integer shift search maximizing NCC.
+  std::vector<DsmGrid> pp{pred}, tp{truth};
+  for (int l = 1; l < o.pyramid_levels; ++l) {
+    pp.push_back(Downsample(pp.back()));
+    tp.push_back(Downsample(tp.back()));
+  }
+  DsmComparison out;
+  int bx = 0, by = 0;
+  for (int l = o.pyramid_levels - 1; l >= 0; --l) {
+    const int cx = 2 * bx * (l < o.pyramid_levels - 1), cy = 2 * by * (l < o.pyramid_levels - 1);
+    double best = -3;
+    for (int dy = cy - o.max_shift_px; dy <= cy + o.max_shift_px; ++dy)
+      for (int dx = cx - o.max_shift_px; dx <= cx + o.max_shift_px; ++dx) {
+        int overlap = 0;
+        const double ncc = Ncc(pp[l], tp[l], dx, dy, &overlap);
+        if (ncc > best) {
+          best = ncc;
+          bx = dx;
+          by = dy;
+        }
+      }
+    out.ncc = best;
+  }
+  out.shift_col_px = bx;
+  out.shift_row_px = by;
+  // Vertical offset, then the metrics, over pixels valid in both.
+  const int W = truth.width_px, H = truth.height_px;
+  out.error_m.assign(static_cast<size_t>(W) * H, kNoData);
+  std::vector<double> diff;
+  int valid_truth = 0;
+  for (int r = 0; r < H; ++r)
+    for (int c = 0; c < W; ++c) {
+      const float t = truth.At(c, r);
+      if (!std::isfinite(t)) continue;
+      ++valid_truth;
+      const int pc = c + bx, pr = r + by;
+      if (pc < 0 || pr < 0 || pc >= W || pr >= H) continue;
+      const float v = pred.At(pc, pr);
+      if (!std::isfinite(v)) continue;
+      diff.push_back(static_cast<double>(v) - t);
+      out.error_m[static_cast<size_t>(r) * W + c] = v - t;
+    }
+  out.valid_pixels = static_cast<int>(diff.size());
+  out.completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
+  // With classes, the errors' breakdown, on the final (offset-free) error map.
+  const auto break_down = [&] {
+    if (!cls) return;
+    out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
+    out.has_breakdown = true;
+  };
+  if (diff.empty()) {
+    break_down();
+    return out;
+  }
+  double sum = 0;
+  for (double d : diff) sum += d;
+  out.bias_m = sum / diff.size();
+  // The vertical offset removed is the median difference, as in the DFC2019
+  // alignment (align3d): a mean would let a few large errors (a roof missed
+  // by 30 m) shift every correct pixel and count those errors twice.
+  out.z_offset_m = Median(diff);
+  double abs_sum = 0, sq_sum = 0;
+  int within = 0;
+  std::vector<double> abs_err(diff.size());
+  for (size_t k = 0; k < diff.size(); ++k) {
+    const double e = diff[k] - out.z_offset_m;
+    abs_err[k] = std::abs(e);
+    abs_sum += abs_err[k];
+    sq_sum += e * e;
+    within += abs_err[k] <= o.within_m;
+  }
+  for (float& e : out.error_m)
+    if (std::isfinite(e)) e = static_cast<float>(e - out.z_offset_m);
+  out.mae_m = abs_sum / diff.size();
+  out.rmse_m = std::sqrt(sq_sum / diff.size());
+  out.median_abs_m = Median(abs_err);
+  // The errors are centred on their own median (z_offset_m is a sample of
+  // diff, so the centred median is exactly 0): NMAD is the scaled median
+  // absolute error.
+  out.nmad_m = 1.4826 * out.median_abs_m;
+  out.within_fraction = static_cast<double>(within) / diff.size();
+  break_down();
+  return out;
+}
+
+TruthDsm ReadTruthDsm(const TruthGrid& truth) {
+  TruthDsm t;
+  t.dsm = ReadDsm(truth.dsm_path, truth.dsm_txt_path, truth.epsg);
+  if (!truth.cls_path.empty()) t.cls = ReadClassRaster(truth.cls_path, t.dsm);
+  return t;
+}
+
+std::vector<float> ReadClassRaster(const std::string& path, const DsmGrid& truth) {
+  FloatBand band = ReadFloatBand(path);
+  if (band.width_px != truth.width_px || band.height_px != truth.height_px) {
+    throw Error("dsm", path, "classes are " + std::to_string(band.width_px) + "x" + std::to_string(band.height_px) +
+                                 " px, the truth " + std::to_string(truth.width_px) + "x" +
+                                 std::to_string(truth.height_px) + " px: give the truth's own _CLS raster");
+  }
+  // Nodata cells have no class (ClassCodeOf maps NaN to -1).
+  if (band.has_nodata)
+    for (float& v : band.values)
+      if (v == static_cast<float>(band.nodata)) v = std::numeric_limits<float>::quiet_NaN();
+  return std::move(band.values);
+}
+
+DsmComparison CompareSceneWithTruth(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const TruthGrid& grid,
+                                    const TruthDsm& truth, const DsmCompareOptions& options, DsmGrid* prediction,
+                                    const DsmExportOptions& export_options) {
+  *prediction = GridOfTruth(grid);
+  RasterizeDsm(scene, enu_origin, export_options, prediction);
+  return CompareDsm(*prediction, truth.dsm, truth.cls.empty() ? nullptr : &truth.cls, options);
+}
+
+DsmGrid GridOfBounds(double min_easting_m, double min_northing_m, double max_easting_m, double max_northing_m,
+                     double gsd_m, int epsg, const std::string& subject) {
+  if (!(max_easting_m > min_easting_m && max_northing_m > min_northing_m) || !(gsd_m > 0)) {
+    throw Error("dsm", subject, "needs min < max on both axes and a GSD > 0");
+  }
+  DsmGrid grid;
+  grid.epsg = epsg;
+  grid.gsd_m = gsd_m;
+  grid.width_px = static_cast<int>(std::ceil((max_easting_m - min_easting_m) / gsd_m));
+  grid.height_px = static_cast<int>(std::ceil((max_northing_m - min_northing_m) / gsd_m));
+  grid.upper_left_easting_m = min_easting_m;
+  grid.upper_left_northing_m = max_northing_m;
+  grid.height_m.assign(static_cast<std::size_t>(grid.width_px) * grid.height_px, NAN);
+  return grid;
+}
+
+DsmGrid SampleOnGrid(const DsmGrid& source, const DsmGrid& target, const std::string& source_name) {
+  if (std::abs(source.gsd_m - target.gsd_m) > 1e-6) {
+    throw Error("dsm", source_name, "GSD " + FormatDouble(source.gsd_m) + " differs from the target grid's " +
+                                        FormatDouble(target.gsd_m) + "; export on the target grid");
+  }
+  DsmGrid out = target;
+  for (int r = 0; r < target.height_px; ++r)
+    for (int c = 0; c < target.width_px; ++c) {
+      const double e = target.upper_left_easting_m + (c + 0.5) * target.gsd_m;
+      const double n = target.upper_left_northing_m - (r + 0.5) * target.gsd_m;
+      const int sc = static_cast<int>(std::floor((e - source.upper_left_easting_m) / source.gsd_m));
+      const int sr = static_cast<int>(std::floor((source.upper_left_northing_m - n) / source.gsd_m));
+      out.height_m[static_cast<std::size_t>(r) * target.width_px + c] =
+          sc >= 0 && sr >= 0 && sc < source.width_px && sr < source.height_px ? source.At(sc, sr) : NAN;
+    }
+  return out;
+}
+
+void DsmExportOptions::Check() const {
+  if (!(camera_height_m >= 1e4)) {
+    throw Error("dsm", "camera_height_m", "must be >= 10000 (a near-orthographic camera), got " + FormatDouble(camera_height_m));
+  }
+  if (!(min_alpha > 0 && min_alpha < 1)) throw Error("dsm", "min_alpha", "must be in (0, 1), got " + FormatDouble(min_alpha));
+}
+
+void DsmCompareOptions::Check() const {
+  if (max_shift_px < 0) throw Error("dsm", "max_shift_px", "must be >= 0, got " + std::to_string(max_shift_px));
+  if (pyramid_levels < 1) throw Error("dsm", "pyramid_levels", "must be >= 1, got " + std::to_string(pyramid_levels));
+  if (!(within_m > 0)) throw Error("dsm", "within_m", "must be > 0, got " + FormatDouble(within_m));
+  breakdown.Check();
+}
+
+}  // namespace skyfall

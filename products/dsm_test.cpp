@@ -1,0 +1,189 @@
+#include "products/dsm.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "products/dsm_report.h"
+#include "tests/test_support.h"
+#include "ingest/geo.h"
+#include "ingest/raster.h"
+
+namespace skyfall {
+namespace {
+
+using namespace skyfall::testing;
+
+DsmGrid JaxTruth() {
+  const fs::path t = Dfc2019Root() / "Track3-Truth";
+  return ReadDsm((t / "JAX_068_DSM.tif").string(), (t / "JAX_068_DSM.txt").string(), 32617);
+}
+
+// pred(c, r) = truth(c - dx, r - dy) + dz: the truth moved by (dx, dy) pixels and dz metres.
+DsmGrid Shifted(const DsmGrid& t, int dx, int dy, float dz) {
+  DsmGrid p = t;
+  for (int r = 0; r < t.height_px; ++r)
+    for (int c = 0; c < t.width_px; ++c) {
+      const int sc = c - dx, sr = r - dy;
+      p.height_m[static_cast<size_t>(r) * t.width_px + c] =
+          sc >= 0 && sr >= 0 && sc < t.width_px && sr < t.height_px ? t.At(sc, sr) + dz : NAN;
+    }
+  return p;
+}
+
+TEST(Dsm, RecoversAKnownShiftAndBiasWithZeroError) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  const DsmComparison r = CompareDsm(Shifted(truth, 3, -2, 1.7f), truth, nullptr, DsmCompareOptions{});
+  EXPECT_EQ(r.shift_col_px, 3);
+  EXPECT_EQ(r.shift_row_px, -2);
+  EXPECT_NEAR(r.bias_m, 1.7, 1e-5);
+  EXPECT_NEAR(r.z_offset_m, 1.7, 1e-5);
+  EXPECT_LT(r.mae_m, 1e-5);  // float storage of heights ~30 m: ~2e-6 m
+  EXPECT_LT(r.rmse_m, 1e-5);
+  EXPECT_NEAR(r.within_fraction, 1.0, 1e-12);
+  // Only the band the shift moved out of the grid is missing.
+  EXPECT_NEAR(r.completeness, (512.0 - 3) * (512.0 - 2) / (512.0 * 512.0), 1e-9);
+}
+
+// A few large errors (2% of the pixels 30 m low: missed roofs) do not move
+// the vertical offset removed, so every other pixel keeps zero error; with
+// the mean removed they would all read 0.6 m off.
+TEST(Dsm, AFewLargeErrorsDoNotShiftTheCorrectPixels) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  DsmGrid pred = Shifted(truth, 0, 0, 0.25f);
+  std::size_t holes = 0, valid = 0;
+  for (std::size_t p = 0; p < pred.height_m.size(); ++p) {
+    if (!std::isfinite(pred.height_m[p])) continue;
+    ++valid;
+    if (p % 50 == 7) {
+      pred.height_m[p] -= 30.0f;
+      ++holes;
+    }
+  }
+  DsmCompareOptions o;
+  o.max_shift_px = 0;  // the errors are vertical only
+  const DsmComparison r = CompareDsm(pred, truth, nullptr, o);
+  EXPECT_NEAR(r.z_offset_m, 0.25, 1e-5);
+  EXPECT_NEAR(r.bias_m, 0.25 - 30.0 * holes / valid, 1e-3);
+  EXPECT_NEAR(r.mae_m, 30.0 * holes / valid, 1e-3);  // only the holes count
+  EXPECT_LT(r.median_abs_m, 1e-5);
+  EXPECT_NEAR(r.within_fraction, 1.0 - static_cast<double>(holes) / valid, 1e-6);
+}
+
+TEST(Dsm, LargerShiftsAreFoundThroughThePyramid) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  // 8 px is beyond +-5 at full resolution, within reach at half resolution.
+  const DsmComparison r = CompareDsm(Shifted(truth, -8, 7, -0.4f), truth, nullptr, DsmCompareOptions{});
+  EXPECT_EQ(r.shift_col_px, -8);
+  EXPECT_EQ(r.shift_row_px, 7);
+  EXPECT_LT(r.mae_m, 1e-5);
+}
+
+TEST(Dsm, WaterIsMaskedAndNodataLowersCompleteness) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  DsmGrid pred = truth;
+  std::vector<float> cls(truth.height_m.size(), 2.0f);
+  for (int r = 100; r < 150; ++r)
+    for (int c = 200; c < 260; ++c) {
+      cls[static_cast<size_t>(r) * 512 + c] = 9.0f;    // water
+      pred.height_m[static_cast<size_t>(r) * 512 + c] += 30.0f;  // wildly wrong over water
+    }
+  for (int r = 300; r < 400; ++r)
+    for (int c = 300; c < 400; ++c) pred.height_m[static_cast<size_t>(r) * 512 + c] = NAN;  // not reconstructed
+  const DsmComparison masked = CompareDsm(pred, truth, &cls, DsmCompareOptions{});
+  EXPECT_EQ(masked.shift_col_px, 0);
+  EXPECT_LT(masked.mae_m, 1e-6);
+  const double truth_valid = 512.0 * 512.0 - 50 * 60;
+  EXPECT_NEAR(masked.completeness, (truth_valid - 100 * 100) / truth_valid, 1e-9);
+  DsmCompareOptions no_mask;
+  no_mask.mask_water = false;
+  EXPECT_GT(CompareDsm(pred, truth, &cls, no_mask).mae_m, 0.3);  // the water block counts now
+}
+
+TEST(Dsm, GeoTiffRoundTripKeepsCrsAndGrid) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  const fs::path dir = ScratchDir("dsm");
+  WriteDsm((dir / "dsm.tif").string(), truth);
+  const DsmGrid back = ReadDsm((dir / "dsm.tif").string());
+  EXPECT_EQ(back.epsg, 32617);
+  EXPECT_DOUBLE_EQ(back.upper_left_easting_m, 436078.995946);
+  EXPECT_DOUBLE_EQ(back.upper_left_northing_m, 3357495.999923 + 256.0);
+  EXPECT_DOUBLE_EQ(back.gsd_m, 0.5);
+  EXPECT_EQ(back.height_m, truth.height_m);
+  EXPECT_EQ(ReadRasterInfo((dir / "dsm.tif").string()).driver, "GTiff");
+}
+
+TEST(Dsm, RasterizedFlatSceneGivesItsHeight) {
+  // A 120 m square of small opaque, flat Gaussians at ENU height 12 m.
+  const GeodeticPoint origin{-81.66375, 30.34881, 1.5};
+  GaussianCloud scene;
+  for (int i = -60; i <= 60; ++i)
+    for (int j = -60; j <= 60; ++j) {
+      scene.means.emplace_back(static_cast<float>(i), static_cast<float>(j), 12.0f);
+      scene.log_scales.emplace_back(std::log(0.8f), std::log(0.8f), std::log(0.02f));
+      scene.rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
+      scene.opacity_logits.push_back(5.0f);
+      std::array<float, 12> sh{};
+      scene.sh.push_back(sh);
+    }
+  const UtmZone zone = StandardUtmZone(origin.lon_deg, origin.lat_deg);
+  const Eigen::Vector2d en = UtmFromGeodetic(zone, origin.lon_deg, origin.lat_deg);
+  DsmGrid grid;
+  grid.width_px = grid.height_px = 200;
+  grid.gsd_m = 0.5;
+  grid.epsg = zone.Epsg();
+  grid.upper_left_easting_m = en.x() - 50;
+  grid.upper_left_northing_m = en.y() + 50;
+  RasterizeDsm(scene, origin, DsmExportOptions{}, &grid);
+  int checked = 0;
+  for (int r = 10; r < 190; r += 7)
+    for (int c = 10; c < 190; c += 7) {
+      // ENU height 12 m above a 1.5 m origin; the ENU plane departs from the
+      // ellipsoid by d^2 / 2R < 1 mm here.
+      EXPECT_NEAR(grid.At(c, r), 13.5, 0.02) << c << "," << r;
+      ++checked;
+    }
+  EXPECT_GT(checked, 600);
+}
+
+TEST(Dsm, ComparisonProductsAreWritten) {
+  SKYFALL_REQUIRE_DFC2019();
+  const DsmGrid truth = JaxTruth();
+  const DsmComparison r = CompareDsm(Shifted(truth, 1, 1, 0.5f), truth, nullptr, DsmCompareOptions{});
+  const fs::path dir = ScratchDir("report");
+  WriteDsmComparison(r, truth, DsmCompareOptions{}, {"p.tif", "t.tif", ""}, dir.string());
+  for (const char* f : {"report.json", "report.csv", "error_map.tif", "error_map.png", "error_histogram.png"})
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  EXPECT_EQ(ReadRasterInfo((dir / "error_map.png").string()).bands, 3);
+}
+
+TEST(Dsm, AGridOfBoundsSamplesAnotherGridByPixelCentre) {
+  // 10 m x 4 m at 1 m: 10 x 4 pixels, upper-left corner at (min_e, max_n).
+  DsmGrid source = GridOfBounds(500000, 3000000, 500010, 3000004, 1.0, 32617, "test");
+  ASSERT_EQ(source.width_px, 10);
+  ASSERT_EQ(source.height_px, 4);
+  EXPECT_EQ(source.upper_left_northing_m, 3000004);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 10; ++c) source.height_m[static_cast<size_t>(r) * 10 + c] = static_cast<float>(10 * r + c);
+  // A target two pixels east and one south: its (0, 0) is the source's (2, 1);
+  // its last two columns and last row lie outside the source.
+  const DsmGrid target = GridOfBounds(500002, 2999999, 500012, 3000003, 1.0, 32617, "test");
+  const DsmGrid sampled = SampleOnGrid(source, target, "source.tif");
+  EXPECT_EQ(sampled.At(0, 0), source.At(2, 1));
+  EXPECT_EQ(sampled.At(7, 2), source.At(9, 3));
+  EXPECT_TRUE(std::isnan(sampled.At(8, 0)));
+  EXPECT_TRUE(std::isnan(sampled.At(0, 3)));
+  EXPECT_NE(ErrorText([&] { SampleOnGrid(source, GridOfBounds(0, 0, 4, 4, 0.5, 32617, "t"), "source.tif"); })
+                .find("source.tif"),
+            std::string::npos);
+  EXPECT_NE(ErrorText([] { GridOfBounds(1, 0, 0, 4, 0.5, 32617, "--bounds"); }).find("--bounds"), std::string::npos);
+  EXPECT_NE(ErrorText([] { GridOfBounds(0, 0, 4, 4, 0, 32617, "--bounds"); }).find("GSD"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace skyfall

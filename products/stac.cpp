@@ -1,0 +1,333 @@
+#include "products/stac.h"
+
+#include <gdal.h>
+#include <ogr_srs_api.h>
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/format.h"
+#include "core/sha256.h"
+#include "core/tile.h"
+#include "catalogs/tile_catalog.h"
+#include "ingest/gdal_util.h"
+#include "ingest/geo.h"
+
+namespace skyfall {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr const char* kGeoTiff = "image/tiff; application=geotiff";
+constexpr const char* kPng = "image/png";
+constexpr const char* kJson = "application/json";
+constexpr const char* kGeoJson = "application/geo+json";
+constexpr const char* kCsv = "text/csv";
+constexpr const char* kPly = "application/ply";
+
+std::string Relative(const fs::path& target, const fs::path& from_dir) {
+  return fs::relative(fs::absolute(target), fs::absolute(from_dir)).generic_string();
+}
+
+json Link(const std::string& rel, const std::string& href, const std::string& type) {
+  return {{"rel", rel}, {"href", href}, {"type", type}};
+}
+
+// An asset for a file that exists: href relative to the document's folder,
+// size and SHA-256.
+json FileAsset(const fs::path& path, const fs::path& doc_dir, const std::string& media_type,
+               const std::vector<std::string>& roles, const std::string& title) {
+  return {{"href", Relative(path, doc_dir)},
+          {"type", media_type},
+          {"roles", roles},
+          {"title", title},
+          {"file:size", static_cast<long long>(fs::file_size(path))},
+          {"file:checksum", Sha256Multihash(Sha256FileHex(path.string()))}};
+}
+
+// Projection and band fields of a single-band GeoTIFF, read from the file so
+// that the catalog says what the file holds.
+void AddRasterFields(const fs::path& path, const std::string& unit, json* asset) {
+  GDALDatasetH ds = gdal::OpenOrThrow(path.string());
+  double gt[6] = {};
+  GDALGetGeoTransform(ds, gt);
+  const int width = GDALGetRasterXSize(ds), height = GDALGetRasterYSize(ds);
+  OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+  const char* code = srs ? OSRGetAuthorityCode(srs, nullptr) : nullptr;
+  const char* authority = srs ? OSRGetAuthorityName(srs, nullptr) : nullptr;
+  (*asset)["proj:code"] = code && authority ? json(std::string(authority) + ":" + code) : json(nullptr);
+  (*asset)["proj:shape"] = {height, width};
+  (*asset)["proj:transform"] = {gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]};
+  GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+  int has_nodata = 0;
+  const double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+  // Statistics of the valid cells, computed here (GDAL's own would leave a
+  // .aux.xml beside the product).
+  std::vector<double> row(static_cast<std::size_t>(width));
+  double sum = 0, sum2 = 0, lo = INFINITY, hi = -INFINITY;
+  std::size_t valid = 0;
+  for (int r = 0; r < height; ++r) {
+    if (GDALRasterIO(band, GF_Read, 0, r, width, 1, row.data(), width, 1, GDT_Float64, 0, 0) != CE_None) {
+      GDALClose(ds);
+      throw Error("stac", path.string(), "cannot read row " + std::to_string(r));
+    }
+    for (double v : row) {
+      if (!std::isfinite(v) || (has_nodata && v == nodata)) continue;
+      ++valid;
+      sum += v;
+      sum2 += v * v;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+  }
+  (*asset)["data_type"] = ToLower(GDALGetDataTypeName(GDALGetRasterDataType(band)));
+  GDALClose(ds);
+  if (has_nodata) (*asset)["nodata"] = std::isnan(nodata) ? json("nan") : json(nodata);
+  (*asset)["unit"] = unit;
+  (*asset)["raster:sampling"] = "area";
+  (*asset)["raster:spatial_resolution"] = std::abs(gt[1]);
+  if (valid > 0) {
+    const double mean = sum / valid;
+    (*asset)["statistics"] = {{"minimum", lo},
+                              {"maximum", hi},
+                              {"mean", mean},
+                              {"stddev", std::sqrt(std::max(0.0, sum2 / valid - mean * mean))},
+                              {"valid_percent", 100.0 * valid / (static_cast<double>(width) * height)}};
+  }
+}
+
+// Adds `path` as asset `key` when the file exists.
+void AddIfExists(json* assets, const std::string& key, const fs::path& path, const fs::path& doc_dir,
+                 const std::string& media_type, const std::vector<std::string>& roles, const std::string& title) {
+  if (fs::exists(path)) (*assets)[key] = FileAsset(path, doc_dir, media_type, roles, title);
+}
+
+struct TimeRange {
+  std::string start, end;  // empty when no acquisition time is known
+};
+
+TimeRange AcquisitionRange(const std::vector<AoiCatalog>& aois) {
+  TimeRange range;
+  for (const AoiCatalog& a : aois) {
+    for (const ImageRecord& im : a.images) {
+      if (im.acquisition_time.empty()) continue;
+      if (range.start.empty() || im.acquisition_time < range.start) range.start = im.acquisition_time;
+      if (range.end.empty() || im.acquisition_time > range.end) range.end = im.acquisition_time;
+    }
+  }
+  return range;
+}
+
+// datetime, or start/end when the images span more than one instant.
+void AddDatetime(const TimeRange& range, const std::string& fallback, json* properties) {
+  if (range.start.empty()) {
+    (*properties)["datetime"] = fallback;
+  } else if (range.start == range.end) {
+    (*properties)["datetime"] = range.start;
+  } else {
+    (*properties)["datetime"] = nullptr;
+    (*properties)["start_datetime"] = range.start;
+    (*properties)["end_datetime"] = range.end;
+  }
+}
+
+using LonLatRing = std::vector<std::array<double, 2>>;
+
+json Polygon(LonLatRing ring) {
+  if (ring.front() != ring.back()) ring.push_back(ring.front());
+  json coords = json::array();
+  for (const auto& p : ring) coords.push_back({p[0], p[1]});
+  return {{"type", "Polygon"}, {"coordinates", {coords}}};
+}
+
+std::array<double, 4> BoundingBox(const LonLatRing& ring) {
+  std::array<double, 4> b{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  for (const auto& p : ring) {
+    b[0] = std::min(b[0], p[0]);
+    b[1] = std::min(b[1], p[1]);
+    b[2] = std::max(b[2], p[0]);
+    b[3] = std::max(b[3], p[1]);
+  }
+  return b;
+}
+
+LonLatRing AoiRing(const AoiCatalog& a) {
+  LonLatRing ring;
+  for (const auto& p : a.footprint_lonlat) ring.push_back({p.x(), p.y()});
+  return ring;
+}
+
+LonLatRing BoxRing(const GroundBox& box, const GeodeticPoint& origin) {
+  const EnuFrame frame(origin);
+  LonLatRing ring;
+  for (const Eigen::Vector2d& c : {box.min_m, Eigen::Vector2d(box.max_m.x(), box.min_m.y()), box.max_m,
+                                   Eigen::Vector2d(box.min_m.x(), box.max_m.y())}) {
+    const GeodeticPoint g = frame.GeodeticFromEnu(Eigen::Vector3d(c.x(), c.y(), 0.0));
+    ring.push_back({g.lon_deg, g.lat_deg});
+  }
+  return ring;
+}
+
+json Item(const std::string& id, const std::string& city, const LonLatRing& ring, json properties, json assets,
+          const fs::path& item_path, const fs::path& out_dir, const fs::path& collection_path) {
+  const fs::path dir = item_path.parent_path();
+  const auto box = BoundingBox(ring);
+  // An extension is listed only where its fields are used (the raster
+  // schema fails an item that lists it without any raster field).
+  json extensions = {kStacFile};
+  for (const auto& [key, asset] : assets.items()) {
+    if (asset.contains("proj:code")) {
+      extensions = {kStacProjection, kStacRaster, kStacFile};
+      break;
+    }
+  }
+  return {{"type", "Feature"},
+          {"stac_version", kStacVersion},
+          {"stac_extensions", extensions},
+          {"id", id},
+          {"collection", city},
+          {"geometry", Polygon(ring)},
+          {"bbox", {box[0], box[1], box[2], box[3]}},
+          {"properties", std::move(properties)},
+          {"assets", std::move(assets)},
+          {"links",
+           {Link("self", "./" + item_path.filename().string(), kGeoJson),
+            Link("root", Relative(out_dir / "catalog.json", dir), kJson),
+            Link("parent", Relative(collection_path, dir), kJson),
+            Link("collection", Relative(collection_path, dir), kJson)}}};
+}
+
+// The products of one AOI and of its city's scene.
+json AoiAssets(const AoiCatalog& a, const StacCity& city, const fs::path& doc_dir) {
+  json assets = json::object();
+  const fs::path aoi_dir = fs::path(city.out_dir) / a.aoi;
+  const fs::path compare = aoi_dir / "dsm_compare";
+  if (fs::exists(aoi_dir / "dsm.tif")) {
+    json dsm = FileAsset(aoi_dir / "dsm.tif", doc_dir, kGeoTiff, {"data"}, "DSM (heights above the WGS84 ellipsoid)");
+    AddRasterFields(aoi_dir / "dsm.tif", "m", &dsm);
+    assets["dsm"] = dsm;
+  }
+  if (fs::exists(compare / "error_map.tif")) {
+    json error = FileAsset(compare / "error_map.tif", doc_dir, kGeoTiff, {"data"}, "DSM minus truth");
+    AddRasterFields(compare / "error_map.tif", "m", &error);
+    assets["error_map"] = error;
+  }
+  AddIfExists(&assets, "error_map_png", compare / "error_map.png", doc_dir, kPng, {"overview", "visual"},
+              "Error map");
+  AddIfExists(&assets, "error_histogram", compare / "error_histogram.png", doc_dir, kPng, {"visual"},
+              "Error histogram");
+  AddIfExists(&assets, "dsm_report", compare / "report.json", doc_dir, kJson, {"metadata"}, "DSM comparison");
+  AddIfExists(&assets, "dsm_report_csv", compare / "report.csv", doc_dir, kCsv, {"metadata"}, "DSM comparison");
+  AddIfExists(&assets, "dsm_report_by_class", compare / "report_by_class.csv", doc_dir, kCsv, {"metadata"},
+              "DSM error by truth class and along building outlines");
+  AddIfExists(&assets, "dsm_report_edge_profile", compare / "report_edge_profile.csv", doc_dir, kCsv, {"metadata"},
+              "DSM error by distance from building outlines");
+  const fs::path scene = city.scene_dir;
+  AddIfExists(&assets, "scene", scene / "scene.ply", doc_dir, kPly, {"data"}, "Gaussian splats (Inria PLY)");
+  for (int level = 0; fs::exists(scene / ("lod_" + std::to_string(level) + ".ply")); ++level) {
+    AddIfExists(&assets, "lod_" + std::to_string(level), scene / ("lod_" + std::to_string(level) + ".ply"), doc_dir,
+                kPly, {"data"}, "Level of detail " + std::to_string(level));
+  }
+  AddIfExists(&assets, "lod", scene / "lod.json", doc_dir, kJson, {"metadata"}, "Levels of detail");
+  AddIfExists(&assets, "run_report", city.run_report, doc_dir, kJson, {"metadata"}, "Run report of the city");
+  return assets;
+}
+
+json TileAssets(const fs::path& tile_dir, const fs::path& doc_dir) {
+  json assets = json::object();
+  const std::string scene = TileScenePath(tile_dir.string());
+  AddIfExists(&assets, "scene", scene, doc_dir, kPly, {"data"}, "Gaussian splats of the tile (Inria PLY)");
+  AddIfExists(&assets, "dense", tile_dir / "sfm" / "dense.ply", doc_dir, kPly, {"data"}, "Dense heights (PLY)");
+  AddIfExists(&assets, "tile_report", tile_dir / "tile_report.json", doc_dir, kJson, {"metadata"}, "Tile report");
+  AddIfExists(&assets, "tile", tile_dir / "tile.json", doc_dir, kJson, {"metadata"}, "Tile definition");
+  return assets;
+}
+
+void WriteDoc(const fs::path& path, const json& doc) { WriteFileIfChanged(path.string(), doc.dump(2) + "\n"); }
+
+}  // namespace
+
+std::string WriteCityStac(const StacCity& city) {
+  gdal::EnsureRegistered();
+  const fs::path out(city.out_dir);
+  const fs::path collection_path = out / city.city / "collection.json";
+  const TimeRange times = AcquisitionRange(city.aois);
+  const std::string fallback = city.processed_utc.empty() ? UtcNowIso() : city.processed_utc;
+  json item_links = json::array();
+  LonLatRing all;
+  json codes = json::array();
+  for (const AoiCatalog& a : city.aois) {
+    const fs::path item_path = out / a.aoi / (a.aoi + ".json");
+    json properties = {{"title", a.aoi}};
+    AddDatetime(AcquisitionRange({a}), fallback, &properties);
+    const LonLatRing ring = AoiRing(a);
+    all.insert(all.end(), ring.begin(), ring.end());
+    const std::string code = "EPSG:" + std::to_string(a.epsg);
+    if (std::find(codes.begin(), codes.end(), json(code)) == codes.end()) codes.push_back(code);
+    WriteDoc(item_path, Item(a.aoi, city.city, ring, properties, AoiAssets(a, city, item_path.parent_path()),
+                             item_path, out, collection_path));
+    item_links.push_back(Link("item", Relative(item_path, collection_path.parent_path()), kGeoJson));
+  }
+  for (const std::string& dir : city.tile_dirs) {
+    if (!fs::exists(fs::path(dir) / "tile_report.json")) continue;
+    const TileSpec spec = ReadTileSpec((fs::path(dir) / "tile.json").string());
+    const fs::path item_path = fs::path(dir) / (spec.id + ".json");
+    json properties = {{"title", "tile " + spec.id}};
+    AddDatetime(times, fallback, &properties);
+    WriteDoc(item_path, Item(spec.id, city.city, BoxRing(spec.extent, spec.enu_origin), properties,
+                             TileAssets(dir, item_path.parent_path()), item_path, out, collection_path));
+    item_links.push_back(Link("item", Relative(item_path, collection_path.parent_path()), kGeoJson));
+  }
+  const auto box = BoundingBox(all);
+  json links = {Link("self", "./collection.json", kJson), Link("root", "../catalog.json", kJson),
+                Link("parent", "../catalog.json", kJson)};
+  for (const json& l : item_links) links.push_back(l);
+  const json collection = {
+      {"type", "Collection"},
+      {"stac_version", kStacVersion},
+      {"stac_extensions", {kStacProjection, kStacFile}},
+      {"id", city.city},
+      {"title", "City " + city.city},
+      {"description", "3D Gaussian-splat city scene, level of detail and DSM products reconstructed by skyfall "
+                      "from multi-view satellite imagery of " + std::to_string(city.aois.size()) + " AOI(s)"},
+      {"license", "other"},
+      {"providers", {{{"name", "skyfall"}, {"roles", {"processor"}}, {"description", "skyfall tiler"}}}},
+      {"extent",
+       {{"spatial", {{"bbox", {{box[0], box[1], box[2], box[3]}}}}},
+        {"temporal", {{"interval", json::array({json::array({times.start.empty() ? fallback : times.start,
+                                                             times.end.empty() ? fallback : times.end})})}}}}},
+      {"summaries", {{"proj:code", codes}}},
+      {"links", links}};
+  WriteDoc(collection_path, collection);
+  return collection_path.string();
+}
+
+std::string WriteRootStacCatalog(const std::string& out_dir) {
+  const fs::path out(out_dir);
+  std::vector<std::string> children;
+  for (const auto& entry : fs::directory_iterator(out)) {
+    if (entry.is_directory() && fs::exists(entry.path() / "collection.json")) {
+      children.push_back(entry.path().filename().string() + "/collection.json");
+    }
+  }
+  std::sort(children.begin(), children.end());
+  json links = {Link("self", "./catalog.json", kJson), Link("root", "./catalog.json", kJson)};
+  for (const std::string& c : children) links.push_back(Link("child", "./" + c, kJson));
+  const json catalog = {{"type", "Catalog"},
+                        {"stac_version", kStacVersion},
+                        {"id", out.filename().empty() ? "skyfall" : out.filename().string()},
+                        {"title", "skyfall products"},
+                        {"description", "Cities reconstructed by skyfall: scenes, levels of detail and DSMs"},
+                        {"links", links}};
+  const fs::path path = out / "catalog.json";
+  WriteDoc(path, catalog);
+  return path.string();
+}
+
+}  // namespace skyfall

@@ -1,0 +1,49 @@
+// 3D Tiles 1.1 export of a merged scene, for CesiumJS-style globes: a
+// tileset.json whose root transform is the city's ENU -> ECEF matrix, a
+// spatial tree over the city with the coarsest LOD level at the root and
+// level 0 at the leaves (refine REPLACE, geometricError from each level's
+// measured geometric_error_m), and one glTF (GLB) per tile holding its
+// Gaussians with KHR_gaussian_splatting compressed by
+// KHR_gaussian_splatting_compression_spz_2 (products/spz.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/gaussians.h"
+#include "core/stage.h"
+
+namespace skyfall {
+
+struct Tiles3dOptions {
+  double leaf_m = 128;         // [m] a node splits into quadrants while it is wider than this
+  int max_fractional_bits = 16;  // finest SPZ position step 2^-bits m (fewer when coordinates are large)
+  void Check() const;            // throws Error("3dtiles", field, ...)
+};
+
+struct Tiles3dSummary {
+  std::string tileset_path;
+  int tiles = 0;           // nodes of the tree
+  int contents = 0;        // GLB files
+  std::size_t gaussians = 0;
+  int levels = 0;          // LOD levels used
+  double seconds = 0;
+};
+
+// Exports OUT/<city>/scene (lod.json, lod_<k>.ply, frame.json) to out_dir:
+// tileset.json (written last) and content/*.glb. Throws Error naming the
+// missing or bad file.
+Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& out_dir, const Tiles3dOptions& options,
+                             Progress& progress);
+
+// One GLB holding `cloud` as an SPZ-compressed Gaussian splat primitive whose
+// positions are in a z-up frame (the node turns them y-up for glTF).
+std::vector<std::uint8_t> SplatGlb(const GaussianCloud& cloud, int fractional_bits);
+
+// The glTF node matrix (column-major) that turns z-up content y-up, which a
+// 3D Tiles runtime turns back.
+inline constexpr double kZUpToYUp[16] = {1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1};
+
+}  // namespace skyfall

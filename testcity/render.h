@@ -1,0 +1,65 @@
+// Satellite views of a synthetic city: a pinhole camera in the city's ENU
+// frame and a ray caster over the height field, so buildings hide what is
+// behind them and cast shadows for each date's sun.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "testcity/city.h"
+
+namespace skyfall::synth {
+
+// Pinhole camera, pixel centres at integer coordinates (the RPC00B
+// convention). ENU metres; the centre is ~650 km away, so everything is double.
+struct SatelliteCamera {
+  Eigen::Matrix3d cam_from_enu = Eigen::Matrix3d::Identity();  // rows: right, down, forward
+  Eigen::Vector3d centre_enu_m = Eigen::Vector3d::Zero();
+  double focal_px = 1.0;
+  Eigen::Vector2d principal_px = Eigen::Vector2d::Zero();
+  int width_px = 0;
+  int height_px = 0;
+
+  Eigen::Vector2d Project(const Eigen::Vector3d& enu_m) const;
+  Eigen::Vector3d RayDirectionEnu(double col, double row) const;  // unit vector
+};
+
+// Affine map ENU -> scene frame, fitted over the city. The true map (ENU ->
+// geodetic -> UTM) bends by a few millimetres over a few hundred metres;
+// `max_error_m` reports how far the affine map is from it on the fit grid.
+struct SceneFromEnu {
+  Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d offset_m = Eigen::Vector3d::Zero();
+  double max_error_m = 0.0;
+  Eigen::Vector3d Apply(const Eigen::Vector3d& enu_m) const { return linear * enu_m + offset_m; }
+};
+
+struct Lighting {
+  Eigen::Vector3d sun_scene = Eigen::Vector3d::UnitZ();  // unit vector towards the sun, scene frame
+  float ambient = 0.35f;                                  // sky light share
+  float gain = 1.0f;                                      // sensor gain of the date
+  Eigen::Vector3f tint = Eigen::Vector3f::Ones();         // atmosphere colour cast
+  std::uint64_t noise_seed = 0;                           // sensor noise pattern
+  bool cast_shadows = true;                               // off only to test shadowing
+  // A detector integrates the light over its pixel. Point-sampled at the
+  // pixel's centre, textures finer than two pixels (tile courses, road
+  // markings) alias into a moire that differs in every view and correlates
+  // between none; the texture is averaged over `subpixels` x `subpixels`
+  // points of the pixel's footprint instead (1: point sampling). Shading and
+  // shadows are the centre's.
+  int subpixels = 4;
+};
+
+struct RenderedView {
+  int width_px = 0;
+  int height_px = 0;
+  std::vector<std::uint8_t> rgb;        // interleaved, row-major
+  std::vector<Eigen::Vector3f> hit_scene;  // surface point seen by each pixel (NaN if none)
+  std::vector<std::int32_t> hit_object;    // building index, -1 otherwise
+};
+
+RenderedView RenderView(const City& city, const SatelliteCamera& camera,
+                        const SceneFromEnu& scene_from_enu, const Lighting& lighting);
+
+}  // namespace skyfall::synth
