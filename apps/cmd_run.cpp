@@ -42,7 +42,7 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
   flags->Add("--overlap-m", "tiling.overlap_m");
   flags->AddTileFlags();
   flags->Add("--jobs", "executor.jobs");
-  flags->Add("--executor", "executor.kind")->check(CLI::IsMember({"local", "inline", "slurm"}));
+  flags->Add("--executor", "executor.kind");
   flags->Add("--slurm-partition", "executor.slurm.partition");
   flags->Add("--slurm-account", "executor.slurm.account");
   flags->Add("--slurm-time", "executor.slurm.time_limit");

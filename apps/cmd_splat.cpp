@@ -31,10 +31,8 @@ void AddTrain(CLI::App& splat, Runner* runner) {
       ->capture_default_str();
   cmd->add_option("--pseudo-every", o.pseudo_interval, "Iterations between pseudo views (0 = off)")->capture_default_str();
   cmd->add_option("--lambda-depth", o.lambda_depth, "Depth loss weight")->capture_default_str();
-  cmd->add_option("--appearance", stage->appearance,
-                  "Per-image appearance model: 'auto' (on for multi-date views), 'on' or 'off'")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->capture_default_str();
+  AddModeOption(cmd, "--appearance", &stage->appearance,
+                "Per-image appearance model: 'auto' (on for multi-date views), 'on' or 'off'");
   cmd->add_option("--appearance-image", o.appearance_image,
                   "Training view whose appearance is fused into scene.ply (default: the most typical one)");
   cmd->add_option("--densify-from", o.densify_from, "First densification step")->capture_default_str();
@@ -46,16 +44,12 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   cmd->add_option("--init-pieces", stage->init_pieces,
                   "Up to this many capped Gaussians per SfM point, covering the space to its neighbours")
       ->capture_default_str();
-  cmd->add_option("--init-points", stage->init_points,
-                  "Initial Gaussians from 'dense' (SFM/dense.ply of `skyfall dense`), 'sparse' (the tie points) or "
-                  "'auto' (dense when dense.ply exists)")
-      ->check(CLI::IsMember({"auto", "dense", "sparse"}))
-      ->capture_default_str();
-  cmd->add_option("--densify", stage->densify,
-                  "Clone, split and prune during training: 'on', 'off', or 'auto' (off when starting from dense "
-                  "heights)")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->capture_default_str();
+  AddModeOption(cmd, "--init-points", &stage->init_points,
+                "Initial Gaussians from 'dense' (SFM/dense.ply of `skyfall dense`), 'sparse' (the tie points) or "
+                "'auto' (dense when dense.ply exists)");
+  AddModeOption(cmd, "--densify", &stage->densify,
+                "Clone, split and prune during training: 'on', 'off', or 'auto' (off when starting from dense "
+                "heights)");
   cmd->add_flag("--snapshots", o.keep_snapshots,
                 "Keep checkpoints/snapshots/scene_<iteration>.ply (for `skyfall report`: DSM error vs time)");
   cmd->callback([=] {

@@ -8,7 +8,6 @@
 
 #include <mutex>
 
-#include "pipeline/event_log.h"
 
 namespace skyfall::cli {
 namespace {
@@ -33,12 +32,19 @@ class EventLogSink final : public spdlog::sinks::base_sink<std::mutex> {
     event.level = LevelName(msg.level);
     event.stage = "log";
     event.message.assign(msg.payload.data(), msg.payload.size());
-    Events().Write(event);
+    CliEventLog().Write(event);
   }
   void flush_() override {}
 };
 
 }  // namespace
+
+EventLog& CliEventLog() {
+  static EventLog log;
+  return log;
+}
+
+void ConsoleProgress::Record(const Event& event) { CliEventLog().Write(event); }
 
 void SetupLogging(bool quiet, bool verbose, const std::string& log_json_path) {
   auto console = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
@@ -46,7 +52,7 @@ void SetupLogging(bool quiet, bool verbose, const std::string& log_json_path) {
   console->set_level(quiet ? spdlog::level::warn : (verbose ? spdlog::level::debug : spdlog::level::info));
   std::vector<spdlog::sink_ptr> sinks{console};
   if (!log_json_path.empty()) {
-    Events().Open(log_json_path);
+    CliEventLog().Open(log_json_path);
     auto json_sink = std::make_shared<EventLogSink>();
     json_sink->set_level(verbose ? spdlog::level::debug : spdlog::level::info);
     sinks.push_back(json_sink);

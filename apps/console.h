@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/stage.h"
+#include "pipeline/event_log.h"
 
 namespace skyfall::cli {
 
@@ -19,12 +20,17 @@ namespace skyfall::cli {
 // line also goes to the JSON event log there (see pipeline/event_log.h).
 void SetupLogging(bool quiet, bool verbose, const std::string& log_json_path = "");
 
+// The CLI's JSON event log (--log-json), opened by SetupLogging: log lines
+// and the pipeline's events (through ConsoleProgress::Record) go there.
+EventLog& CliEventLog();
+
 class ConsoleProgress final : public Progress {
  public:
   void Begin(std::string_view task, std::size_t total) override;
   void Advance(std::size_t done, std::string_view item) override;
   void Warn(std::string_view message) override;
   void Info(std::string_view message) override;
+  void Record(const Event& event) override;
   void End() override;
 
  private:

@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
     return runner ? runner() : skyfall::kExitUsage;
   } catch (const skyfall::Error& e) {
     spdlog::error("{}", e.what());
-    skyfall::Events().Write({"error", "", "", "", e.what(), {}});
+    skyfall::cli::CliEventLog().Write({"error", "", "", "", e.what(), {}});
     return skyfall::kExitBadInput;
   } catch (const std::exception& e) {
     spdlog::error("internal error: {}", e.what());

@@ -23,6 +23,7 @@ CLI::Option* RunFlags::Add(const std::string& name, const std::string& path) {
   const bool quoted = d.default_json.size() >= 2 && d.default_json.front() == '"';
   option->default_str(quoted ? d.default_json.substr(1, d.default_json.size() - 2) : d.default_json);
   option->type_name(d.type == "integer" ? "INT" : d.type == "number" ? "FLOAT" : "TEXT");
+  if (!d.choices.empty()) option->check(CLI::IsMember(d.choices));
   flags_.push_back({option, path, value});
   return option;
 }
@@ -31,12 +32,12 @@ void RunFlags::AddTileFlags() {
   Add("--iterations", "train.iterations");
   Add("--resolution", "train.downscale");
   Add("--depth-prior", "train.depth_prior");
-  Add("--appearance", "train.appearance")->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--appearance", "train.appearance");
   Add("--init-max-scale", "train.init_max_scale_m");
   Add("--init-pieces", "train.init_pieces");
-  Add("--init-points", "train.init_points")->check(CLI::IsMember({"auto", "dense", "sparse"}));
-  Add("--densify", "train.densify")->check(CLI::IsMember({"auto", "on", "off"}));
-  Add("--idu", "idu.mode")->check(CLI::IsMember({"auto", "on", "off"}));
+  Add("--init-points", "train.init_points");
+  Add("--densify", "train.densify");
+  Add("--idu", "idu.mode");
   Add("--refiner", "idu.refiner");
 }
 

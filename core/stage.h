@@ -25,6 +25,18 @@ struct StageReport {
   double seconds = 0.0;                    // wall time of the stage
 };
 
+// A machine-readable record of something that happened, for log collectors
+// (the CLI's --log-json): figures are named with their units; empty
+// stage/aoi/tile are left out when written.
+struct Event {
+  std::string level = "info";  // "debug", "info", "warning", "error"
+  std::string stage;
+  std::string aoi;   // AOI or city
+  std::string tile;
+  std::string message;
+  std::map<std::string, double> figures;
+};
+
 // Progress sink for long work. Every method has an empty default so a stage
 // can be called with a NullProgress in tests. Implementations must be cheap:
 // stages call Advance once per item.
@@ -39,6 +51,8 @@ class Progress {
   virtual void Warn(std::string_view message) {}
   // A line worth telling the user that is not a problem (a decision, a summary).
   virtual void Info(std::string_view message) {}
+  // A structured event; the caller decides where events go.
+  virtual void Record(const Event& event) {}
   virtual void End() {}
 };
 

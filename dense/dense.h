@@ -52,7 +52,7 @@ struct DenseOptions {
   // from that view (as if the grid's highest surface stood just outside):
   // the city goes on beyond the grid, and a street near the edge seen only
   // through the edge was taken for seen ground and filled from the roofs
-  // beside it (docs/benchmarks.md, "Hidden ground").
+  // beside it (decision D-093).
   bool fill_edge_hides = true;
   // Before filling, small patches of matched cells (under
   // floating_patch_max_m2) standing wholly more than floating_patch_min_rise_m
@@ -79,8 +79,8 @@ struct DenseOptions {
   // look in the most nadir view that sees it (support_grey_sigma, on grey
   // scaled so its 99th percentile is 1) and by distance, so the centre's
   // own surface decides, not the wall's other side.
-  // Off by default: it narrows the band on every synthetic scene but costs
-  // JAX_068 2.5% of dense MAE (docs/benchmarks.md, "Cells beside steps").
+  // Off by default: it narrows the band on the synthetic scenes but moves
+  // real edges both ways, so the real scene loses (decision D-063).
   bool refine_steps = false;
   double step_min_m = 2.0;          // [m] a rise beyond this within step_reach_cells is a step
   int step_reach_cells = 3;         // [cells] the band re-decided: window radius (2) + 1
@@ -95,8 +95,7 @@ struct DenseOptions {
   // at the ground with measured ground within step_reach_cells keeps it
   // (beside a step the roof wins by fattening). The fill rules decide from
   // geometry alone: holes in roofs that join the unmatched streets beside
-  // them took the terrain (docs/benchmarks.md, "Filled cells decided by
-  // the views").
+  // them took the terrain (decision D-096).
   bool decide_filled_sides = true;
   // After filling, steps onto the ground move back by one cell where the
   // windows fattened them (PullStepsToGround): a cell whose next
@@ -107,8 +106,7 @@ struct DenseOptions {
   // ground are left alone: pulling those cost JAX_068 and gable roofs.
   // Off by default: with the surface anchor off beside steps
   // (train.surface_step_weight 0) it gains nothing that holds across the
-  // tuning scenes (docs/benchmarks.md, "Steps onto matched ground" and "No
-  // anchor beside steps"). 0 = off.
+  // tuning scenes (decisions D-082 and D-083). 0 = off.
   int step_pull_run_cells = 0;
   double step_pull_min_m = 2.0;
   double fill_radius_m = 5.0;
@@ -129,13 +127,13 @@ struct DenseOptions {
   // lowest measured neighbour further out is raised, takes the ground
   // (HoleFillOptions::far_raised_takes_ground): a street between tall
   // buildings, seen along its length but matched by no pair, took the
-  // roofs' height (docs/benchmarks.md, "Streets far from measured ground").
+  // roofs' height (decision D-094).
   bool fill_far_raised_ground = true;
   // A seen hole cell whose lowest measured neighbour in reach is ground
   // takes the terrain model (HoleFillOptions::seen_ground_takes_terrain):
   // on a hillside with little ground measured between tall buildings, the
   // plain opening it took before stood metres above the ground downhill
-  // (docs/benchmarks.md, "Seen holes at the ground take the terrain").
+  // (decision D-102).
   bool fill_seen_ground_terrain = true;
   // Cells further than this from every measured cell stay empty: beyond
   // the area the views share there is nothing to fill from, and filling it

@@ -550,8 +550,8 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
       // ground, a low roof can pass for ground and its hole takes the
       // terrain: judged above the terrain instead, the streets between a
       // hillside's tall buildings, whose nearest measured cells are all
-      // roofs, kept the opening's height (docs/benchmarks.md, "Seen holes at
-      // the ground take the terrain"). Without a terrain model at the cell a
+      // roofs, kept the opening's height (decision D-102; D-106 is the
+      // rejected alternative). Without a terrain model at the cell a
       // seen hole keeps the opening plus its lowest height.
       const bool seen_ground = o.seen_ground_takes_terrain && !ground && !raised_in_reach &&
                                low[k] <= o.roof_rim_min_m && std::isfinite(model.terrain_m[k]);

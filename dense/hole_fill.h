@@ -63,10 +63,8 @@ struct HoleFillOptions {
 // ground cells from raised ones; the terrain model through the ground cells
 // (TerrainModel), which also spans the holes; and what the lowest heights
 // of seen holes are measured above: the plain opening, squares cut at the
-// grid's edges. Measured on the benchmark scenes, the slope-corrected
-// surfaces as that base filled a 48 m roof that no pair matched as ground
-// (hill scene: dense MAE 1.88 -> 2.13 m), the plain opening did not, and
-// JAX_068 and the other scenes were the same either way.
+// grid's edges. A slope-corrected base can fill an unmatched tall roof as
+// ground on a hill; the plain opening does not (decision D-032).
 struct GroundModel {
   std::vector<float> ground_m, terrain_m, seen_hole_base_m;
   int terrain_trend_terms = 0;  // the terrain's trend: 3 a plane, 6 a quadratic, 0 none

@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
   options.train.init_max_scale_m = 0;  // few steps: let the initial Gaussians cover the gaps
   options.idu.options.orbit.episodes = 2;             // a short synthesis stage (where `auto` runs it)
   options.idu.options.iterations_per_episode = 20;
-  options.executor.kind = "inline";    // tiles in this process: no skyfall binary needed
+  options.executor.kind = skyfall::ExecutorKind::kInline;  // tiles in this process: no skyfall binary needed
   const skyfall::RunSummary run = skyfall::RunAll(options, {out + "/input", out + "/run", {}}, progress);
   for (const auto& c : run.cities)
     std::printf("%s: scene %s, DSM MAE %.2f m\n", c.city.c_str(), c.scene ? "yes" : "no",

@@ -16,7 +16,6 @@
 #include "core/error.h"
 #include "products/dsm.h"
 #include "products/dsm_report.h"
-#include "pipeline/event_log.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/inputs_stamp.h"
 #include "pipeline/merge_tiles.h"
@@ -25,6 +24,7 @@
 #include "pipeline/slurm.h"
 #include "products/stac.h"
 #include "pipeline/stage_jobs.h"
+#include "pipeline/tile_report.h"
 #include "pipeline/tile_run.h"
 #include "catalogs/aoi_catalog.h"
 #include "catalogs/tile_catalog.h"
@@ -39,9 +39,9 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-void Emit(const std::string& level, const std::string& stage, const std::string& aoi, const std::string& tile,
-          const std::string& message, std::map<std::string, double> figures = {}) {
-  Events().Write({level, stage, aoi, tile, message, std::move(figures)});
+void Emit(Progress& progress, const std::string& level, const std::string& stage, const std::string& aoi,
+          const std::string& tile, const std::string& message, std::map<std::string, double> figures = {}) {
+  progress.Record({level, stage, aoi, tile, message, std::move(figures)});
 }
 
 struct UtmBox {
@@ -74,18 +74,20 @@ double PeakChildRssMb() {
 // Per tile: how it ended, its times and memory, its stages and decisions.
 json TileEntry(const TileOutcome& o) {
   json entry = {{"tile", fs::path(o.dir).filename().string()}, {"exit_code", o.exit_code}, {"seconds", o.seconds}};
-  try {
-    const json report = json::parse(ReadTextFile((fs::path(o.dir) / "tile_report.json").string()));
-    entry["status"] = report.at("status");
-    entry["message"] = report.at("message");
-    entry["tile_seconds"] = report.at("seconds");
-    entry["peak_rss_mb"] = report.at("metrics").value("peak_rss_mb", 0.0);
-    entry["stages"] = report.at("stages");
-    entry["decisions"] = report.value("decisions", json::object());
-  } catch (const std::exception&) {
+  const std::optional<TileReport> report = ReadTileReport(o.dir);
+  if (!report) {
     entry["status"] = "failed";
     entry["message"] = o.message;
+    return entry;
   }
+  json stages = json::array();
+  for (const StageReport& s : report->stages) stages.push_back(StageReportJson(s));
+  entry["status"] = ToString(report->status);
+  entry["message"] = report->message;
+  entry["tile_seconds"] = report->seconds;
+  entry["peak_rss_mb"] = report->PeakRssMb();
+  entry["stages"] = stages;
+  entry["decisions"] = report->decisions;
   return entry;
 }
 
@@ -202,7 +204,7 @@ json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois,
     }
     dsm.push_back(entry);
     outcome->dsm_mae_m.push_back(c.mae_m);
-    Emit("info", "dsm", a.aoi, "", "DSM compared with the truth",
+    Emit(progress, "info", "dsm", a.aoi, "", "DSM compared with the truth",
          {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
           {"completeness", c.completeness}, {"within_1m", c.within_fraction}, {"seconds", clock.Seconds()}});
     stages->push_back(StageEntry("dsm " + a.aoi, "ok", clock.Seconds()));
@@ -252,18 +254,18 @@ int ResetChangedTiles(const std::vector<std::string>& tile_dirs, const std::map<
     ++reset;
     const std::string tile = fs::path(dir).filename().string();
     progress.Info("[" + city + "] " + tile + ": its images changed since the last run; redoing it");
-    Emit("info", "tiles", city, tile, "images changed since the last run; tile redone");
+    Emit(progress, "info", "tiles", city, tile, "images changed since the last run; tile redone");
   }
   return reset;
 }
 
-void EmitTileEvents(const std::string& city, const json& tile_list) {
+void EmitTileEvents(const std::string& city, const json& tile_list, Progress& progress) {
   for (const json& t : tile_list) {
     const std::string status = t.value("status", "failed");
     std::map<std::string, double> figures = {{"seconds", t.value("seconds", 0.0)},
                                              {"exit_code", t.value("exit_code", 0)}};
     if (t.contains("peak_rss_mb")) figures["peak_rss_mb"] = t.at("peak_rss_mb").get<double>();
-    Emit(status == "failed" ? "error" : "info", "tile", city, t.value("tile", ""),
+    Emit(progress, status == "failed" ? "error" : "info", "tile", city, t.value("tile", ""),
          "tile " + status + (t.value("message", "").empty() ? "" : ": " + t.value("message", "")), figures);
   }
 }
@@ -325,11 +327,9 @@ void ThrowIfNoTileFinished(const std::string& city, const std::vector<TileOutcom
   std::string first_reason;
   for (const TileOutcome& o : outcomes) {
     std::string status = o.exit_code == kExitOk ? "ok" : "failed", reason = o.message;
-    try {
-      const json report = json::parse(ReadTextFile((fs::path(o.dir) / "tile_report.json").string()));
-      status = report.value("status", status);
-      reason = report.value("message", reason);
-    } catch (const std::exception&) {  // no report: the exit code and the log tail stand
+    if (const std::optional<TileReport> report = ReadTileReport(o.dir)) {  // else the exit code and log tail stand
+      status = ToString(report->status);
+      reason = report->message;
     }
     if (status == "ok") return;
     ++by_status[status];
@@ -358,7 +358,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
     tile_list.push_back(TileEntry(o));
   }
   outcome.tiles_failed = failed;
-  EmitTileEvents(work.city, tile_list);
+  EmitTileEvents(work.city, tile_list, progress);
   json report = {{"city", work.city}, {"options", json::parse(RunOptionsToJson(options))}, {"tiles", tile_list}};
   json aoi_names = json::array();
   for (const auto& a : aois) aoi_names.push_back(a.aoi);
@@ -374,7 +374,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
     stages.push_back(StageEntry("merge", "ok", clock.Seconds()));
   } catch (const Error& e) {
     progress.Warn("[" + work.city + "] merge: " + e.what());
-    Emit("error", "merge", work.city, "", e.what());
+    Emit(progress, "error", "merge", work.city, "", e.what());
     stages.push_back(StageEntry("merge", "failed", clock.Seconds(), e.what()));
     outcome.error = e.what();
     report["stages"] = stages;
@@ -411,7 +411,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
       {"why", merged.surface_source == "reconstruction"
                   ? "dsm.source is reconstruction: the DSMs come from the tiles' scenes trained on the real images; "
                     "the synthesis stage's scene (scene.ply, the LOD) also trained on the refiner's orbit renders"
-                  : options.dsm.source == "final" ? "dsm.source is final: the DSMs come from the merged scene"
+                  : options.dsm.source == DsmSource::kFinal ? "dsm.source is final: the DSMs come from the merged scene"
                                                   : "no synthesis stage ran: the reconstruction is the merged scene"}};
   report["seam"] = {{"ratio", Finite(merged.seam.ratio)},
                     {"boundary_mean_step_m", Finite(merged.seam.boundary_mean_step_m)},
@@ -425,7 +425,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   CrashPoint("stac");
   WriteCityStac({work.city, work.out_dir, aois, work.tile_dirs, (work.city_dir / "scene").string(),
                  outcome.report_path, UtcNowIso()});
-  Emit("info", "city", work.city, "", "done",
+  Emit(progress, "info", "city", work.city, "", "done",
        {{"seconds", total.Seconds()}, {"tiles_failed", static_cast<double>(failed)},
         {"tiles_reset", static_cast<double>(work.tiles_reset)}, {"peak_tile_rss_mb", PeakChildRssMb()}});
   progress.Info(fmt::format("[{}] done in {:.0f} s -> {}", work.city, total.Seconds(), work.city_dir.string()));
@@ -455,7 +455,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
                               work.city, unfinished.size(), work.tile_dirs.size(),
                               jobs.tiles_job.empty() ? "-" : jobs.tiles_job, jobs.finish_job,
                               (work.city_dir / "slurm").string()));
-    Emit("info", "slurm", work.city, "", "submitted",
+    Emit(progress, "info", "slurm", work.city, "", "submitted",
          {{"tiles", static_cast<double>(unfinished.size())},
           {"tiles_job", jobs.tiles_job.empty() ? -1.0 : std::stod(jobs.tiles_job)},
           {"finish_job", std::stod(jobs.finish_job)}});
@@ -477,7 +477,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
     outcome.error = fmt::format("Slurm {}; the jobs were cancelled; see {}/slurm/ and the cluster's slurmd log, "
                                 "then rerun", end, work.city_dir.string());
     progress.Warn("[" + work.city + "] " + outcome.error);
-    Emit("error", "slurm", work.city, "", outcome.error);
+    Emit(progress, "error", "slurm", work.city, "", outcome.error);
     return outcome;
   }
   if (end == "dependency_never_satisfied") {
@@ -485,7 +485,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
                                 "and {}/slurm/tile_*.out; a rerun resubmits the unfinished tiles",
                                 std::max(outcome.tiles_failed, 1), jobs.finish_job, work.city_dir.string());
     progress.Warn("[" + work.city + "] " + outcome.error);
-    Emit("error", "slurm", work.city, "", outcome.error);
+    Emit(progress, "error", "slurm", work.city, "", outcome.error);
     return outcome;
   }
   try {
@@ -499,7 +499,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
   }
   outcome.error = "the Slurm finish job " + jobs.finish_job + " ended without a run report; see " + finish_log;
   progress.Warn("[" + work.city + "] " + outcome.error);
-  Emit("error", "slurm", work.city, "", outcome.error);
+  Emit(progress, "error", "slurm", work.city, "", outcome.error);
   return outcome;
 }
 
@@ -523,14 +523,14 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
     unchanged.scene = true;
     unchanged.unchanged = true;
     progress.Info("[" + plan.city + "] inputs and options unchanged since its last run: nothing to recompute");
-    Emit("info", "city", plan.city, "", "unchanged since the last run; nothing recomputed");
+    Emit(progress, "info", "city", plan.city, "", "unchanged since the last run; nothing recomputed");
     return unchanged;
   }
   progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m ({}; finest image GSD {:.2f} m, {:.0f} px a tile)",
                             plan.city, aois.size(), plan.grid.cols, plan.grid.rows, plan.grid.tile_m,
                             plan.tile_side_automatic ? "sized by the imagery" : "as given",
                             plan.finest_gsd_m, plan.finest_gsd_m > 0 ? plan.grid.tile_m / plan.finest_gsd_m : 0.0));
-  Emit("info", "city", plan.city, "", "start",
+  Emit(progress, "info", "city", plan.city, "", "start",
        {{"aois", static_cast<double>(aois.size())}, {"tiles", static_cast<double>(plan.grid.cols * plan.grid.rows)}});
   const TilingResult tiles = WriteTiles(plan, (work.city_dir / "tiles").string(), progress);
   work.tile_dirs = tiles.tile_dirs;
@@ -541,7 +541,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   const std::string config_path = (work.city_dir / "run_config.json").string();
   WriteFileIfChanged(config_path, RunOptionsToJson(options));
   WriteFileAtomic((work.city_dir / "city_job.json").string(), CityWorkJson(work, aois).dump(2) + "\n");
-  if (options.executor.kind == "slurm") return RunCityOnSlurm(options, work, config_path, progress);
+  if (options.executor.kind == ExecutorKind::kSlurm) return RunCityOnSlurm(options, work, config_path, progress);
 
   clock = Stopwatch();
   const std::vector<TileOutcome> outcomes = RunTiles(tiles.tile_dirs, options, config_path, progress);
@@ -597,10 +597,10 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   if (!lock) {
     summary.exit_code = kExitLocked;
     summary.lock_holder = DescribeHolder(holder);
-    Emit("error", "run", "", "", request.out + " is locked: " + summary.lock_holder);
+    Emit(progress, "error", "run", "", "", request.out + " is locked: " + summary.lock_holder);
     return summary;
   }
-  Emit("info", "run", "", "", "start: " + request.root + " -> " + request.out);
+  Emit(progress, "info", "run", "", "", "start: " + request.root + " -> " + request.out);
   IngestOptions ingest = options.ingest;
   ingest.aois = request.aois;
   const IngestResult ingested = RunIngest(ingest, request.root, (fs::path(request.out) / "catalogs").string(), progress);
@@ -616,10 +616,10 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
                         {"skipped_images", skipped}});
     if (a.report.status == StageStatus::kOk) {
       catalogs.push_back(a.catalog);
-      Emit("info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
+      Emit(progress, "info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
     } else {
       progress.Warn(a.aoi + ": ingest failed: " + a.report.message);
-      Emit("error", "ingest", a.aoi, "", a.report.message);
+      Emit(progress, "error", "ingest", a.aoi, "", a.report.message);
       ++summary.aois_failed;
     }
   }
@@ -637,7 +637,7 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
       city = RunCity(options, cities[k], request.out, progress);
     } catch (const Error& e) {
       progress.Warn(std::string("run: ") + e.what());  // one bad city never sinks the batch
-      Emit("error", "city", cities[k].front().aoi, "", e.what());
+      Emit(progress, "error", "city", cities[k].front().aoi, "", e.what());
       city.city = cities[k].front().aoi;
       city.error = e.what();
     }
@@ -664,7 +664,7 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
   }
   progress.Info(fmt::format("run: {} of {} cities reconstructed ({} unchanged since the last run) in {:.0f} s", done,
                             cities.size(), unchanged, summary.seconds));
-  Emit(summary.exit_code == kExitOk ? "info" : "warning", "run", "", "", "end",
+  Emit(progress, summary.exit_code == kExitOk ? "info" : "warning", "run", "", "", "end",
        {{"cities", static_cast<double>(cities.size())}, {"cities_done", static_cast<double>(done)},
         {"cities_unchanged", static_cast<double>(unchanged)}, {"aois_failed", static_cast<double>(summary.aois_failed)},
         {"exit_code", static_cast<double>(summary.exit_code)}, {"seconds", summary.seconds}});

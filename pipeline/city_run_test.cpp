@@ -46,7 +46,7 @@ RunOptions ShortRun(int iterations) {
   RunOptions options;
   options.train.optimizer.iterations = iterations;
   options.train.init_max_scale_m = 0;
-  options.executor.kind = "inline";
+  options.executor.kind = ExecutorKind::kInline;
   // The synthesis stage as the product decides it (auto), shortened: one
   // episode of a few steps on two small orbit views.
   IduOptions& idu = options.idu.options;
@@ -295,7 +295,7 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
                 std::abs(same.height_m[k] - before.height_m[k]) > 1e-3f;
     EXPECT_EQ(differ, 0);
     RunOptions final_surface = options;
-    final_surface.dsm.source = "final";
+    final_surface.dsm.source = DsmSource::kFinal;
     const MergeSummary from_final = MergeTiles((city_dir / "tiles").string(), (dir / "scene4").string(),
                                                final_surface.merge, final_surface.dsm, progress);
     EXPECT_EQ(from_final.surface_source, "final");
@@ -427,11 +427,11 @@ TEST(CityRun, APlainFolderWithAGeoreferencedTruthIsIngestedAndCompared) {
 TEST(CityRun, BadOptionsStopTheRunBeforeAnyStage) {
   const fs::path dir = ScratchDir("run");
   RunOptions options;
-  options.train.init_points = "dnse";
+  options.train.downscale = 0;
   NullProgress progress;
   const std::string error =
       testing::ErrorText([&] { RunAll(options, {"/nonexistent/root", (dir / "out").string(), {}}, progress); });
-  EXPECT_NE(error.find("train.init_points"), std::string::npos) << error;
+  EXPECT_NE(error.find("train.downscale"), std::string::npos) << error;
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
 

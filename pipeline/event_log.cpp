@@ -46,9 +46,4 @@ EventLog::~EventLog() {
   if (fd_ >= 0) close(fd_);
 }
 
-EventLog& Events() {
-  static EventLog log;
-  return log;
-}
-
 }  // namespace skyfall

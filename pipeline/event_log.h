@@ -7,22 +7,16 @@
 // Empty stage/aoi/tile are left out; figures are named with their units.
 #pragma once
 
-#include <map>
 #include <mutex>
 #include <string>
 
+#include "core/stage.h"
+
 namespace skyfall {
 
-struct Event {
-  std::string level = "info";  // "debug", "info", "warning", "error"
-  std::string stage;
-  std::string aoi;   // AOI or city
-  std::string tile;
-  std::string message;
-  std::map<std::string, double> figures;
-};
-
-// The process's event log; disabled (every Write a no-op) until opened.
+// An event log file (Event: core/stage.h); disabled (every Write a no-op)
+// until opened. Libraries never write one: they pass events to their
+// Progress sink, and the CLI's sink writes them here.
 class EventLog {
  public:
   // Opens `path` for appending (created when missing). Throws Error naming
@@ -38,9 +32,6 @@ class EventLog {
   int fd_ = -1;
   std::mutex mutex_;
 };
-
-// The process-wide log the CLI opens and the pipeline writes to.
-EventLog& Events();
 
 // The JSON text of an event (no newline); `time_utc` is ISO 8601.
 std::string EventJson(const Event& event, const std::string& time_utc);

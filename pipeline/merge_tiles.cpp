@@ -15,6 +15,7 @@
 #include "merge/lod.h"
 #include "merge/stitch.h"
 #include "pipeline/stage_jobs.h"
+#include "pipeline/tile_report.h"
 #include "splat/ply.h"
 #include "ingest/geo.h"
 
@@ -68,7 +69,7 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   options.Check();
   dsm.Check();
   const DsmExportOptions& dsm_options = dsm.export_options;
-  const bool from_reconstruction = dsm.source == "reconstruction";
+  const bool from_reconstruction = dsm.source == DsmSource::kReconstruction;
   MergeSummary summary;
   summary.report.stage = "merge";
   const fs::path index_path = fs::path(tiles_dir) / "tiles.json";
@@ -91,11 +92,8 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
     const TileSpec spec = ReadTileSpec((dir / "tile.json").string());
     if (summary.epsg == 0 && fs::exists(dir / "aoi.json")) summary.epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
     const fs::path scene = TileScenePath(dir.string());
-    bool ok = false;
-    try {
-      ok = json::parse(ReadTextFile((dir / "tile_report.json").string())).value("status", "") == "ok" && fs::exists(scene);
-    } catch (const std::exception&) {
-    }
+    const std::optional<TileReport> report = ReadTileReport(dir.string());
+    const bool ok = report && report->status == StageStatus::kOk && fs::exists(scene);
     if (ok) {
       clouds.push_back({spec, ReadGaussiansPly(scene.string())});
       const std::string reconstruction = TileReconstructionPath(dir.string());

@@ -6,6 +6,7 @@
 #include <new>
 #include <nlohmann/json.hpp>
 #include <limits>
+#include <optional>
 #include <set>
 #include <type_traits>
 
@@ -23,7 +24,8 @@ constexpr const char* kSchema = "skyfall.run_options/1";
 // writer and strict reader, the option describer and the completeness check.
 
 template <class T>
-constexpr bool kIsLeaf = std::is_arithmetic_v<T> || std::is_same_v<T, std::string> || std::is_same_v<T, Eigen::Vector3d>;
+constexpr bool kIsLeaf = std::is_arithmetic_v<T> || std::is_enum_v<T> || std::is_same_v<T, std::string> ||
+                        std::is_same_v<T, Eigen::Vector3d>;
 
 class Writer {
  public:
@@ -32,6 +34,8 @@ class Writer {
   void operator()(const char* key, const T& value, const char* /*help*/ = nullptr) {
     if constexpr (std::is_same_v<T, Eigen::Vector3d>) {
       (*out_)[key] = {value.x(), value.y(), value.z()};
+    } else if constexpr (std::is_enum_v<T>) {
+      (*out_)[key] = EnumName(value);
     } else if constexpr (kIsLeaf<T>) {
       (*out_)[key] = value;
     } else {
@@ -64,7 +68,11 @@ class Reader {
     if (it == in_.end()) return;
     const std::string path = path_.empty() ? key : path_ + "." + key;
     const json& v = *it;
-    if constexpr (std::is_same_v<T, bool>) {
+    if constexpr (std::is_enum_v<T>) {
+      const std::optional<T> mode = v.is_string() ? EnumFromName<T>(v.get<std::string>()) : std::nullopt;
+      if (!mode) Fail(path, v.dump() + " is not one of " + EnumChoices<T>());
+      value = *mode;
+    } else if constexpr (std::is_same_v<T, bool>) {
       if (!v.is_boolean()) Fail(path, "must be true or false, got " + v.dump());
       value = v.get<bool>();
     } else if constexpr (std::is_integral_v<T>) {
@@ -166,7 +174,9 @@ class Describer {
       json holder = json::object();
       Writer w(&holder);
       w(key, value);
-      rows_->push_back({path, TypeName<T>(), holder[key].dump(), UnitOfKey(key), help ? help : ""});
+      std::vector<std::string> choices;
+      if constexpr (std::is_enum_v<T>) choices = EnumNameList<T>();
+      rows_->push_back({path, TypeName<T>(), holder[key].dump(), UnitOfKey(key), help ? help : "", choices});
     } else {
       Describer inner(rows_, path);
       Visit(inner, value);
@@ -178,7 +188,8 @@ class Describer {
  private:
   template <class T>
   static std::string TypeName() {
-    if constexpr (std::is_same_v<T, bool>) return "bool";
+    if constexpr (std::is_enum_v<T>) return "mode";
+    else if constexpr (std::is_same_v<T, bool>) return "bool";
     else if constexpr (std::is_integral_v<T>) return "integer";
     else if constexpr (std::is_floating_point_v<T>) return "number";
     else if constexpr (std::is_same_v<T, std::string>) return "string";
@@ -202,16 +213,6 @@ json RunJson(const RunOptions& o) {
   return out;
 }
 
-void NeedOneOf(const std::string& value, std::initializer_list<const char*> allowed, const char* stage,
-               const char* field) {
-  std::string list;
-  for (const char* a : allowed) {
-    if (value == a) return;
-    list += std::string(list.empty() ? "" : ", ") + a;
-  }
-  throw Error(stage, field, "'" + value + "' is not one of " + list);
-}
-
 // Runs a section's Check() and puts the section in front of the field.
 template <class F>
 void CheckSection(const char* section, F check) {
@@ -232,9 +233,6 @@ void TrainStageOptions::Check() const {
   if (depth_prior != "surface" && depth_prior != "none" && depth_prior.rfind("cmd:", 0) != 0)
     throw Error("train", "depth_prior", "'" + depth_prior + "' is not one of surface, none, cmd:COMMAND");
   if (depth_prior == "cmd:") throw Error("train", "depth_prior", "'cmd:' names no command");
-  NeedOneOf(appearance, {"auto", "on", "off"}, "train", "appearance");
-  NeedOneOf(init_points, {"auto", "dense", "sparse"}, "train", "init_points");
-  NeedOneOf(densify, {"auto", "on", "off"}, "train", "densify");
   if (!(init_max_scale_m >= 0)) throw Error("train", "init_max_scale_m", "must be >= 0 (0 = no cap), got " + FormatDouble(init_max_scale_m));
   if (init_pieces < 1) throw Error("train", "init_pieces", "must be >= 1, got " + std::to_string(init_pieces));
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
@@ -251,7 +249,6 @@ void TrainStageOptions::Check() const {
 }
 
 void IduStageOptions::Check() const {
-  NeedOneOf(mode, {"auto", "on", "off"}, "idu", "mode");
   if (refiner != "reproject" && (refiner.rfind("cmd:", 0) != 0 || refiner.size() == 4))
     throw Error("idu", "refiner", "'" + refiner + "' is not 'reproject' or 'cmd:COMMAND'");
   options.Check();
@@ -270,7 +267,6 @@ void MergeOptions::Check() const {
 }
 
 void DsmOptions::Check() const {
-  NeedOneOf(source, {"reconstruction", "final"}, "dsm", "source");
   try {
     export_options.Check();
   } catch (const Error& e) {
@@ -305,7 +301,6 @@ void SlurmOptions::Check() const {
 }
 
 void ExecutorOptions::Check() const {
-  NeedOneOf(kind, {"local", "inline", "slurm"}, "executor", "kind");
   if (jobs < 0) throw Error("executor", "jobs", "must be >= 0 (0 = automatic), got " + std::to_string(jobs));
   try {
     slurm.Check();
@@ -426,7 +421,12 @@ std::string RunOptionsReferenceMarkdown() {
     }
     std::string help = row.help;
     for (std::size_t at = help.find('|'); at != std::string::npos; at = help.find('|', at + 2)) help.replace(at, 1, "\\|");
-    out += "| `" + row.path + "` | " + row.type + " | `" + row.default_json + "` | " + row.unit + " | " + help + " |\n";
+    std::string type = row.type;
+    if (!row.choices.empty()) {
+      type = "one of ";
+      for (std::size_t k = 0; k < row.choices.size(); ++k) type += (k ? ", `" : "`") + row.choices[k] + "`";
+    }
+    out += "| `" + row.path + "` | " + type + " | `" + row.default_json + "` | " + row.unit + " | " + help + " |\n";
   }
   return out;
 }

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/enum_codec.h"
 #include "products/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
@@ -40,6 +41,14 @@ struct AnchorWeightOptions {
   double step_min_m = 2.0;
 };
 
+// Where a tile's initial Gaussians come from.
+enum class InitPoints { kAuto, kDense, kSparse };
+template <>
+struct EnumNames<InitPoints> {
+  static constexpr std::array<std::pair<InitPoints, const char*>, 3> kNames = {
+      {{InitPoints::kAuto, "auto"}, {InitPoints::kDense, "dense"}, {InitPoints::kSparse, "sparse"}}};
+};
+
 // The training stage of a tile: the optimizer's options plus the choices made
 // around it (resolution, initialization, which regularizers run).
 struct TrainStageOptions {
@@ -48,7 +57,7 @@ struct TrainStageOptions {
   std::string depth_prior = "surface";  // pseudo-camera depth: "surface", "none" or "cmd:COMMAND"
   // Appearance model: "on", "off" or "auto" (on when the training views come
   // from more than one acquisition date; one date has nothing to explain).
-  std::string appearance = "auto";
+  Switch appearance = Switch::kAuto;
   // [m] cap on the initial Gaussian size (0 = none): uncapped, Gaussians sized
   // by the tie-point spacing start as blobs that the scaling learning rate
   // shrinks only slowly.
@@ -59,7 +68,7 @@ struct TrainStageOptions {
   // Where the initial Gaussians come from: "dense" (the dense heights, thinned
   // to init_spacing_m, plus tie points in their holes), "sparse" (tie points
   // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
-  std::string init_points = "auto";
+  InitPoints init_points = InitPoints::kAuto;
   double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
   // [m] With a dense start, Gaussians also on the walls of the dense heights
   // where neighbouring cells differ by this much (FacadePoints); 0 = none.
@@ -72,7 +81,7 @@ struct TrainStageOptions {
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).
-  std::string densify = "auto";
+  Switch densify = Switch::kAuto;
   void Check() const;  // throws Error("train", field, ...)
 };
 
@@ -80,7 +89,7 @@ struct TrainStageOptions {
 struct IduStageOptions {
   // "auto" (run where the dense heights show facades to synthesize; skip
   // flat, low-rise, water or empty tiles), "on" or "off".
-  std::string mode = "auto";
+  Switch mode = Switch::kAuto;
   // "reproject" (built in, no model weights) or "cmd:COMMAND" (an external
   // refiner such as a FlowEdit script; see README).
   std::string refiner = "reproject";
@@ -104,16 +113,23 @@ struct ExportOptions {
   void Check() const;
 };
 
+// The Gaussians the DSMs are rasterized from.
+enum class DsmSource { kReconstruction, kFinal };
+template <>
+struct EnumNames<DsmSource> {
+  static constexpr std::array<std::pair<DsmSource, const char*>, 2> kNames = {
+      {{DsmSource::kReconstruction, "reconstruction"}, {DsmSource::kFinal, "final"}}};
+};
+
 struct DsmOptions {
   // The Gaussians the DSMs (OUT/<AOI>/dsm.tif, the city's dsm_city.tif) are
   // rasterized from: "reconstruction", each tile's scene trained on the real
   // images (splat/scene.ply), or "final", the scene after the synthesis stage
   // (the one scene.ply and the LOD hold). The synthesis stage trains on the
   // refiner's renders of orbit views, which no image measured: they improve
-  // oblique views and cost the nadir surface 6-16% of DSM MAE on every
-  // benchmark scene measured (docs/benchmarks.md), so heights come from the
-  // reconstruction unless asked otherwise.
-  std::string source = "reconstruction";
+  // oblique views but move the nadir surface, so heights come from the
+  // reconstruction unless asked otherwise (decision D-073).
+  DsmSource source = DsmSource::kReconstruction;
   DsmExportOptions export_options;   // JSON key "export"
   DsmCompareOptions compare;
   void Check() const;                // throws Error("dsm", field, ...)
@@ -130,14 +146,21 @@ struct SlurmOptions {
   void Check() const;
 };
 
-// How tiles are executed.
+// How tiles are executed (see ExecutorOptions::kind).
+enum class ExecutorKind { kLocal, kInline, kSlurm };
+template <>
+struct EnumNames<ExecutorKind> {
+  static constexpr std::array<std::pair<ExecutorKind, const char*>, 3> kNames = {
+      {{ExecutorKind::kLocal, "local"}, {ExecutorKind::kInline, "inline"}, {ExecutorKind::kSlurm, "slurm"}}};
+};
+
 struct ExecutorOptions {
   // "local": each tile is its own `skyfall run-tile` process (memory and crash
   // isolation), several at once; "inline": tiles run one after the other in
   // the calling process (library users without the skyfall binary);
   // "slurm": the tiles go out as one sbatch job array, the city's merge and
   // DSM export as a job that depends on it (see pipeline/slurm.h).
-  std::string kind = "local";
+  ExecutorKind kind = ExecutorKind::kLocal;
   int jobs = 0;         // tiles at once with "local" (0 = bounded by cores and memory only)
   std::string program;  // the skyfall executable for "local" and "slurm" (empty = found beside this program)
   SlurmOptions slurm;
@@ -193,6 +216,7 @@ struct OptionDescription {
   std::string default_json;  // the library default, as JSON
   std::string unit;          // from the name's suffix ("m" for *_m), empty when none
   std::string help;
+  std::vector<std::string> choices;  // a mode's names; empty for other options
 };
 std::vector<OptionDescription> DescribeRunOptions();
 // The description of one option; throws Error naming `path` when there is none.

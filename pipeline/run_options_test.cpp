@@ -52,7 +52,7 @@ TEST(RunOptions, JsonRoundTripKeepsEveryChangedField) {
   o.train.depth_prior = "cmd:my_depth {in} {out}";
   o.merge.lod.min_gaussians = 7;
   o.dsm.export_options.median_depth = false;
-  o.executor.kind = "inline";
+  o.executor.kind = ExecutorKind::kInline;
   const std::string text = RunOptionsToJson(o);
   const RunOptions back = RunOptionsFromJson(text, "test.json");
   EXPECT_EQ(RunOptionsToJson(back), text);
@@ -92,11 +92,18 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
     change(o);
     return ErrorOf([&] { o.Check(); });
   };
-  const std::string mode = check([](RunOptions& o) { o.train.init_points = "dnse"; });
+  // A mode is an enum: a name that is none of its values is refused where
+  // it is read, naming the path and the choices.
+  auto set = [](const std::string& assignment) {
+    RunOptions o;
+    return ErrorOf([&] { SetRunOption(&o, assignment); });
+  };
+  const std::string mode = set("train.init_points=dnse");
   EXPECT_NE(mode.find("train.init_points"), std::string::npos) << mode;
   EXPECT_NE(mode.find("dnse"), std::string::npos) << mode;
-  EXPECT_NE(check([](RunOptions& o) { o.train.appearance = "sometimes"; }).find("train.appearance"), std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.train.densify = ""; }).find("train.densify"), std::string::npos);
+  EXPECT_NE(mode.find("'auto', 'dense' or 'sparse'"), std::string::npos) << mode;
+  EXPECT_NE(set("train.appearance=sometimes").find("train.appearance"), std::string::npos);
+  EXPECT_NE(set("train.densify=").find("train.densify"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "lidar"; }).find("train.depth_prior"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "cmd:"; }).find("train.depth_prior"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.downscale = 0; }).find("train.downscale"), std::string::npos);
@@ -113,10 +120,10 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dsm.compare.pyramid_levels = 0; }).find("dsm.compare.pyramid_levels"),
             std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.dsm.source = "idu"; }).find("dsm.source"), std::string::npos);
+  EXPECT_NE(set("dsm.source=idu").find("dsm.source"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.dsm.export_options.min_alpha = 1; }).find("dsm.export.min_alpha"),
             std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.executor.kind = "cloud"; }).find("executor.kind"), std::string::npos);
+  EXPECT_NE(set("executor.kind=cloud").find("executor.kind"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.executor.jobs = -2; }).find("executor.jobs"), std::string::npos);
 }
 

@@ -8,6 +8,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "pipeline/slurm.h"
+#include "pipeline/tile_report.h"
 
 namespace skyfall {
 namespace {
@@ -16,12 +17,9 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 std::string TileState(const fs::path& tile_dir) {
-  try {
-    if (fs::exists(tile_dir / "tile_report.json")) {
-      return json::parse(ReadTextFile((tile_dir / "tile_report.json").string())).at("status");
-    }
-  } catch (const std::exception&) {
-    return "failed";  // an unreadable report
+  if (fs::exists(TileReportPath(tile_dir.string()))) {
+    const std::optional<TileReport> report = ReadTileReport(tile_dir.string());
+    return report ? ToString(report->status) : "failed";  // an unreadable report
   }
   return fs::exists(tile_dir / "run.log") ? "started" : "waiting";
 }

@@ -108,11 +108,11 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
 }
 
 // Decides whether the appearance model runs, and says why.
-std::string ResolveAppearance(const std::string& mode, const std::vector<TrainView>& views, TrainOptions* o) {
+std::string ResolveAppearance(Switch mode, const std::vector<TrainView>& views, TrainOptions* o) {
   const int dates = DistinctAcquisitionDates(views);
-  if (mode == "on" || mode == "off") {
-    o->appearance.enabled = mode == "on";
-    return "--appearance " + mode;
+  if (mode != Switch::kAuto) {
+    o->appearance.enabled = mode == Switch::kOn;
+    return std::string("--appearance ") + EnumName(mode);
   }
   o->appearance.enabled = dates >= 2;
   return "auto: training views from " + std::to_string(dates) + " acquisition date" + (dates == 1 ? "" : "s");
@@ -297,10 +297,11 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   std::vector<Eigen::Vector3f> points, colours;
   ReadSfmPoints((fs::path(sfm_dir) / "points.ply").string(), &points, &colours);
   const fs::path dense_path = fs::path(sfm_dir) / "dense.ply";
-  if (stage.init_points == "dense" && !fs::exists(dense_path))
+  if (stage.init_points == InitPoints::kDense && !fs::exists(dense_path))
     throw Error("splat", dense_path.string(), "missing: run `skyfall dense --sfm " + sfm_dir +
                                                   "` first, or train with --init-points sparse");
-  decided.dense_start = stage.init_points == "dense" || (stage.init_points == "auto" && fs::exists(dense_path));
+  decided.dense_start =
+      stage.init_points == InitPoints::kDense || (stage.init_points == InitPoints::kAuto && fs::exists(dense_path));
   const std::size_t tie_points = points.size();
   std::unique_ptr<SurfaceDepthPrior> surface;  // the dense heights, to anchor training to
   std::vector<Eigen::Vector3f> facades, facade_colours;
@@ -317,7 +318,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                    &facade_colours, &facade_normals);
   }
   decided.surface_anchor = surface != nullptr;
-  decided.densify = stage.densify == "on" || (stage.densify == "auto" && !decided.dense_start);
+  decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
   if (!decided.densify) options.densify_from = options.iterations + 1;  // never reached
   std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
   if (stage.mask_beyond_reconstruction)
@@ -417,7 +418,7 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
   auto height = [&](double e, double n) { return surface ? surface->HeightAt(e, n) : NAN; };
   const std::unique_ptr<Refiner> refiner =
       MakeRefiner(options.refiner, satellite_train, options.reproject, (fs::path(out_dir) / "refiner").string(),
-                  "idu.refiner", options.options.geometry == "surface" ? surface.get() : nullptr);
+                  "idu.refiner", options.options.geometry == IduGeometry::kSurface ? surface.get() : nullptr);
   fs::remove(scene_out);  // until this run has finished
   result.idu = RunIdu(options.options, train.optimizer, scene, idu_views, core,
                       ReadCamerasFrameOrigin((fs::path(sfm_dir) / "cameras.json").string()), height, surface.get(), *refiner,

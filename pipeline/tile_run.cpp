@@ -22,6 +22,7 @@
 
 #include "core/crash_point.h"
 #include "pipeline/exit_codes.h"
+#include "pipeline/tile_report.h"
 #include "pipeline/stage_jobs.h"
 #include "core/format.h"
 #include "catalogs/aoi_catalog.h"
@@ -45,40 +46,33 @@ double PeakRssMb() {
 
 json OptionsJson(const RunOptions& o) { return json::parse(TileOptionsJson(o)); }
 
-json StageJson(const StageReport& r) {
-  return {{"stage", r.stage}, {"status", ToString(r.status)}, {"message", r.message}, {"seconds", r.seconds},
-          {"metrics", r.metrics}, {"warnings", r.warnings}};
-}
-
-StageReport WriteTileReport(const std::string& dir, const TileSpec& spec, const RunOptions& o, StageReport report,
-                            const std::vector<StageReport>& stages, const json& decisions = json::object()) {
-  json list = json::array();
-  for (const StageReport& s : stages) list.push_back(StageJson(s));
+StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunOptions& o, StageReport report,
+                        const std::vector<StageReport>& stages, const json& decisions = json::object()) {
   report.stage = "run-tile";
   report.metrics["peak_rss_mb"] = PeakRssMb();
-  const json doc = {{"tile", spec.id}, {"status", ToString(report.status)}, {"message", report.message},
-                    {"options", OptionsJson(o)}, {"decisions", decisions}, {"images", spec.images.size()},
-                    {"seconds", report.seconds}, {"metrics", report.metrics}, {"stages", list}};
-  WriteFileAtomic((fs::path(dir) / "tile_report.json").string(), doc.dump(2) + "\n");
+  TileReport doc;
+  doc.tile = spec.id;
+  doc.status = report.status;
+  doc.message = report.message;
+  doc.options = OptionsJson(o);
+  doc.decisions = decisions;
+  doc.images = spec.images.size();
+  doc.seconds = report.seconds;
+  doc.metrics = report.metrics;
+  doc.stages = stages;
+  WriteTileReport(dir, doc);
   return report;
 }
 
 // A finished run with the same options, if there is one.
 bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* report) {
-  const fs::path path = fs::path(dir) / "tile_report.json";
-  if (!fs::exists(path)) return false;
-  try {
-    const json doc = json::parse(ReadTextFile(path.string()));
-    if (doc.at("options") != OptionsJson(o)) return false;
-    const std::string status = doc.at("status").get<std::string>();
-    if (status == "ok" && !fs::exists(fs::path(dir) / "splat" / "scene.ply")) return false;
-    report->status = status == "ok" ? StageStatus::kOk : status == "degenerate" ? StageStatus::kDegenerate
-                                                                                : StageStatus::kSkipped;
-    report->message = "already done (" + status + ")";
-    return status == "ok" || status == "degenerate" || status == "skipped";
-  } catch (const std::exception&) {
-    return false;  // unreadable report: redo the tile
-  }
+  const std::optional<TileReport> done = ReadTileReport(dir);
+  if (!done || done->options != OptionsJson(o)) return false;
+  if (done->status == StageStatus::kFailed) return false;
+  if (done->status == StageStatus::kOk && !fs::exists(fs::path(dir) / "splat" / "scene.ply")) return false;
+  report->status = done->status;
+  report->message = std::string("already done (") + ToString(done->status) + ")";
+  return true;
 }
 
 // What sfm_options.json holds: the options, and the version of what the SfM
@@ -125,7 +119,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   if (spec.images.empty()) {
     report.status = StageStatus::kSkipped;
     report.message = spec.id + ": fewer than 2 images see this tile; nothing to reconstruct";
-    return WriteTileReport(tile_dir, spec, options, report, {});
+    return WriteReport(tile_dir, spec, options, report, {});
   }
   std::vector<StageReport> stages;
   const fs::path sfm_dir = fs::path(tile_dir) / "sfm";
@@ -141,12 +135,12 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
       report.status = StageStatus::kDegenerate;
       report.message = spec.id + ": " + sfm.report.message;
       report.seconds = clock.Seconds();
-      return WriteTileReport(tile_dir, spec, options, report, stages);
+      return WriteReport(tile_dir, spec, options, report, stages);
     }
   }
   CrashPoint("sfm");
   json decisions = json::object();
-  if (options.train.init_points == "sparse") {
+  if (options.train.init_points == InitPoints::kSparse) {
     decisions["dense"] = {{"ran", false}, {"why", "train.init_points is 'sparse'"}};
   } else if (DenseDone(sfm_dir.string(), options.dense, spec.extent)) {
     stages.push_back(ReusedStage("dense", "the finished dense heights"));
@@ -160,7 +154,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
                                              progress);
   decisions["initial_points"] = trained.decisions.dense_start ? "dense" : "sparse";
   decisions["densify"] = {{"on", trained.decisions.densify},
-                          {"why", "train.densify '" + options.train.densify + "', " +
+                          {"why", std::string("train.densify '") + EnumName(options.train.densify) + "', " +
                                       (trained.decisions.dense_start ? "dense" : "tie-point") + " start"}};
   decisions["appearance"] = {{"on", trained.decisions.appearance}, {"why", trained.decisions.appearance_reason}};
   decisions["surface_anchor"] = {
@@ -195,14 +189,14 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   report.seconds = clock.Seconds();
   report.metrics["gaussians"] = static_cast<double>(gaussians);
   CrashPoint("tile");
-  return WriteTileReport(tile_dir, spec, options, report, stages, decisions);
+  return WriteReport(tile_dir, spec, options, report, stages, decisions);
 }
 
 namespace {
 
 // [MB] memory a tile run needs: a base (code, TBB, SfM tracks) plus per
-// full-resolution crop pixel (SIFT pyramids and float training images);
-// measured peaks: JAX_068 (19 crops, 12 Mpx) 280 MB SfM, 250 MB training.
+// full-resolution crop pixel (SIFT pyramids and float training images),
+// which covers the peaks measured on a real AOI (decision D-022).
 constexpr double kTileBaseMb = 300.0;
 constexpr double kTileBytesPerPixel = 40.0;
 
@@ -392,24 +386,25 @@ bool TileFinished(const std::string& tile_dir, const RunOptions& options) {
 TileOutcome TileOutcomeFromReport(const std::string& tile_dir) {
   TileOutcome o;
   o.dir = tile_dir;
-  try {
-    const json doc = json::parse(ReadTextFile((fs::path(tile_dir) / "tile_report.json").string()));
-    const std::string status = doc.at("status");
-    o.exit_code = status == "degenerate" ? kExitDegenerate : status == "failed" ? kExitBadInput : kExitOk;
-    o.seconds = doc.value("seconds", 0.0);
-    o.message = doc.value("message", "");
-  } catch (const std::exception&) {
+  const std::optional<TileReport> report = ReadTileReport(tile_dir);
+  if (!report) {
     o.exit_code = kExitBadInput;
     o.message = "no tile report: the tile did not finish; see " + (fs::path(tile_dir) / "run.log").string();
+    return o;
   }
+  o.exit_code = report->status == StageStatus::kDegenerate ? kExitDegenerate
+                : report->status == StageStatus::kFailed   ? kExitBadInput
+                                                            : kExitOk;
+  o.seconds = report->seconds;
+  o.message = report->message;
   return o;
 }
 
 std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
                                   const std::string& config_path, Progress& progress) {
   options.executor.Check();
-  if (options.executor.kind == "inline") return RunTilesInline(tile_dirs, options, progress);
-  if (options.executor.kind == "slurm") throw Error("run", "executor.kind", "slurm runs whole cities (RunCity), not RunTiles");
+  if (options.executor.kind == ExecutorKind::kInline) return RunTilesInline(tile_dirs, options, progress);
+  if (options.executor.kind == ExecutorKind::kSlurm) throw Error("run", "executor.kind", "slurm runs whole cities (RunCity), not RunTiles");
   return RunTilesAsProcesses(tile_dirs, options, config_path, progress);
 }
 

@@ -43,7 +43,7 @@ struct DsmExportOptions {
   double min_alpha = 0.5;          // below this accumulated opacity a pixel is nodata
   // The height of a pixel: the depth where the accumulated opacity reaches
   // 0.5 (median, the default: faint floaters and half-covered roof edges do
-  // not pull it, and its DSM error is lower; see docs/benchmarks.md), or
+  // not pull it, and its DSM error is lower; decision D-011), or
   // else the opacity-weighted expected depth.
   bool median_depth = true;
   void Check() const;  // throws Error("dsm", field, ...)

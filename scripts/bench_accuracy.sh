@@ -44,7 +44,8 @@ mkdir -p "$OUT"
 # real AOI with LiDAR truth here), the surface-anchor weights on syn_default
 # (its 128 m quick form); the other scenes are held out of all tuning.
 # Later dense-stage rules were also chosen on cities of other seeds
-# (`skyfall synth --seed 2|3`, docs/benchmarks.md), none of them listed here.
+# (`skyfall synth --seed 2|3`; docs/benchmarks.md, "Scenes: tuned on, looked
+# at, held out"), none of them listed here.
 # The rows after syn_multidate are the real-sensor defect classes: a second
 # real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
 # mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair,

@@ -58,9 +58,9 @@ struct TrainOptions {
   // Adam learning rates (3DGS defaults; scaling 0.001 as in the paper).
   double lr_mean_initial = 1.6e-4;  // times the scene extent; decays exponentially...
   double lr_mean_final = 1.6e-6;    // ...to this, times the extent
-  // 0.012 renders held-out views 1.3-5.1 dB better over 1000 steps but does
-  // not keep the DSM's accuracy across scenes (docs/benchmarks.md, "The
-  // scaling learning rate for a 1000-step schedule"): the DSM comes first.
+  // A larger rate renders held-out views better over 1000 steps but does
+  // not keep the DSM's accuracy across scenes: the DSM comes first
+  // (decision D-085).
   double lr_scale = 0.001;
   double lr_rotation = 0.001;
   double lr_opacity = 0.05;
@@ -103,8 +103,7 @@ struct TrainOptions {
   // surface height below it: lambda_surface_height times half its squared
   // height error (SurfaceHeightLoss), weighted like the anchor's depth.
   // The anchor holds the blend of a pixel's Gaussians, not each centre, and
-  // the DSM is read from centres; 10 was chosen on syn_default and
-  // syn_south45 (DSM MAE -25% and -19%, 100 no better; docs/benchmarks.md).
+  // the DSM is read from centres (decision D-046).
   double lambda_surface_height = 10.0;  // per m^2, averaged over the Gaussians
   double surface_height_band_m = 1.0;
   // Every this many iterations the anchor also holds a nadir view of a patch

@@ -208,7 +208,7 @@ TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episod
   t.synthetic_fraction = o.synthetic_fraction;
   t.lambda_view_depth = o.lambda_depth;
   t.keep_snapshots = false;
-  t.anchor_synthetic_views = o.geometry == "surface" && o.anchor_refined_views;
+  t.anchor_synthetic_views = o.geometry == IduGeometry::kSurface && o.anchor_refined_views;
   t.eval_interval = std::max(1, o.iterations_per_episode);
   t.checkpoint_interval = std::max(1, o.iterations_per_episode);
   if (o.densify) {
@@ -289,8 +289,6 @@ void IduOptions::Check() const {
   need(densify_until_fraction >= 0 && densify_until_fraction <= 1, "densify_until_fraction", densify_until_fraction);
   need(densify_interval >= 1, "densify_interval", densify_interval);
   need(fill_voxel_m > 0 && std::isfinite(fill_voxel_m), "fill_voxel_m", fill_voxel_m);
-  if (geometry != "surface" && geometry != "render")
-    throw Error("idu", "geometry", "'" + geometry + "' is not surface or render");
 }
 
 IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud cloud,
@@ -333,7 +331,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     std::size_t opaque = 0, pixels = 0;
     for (const OrbitView& v : views) {
       renders.push_back(RenderOrbitView(cloud, v, train.raster));
-      if (surface && o.geometry == "surface") PlaceOnSurface(*surface, o.fill_holes, &renders.back());
+      if (surface && o.geometry == IduGeometry::kSurface) PlaceOnSurface(*surface, o.fill_holes, &renders.back());
       inputs.push_back(renders.back().input);
       for (std::uint8_t m : renders.back().valid) opaque += m;
       pixels += renders.back().valid.size();
@@ -428,15 +426,14 @@ void IduAutoOptions::Check() const {
   need(min_measured_fraction >= 0 && min_measured_fraction <= 1, "min_measured_fraction", min_measured_fraction);
 }
 
-IduDecision DecideIdu(const std::string& mode, const IduAutoOptions& o, const std::vector<Eigen::Vector3f>& points,
+IduDecision DecideIdu(Switch mode, const IduAutoOptions& o, const std::vector<Eigen::Vector3f>& points,
                       const std::vector<std::uint8_t>& filled, double cell_m) {
   IduDecision d;
-  if (mode != "auto" && mode != "on" && mode != "off") throw Error("idu", "mode", "'" + mode + "' is not auto, on or off");
-  if (mode != "auto") {
+  if (mode != Switch::kAuto) {
     // Measured all the same, so that reports compare tiles alike.
-    d = DecideIdu("auto", o, points, filled, cell_m);
-    d.on = mode == "on";
-    d.why = "idu.mode is '" + mode + "'";
+    d = DecideIdu(Switch::kAuto, o, points, filled, cell_m);
+    d.on = mode == Switch::kOn;
+    d.why = std::string("idu.mode is '") + EnumName(mode) + "'";
     return d;
   }
   if (points.empty() || !(cell_m > 0)) {

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_codec.h"
 #include "core/gaussians.h"
 #include "core/stage.h"
 #include "core/tile.h"
@@ -22,12 +23,19 @@
 
 namespace skyfall {
 
+// Where refined views get their geometry (IduOptions::geometry).
+enum class IduGeometry { kSurface, kRender };
+template <>
+struct EnumNames<IduGeometry> {
+  static constexpr std::array<std::pair<IduGeometry, const char*>, 2> kNames = {
+      {{IduGeometry::kSurface, "surface"}, {IduGeometry::kRender, "render"}}};
+};
+
 struct IduOptions {
   OrbitOptions orbit;
   // Training iterations per episode (paper: 10,000 on a GPU; a CPU tile
   // affords a few hundred within the stage-time budget of at most twice the
-  // reconstruction; with hole filling 300 on the 128 m synthetic city:
-  // docs/benchmarks.md).
+  // reconstruction; decision D-043).
   int iterations_per_episode = 300;
   int samples = 2;                    // N_s refined samples per view (paper: 2)
   double synthetic_fraction = 0.75;   // share of iterations on refined views (paper: 75 %)
@@ -37,8 +45,8 @@ struct IduOptions {
   double lambda_opacity = 0.0;
   // Densification within each episode (paper: through 90 % of it), from
   // densify_from_fraction of the episode every densify_interval iterations.
-  // Off by default: on the synthetic city it bought ~0.5 dB at 45 deg but
-  // cost 5-6 % of DSM accuracy and half again the time (docs/benchmarks.md).
+  // Off by default: it buys a little at oblique views but costs DSM
+  // accuracy and time (decision D-024).
   bool densify = false;
   double densify_from_fraction = 0.2;
   double densify_until_fraction = 0.9;
@@ -49,28 +57,25 @@ struct IduOptions {
   // or "render" (the paper: the depth the scene renders at the episode's
   // start). The Gaussians of a satellite reconstruction hardly hold facades;
   // the paper's diffusion refiner paints them in, a reprojecting one cannot.
-  std::string geometry = "surface";
+  IduGeometry geometry = IduGeometry::kSurface;
   // With geometry "surface": also hold refined views to the height field
   // with the reconstruction's surface anchor (absolute depth and opacity).
-  // Off: on the 128 m synthetic city it filled facades (45 deg views +1.8 dB)
-  // but pulled Gaussians off the roofs (DSM MAE 0.80 -> 1.19 m); without it
-  // 45 deg views gain 2.6 dB and the DSM 0.80 -> 0.85 m.
+  // Off: it filled facades but pulled Gaussians off the roofs, and the
+  // stage does better at oblique views without it (decision D-024).
   bool anchor_refined_views = false;
   // With geometry "surface": orbit pixels where the height field has a
   // surface but the scene renders transparent (walls the reconstruction left
   // as holes) are refined and trained on too, and each episode adds a
   // Gaussian of the refined colour at those surface points, one per
   // fill_voxel_m cube. Without it such holes are masked from training and,
-  // with densification off, stay holes. On the 128 m synthetic city: 45 deg
-  // views +3.9 dB instead of +1.8 dB (docs/benchmarks.md); 1 m cubes add a
-  // third of the Gaussians 0.5 m cubes do, for 0.2 dB less.
+  // with densification off, stay holes. 1 m cubes: nearly the oblique
+  // views of 0.5 m cubes with far fewer Gaussians (decision D-043).
   bool fill_holes = true;
   // The reconstruction's Gaussians keep their geometry (centre, shape,
   // opacity) through the episodes and train only their colours; the hole
-  // Gaussians the stage adds train fully. Off by default: it kept the DSM of
-  // the 128 m syn_south45 closer to its reconstruction (0.41 -> 0.34 m, the
-  // reconstruction's 0.32 m) but cost the 256 m default city DSM accuracy
-  // (1.91 -> 2.00 m) and 0.7 dB at 45 deg (docs/benchmarks.md).
+  // Gaussians the stage adds train fully. Off by default: it helped one
+  // scene's DSM but cost the default city DSM accuracy and oblique views
+  // (decision D-054).
   bool hold_geometry = false;
   double fill_voxel_m = 1.0;
   std::uint64_t seed = 1;
@@ -142,9 +147,9 @@ struct IduDecision {
   double measured_fraction = 0;   // share of grid cells measured (not filled)
 };
 
-// `mode`: "on", "off" or "auto". `points`: the dense cells' ENU positions on
+// `mode`: on, off or auto (decided from the heights). `points`: the dense cells' ENU positions on
 // a grid of `cell_m`, `filled`: which were filled rather than measured.
-IduDecision DecideIdu(const std::string& mode, const IduAutoOptions& options, const std::vector<Eigen::Vector3f>& points,
+IduDecision DecideIdu(Switch mode, const IduAutoOptions& options, const std::vector<Eigen::Vector3f>& points,
                       const std::vector<std::uint8_t>& filled, double cell_m);
 
 }  // namespace skyfall

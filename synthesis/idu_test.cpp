@@ -255,12 +255,11 @@ TEST(ReprojectRefiner, InpaintsWhatNoSatelliteSeesAndRejectsBadOptions) {
   // inpainting, not the grey (0.5) render: green there is 0.9, to the 8-bit
   // steps inpainting works in plus the few levels Telea's gradient term adds.
   EXPECT_NEAR(refined[0][0][3 * (2 * 64 + 2) + 1], 0.9f, 4.0f / 255);
-  o.inpaint = "render";
+  o.inpaint = Inpaint::kRender;
   const auto kept = ReprojectRefiner(satellite, o).Refine(plane, {in}, RefineRequest{}, quiet);
   EXPECT_NEAR(kept[0][0][3 * (2 * 64 + 2) + 1], in.rgb[3 * (2 * 64 + 2) + 1], 1e-6);
-  o.inpaint = "fill";
-  EXPECT_THROW(ReprojectRefiner(satellite, o), Error);
-  o.inpaint = "telea";
+  EXPECT_FALSE(EnumFromName<Inpaint>("fill"));  // no such mode can be asked for
+  o.inpaint = Inpaint::kTelea;
   o.keep_probability = 0.0;
   EXPECT_THROW(ReprojectRefiner(satellite, o), Error);
 }
@@ -328,24 +327,24 @@ TEST(IduAuto, SkipsFlatEmptyAndUnmeasuredTilesAndRunsOnTallBuildings) {
   // Flat ground with 0.3 m noise and 1.5 m garden sheds: no facade of 3 m.
   Cells([](double x, double y) { return 0.3 * std::sin(7 * x) * std::cos(5 * y) + ((int(x / 10) + int(y / 10)) % 4 == 0 && std::fmod(x, 10) < 3 ? 1.5 : 0.0); },
         &flat, &flat_f);
-  const IduDecision d_flat = DecideIdu("auto", o, flat, flat_f, 0.5);
+  const IduDecision d_flat = DecideIdu(Switch::kAuto, o, flat, flat_f, 0.5);
   EXPECT_FALSE(d_flat.on) << d_flat.why;
   EXPECT_NE(d_flat.why.find("flat or low-rise"), std::string::npos) << d_flat.why;
   EXPECT_LT(d_flat.facade_ratio, o.min_facade_ratio);
   // A 40 m tower of 20 x 20 m: 4 x 20 x 40 = 3200 m2 of facade over 3600 m2.
   Cells([](double x, double y) { return x >= 20 && x < 40 && y >= 20 && y < 40 ? 40.0 : 0.0; }, &tall, &tall_f);
-  const IduDecision d_tall = DecideIdu("auto", o, tall, tall_f, 0.5);
+  const IduDecision d_tall = DecideIdu(Switch::kAuto, o, tall, tall_f, 0.5);
   EXPECT_TRUE(d_tall.on) << d_tall.why;
   EXPECT_NEAR(d_tall.facade_ratio, 3200.0 / 3600.0, 0.05);
   // Water: almost every cell filled rather than measured.
   Cells([](double, double) { return 0.0; }, &water, &water_f, 0.99);
-  const IduDecision d_water = DecideIdu("auto", o, water, water_f, 0.5);
+  const IduDecision d_water = DecideIdu(Switch::kAuto, o, water, water_f, 0.5);
   EXPECT_FALSE(d_water.on);
   EXPECT_NE(d_water.why.find("measured"), std::string::npos) << d_water.why;
-  EXPECT_FALSE(DecideIdu("auto", o, {}, {}, 0.5).on);
-  EXPECT_TRUE(DecideIdu("on", o, {}, {}, 0.5).on);
-  EXPECT_FALSE(DecideIdu("off", o, tall, tall_f, 0.5).on);
-  EXPECT_THROW(DecideIdu("sometimes", o, tall, tall_f, 0.5), Error);
+  EXPECT_FALSE(DecideIdu(Switch::kAuto, o, {}, {}, 0.5).on);
+  EXPECT_TRUE(DecideIdu(Switch::kOn, o, {}, {}, 0.5).on);
+  EXPECT_FALSE(DecideIdu(Switch::kOff, o, tall, tall_f, 0.5).on);
+  EXPECT_FALSE(EnumFromName<Switch>("sometimes"));  // a mode that is none of the three cannot be asked for
 }
 
 // A refiner that fails in one episode, as a killed run would stop there.

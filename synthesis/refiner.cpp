@@ -118,8 +118,6 @@ void ReprojectOptions::Check() const {
   need(smooth_diameter_px >= 0 && smooth_diameter_px <= 31, "smooth_diameter_px", smooth_diameter_px);
   need(smooth_sigma_colour > 0, "smooth_sigma_colour", smooth_sigma_colour);
   need(smooth_sigma_space_px > 0, "smooth_sigma_space_px", smooth_sigma_space_px);
-  if (inpaint != "telea" && inpaint != "ns" && inpaint != "render")
-    throw Error("idu", "reproject.inpaint", "'" + inpaint + "' is not telea, ns or render");
 }
 
 ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster,
@@ -221,11 +219,11 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
     });
     for (int k = 0; k < request.samples; ++k) {
       cv::Mat& image = images[k];
-      if (options_.inpaint != "render" && cv::countNonZero(unseen) > 0) {
+      if (options_.inpaint != Inpaint::kRender && cv::countNonZero(unseen) > 0) {
         cv::Mat bytes, filled;
         image.convertTo(bytes, CV_8UC3, 255.0);
         cv::inpaint(bytes, unseen, filled, options_.inpaint_radius_px,
-                    options_.inpaint == "ns" ? cv::INPAINT_NS : cv::INPAINT_TELEA);
+                    options_.inpaint == Inpaint::kNavierStokes ? cv::INPAINT_NS : cv::INPAINT_TELEA);
         cv::Mat filled_f;
         filled.convertTo(filled_f, CV_32FC3, 1.0 / 255.0);
         filled_f.copyTo(image, unseen);

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_codec.h"
 #include "core/gaussians.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
@@ -53,6 +54,14 @@ class Refiner {
                                              const RefineRequest& request, Progress& progress) = 0;
 };
 
+// What fills orbit pixels no satellite view sees (ReprojectOptions::inpaint).
+enum class Inpaint { kTelea, kNavierStokes, kRender };
+template <>
+struct EnumNames<Inpaint> {
+  static constexpr std::array<std::pair<Inpaint, const char*>, 3> kNames = {
+      {{Inpaint::kTelea, "telea"}, {Inpaint::kNavierStokes, "ns"}, {Inpaint::kRender, "render"}}};
+};
+
 struct ReprojectOptions {
   // A satellite view sees an orbit pixel's surface point when the point's
   // depth in that view is within this of the depth the scene renders there:
@@ -67,7 +76,7 @@ struct ReprojectOptions {
   double weight_jitter = 0.5;
   // Pixels no satellite view sees: "telea" or "ns" (OpenCV inpainting) or
   // "render" (keep the rendered colour).
-  std::string inpaint = "telea";
+  Inpaint inpaint = Inpaint::kTelea;
   double inpaint_radius_px = 3.0;
   // Edge-preserving smoothing at the end (bilateral filter; 0 = off).
   int smooth_diameter_px = 5;

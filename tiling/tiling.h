@@ -21,12 +21,9 @@ struct TilingOptions {
   int tile_px = 512;          // [px] what an automatic tile should hold a side
   // [m] margin reconstructed around each core, and beyond the city's bounds
   // at its edge. 8 m: an inner tile
-  // reconstructs 1.13x its core (1.27x at 16 m). With the merge's seam lines
-  // (merge/ownership.h), the merged DSM's mean height step where tiles meet
-  // was at most 0.51 m on four cities (1.17 m at the 16 m default before
-  // them); the AOIs' DSM MAE summed over 8 AOIs 12.80 against 12.84 m (per
-  // AOI -4.2% to +1.9%), completeness up to 0.6 points lower
-  // (docs/benchmarks.md, "Seam lines").
+  // reconstructs 1.13x its core (1.27x at 16 m), and with the merge's seam
+  // lines (merge/ownership.h) the narrower band joins tiles about as well as
+  // 16 m did (decision D-065).
   double overlap_m = 8.0;
   // An image is used for a tile when at least this fraction of the tile's
   // projected 3D box (extent x height range) falls inside the image.

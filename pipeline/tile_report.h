@@ -1,0 +1,46 @@
+// tile_report.json, what a tile's run writes last: its status, the options it
+// ran under, its decisions, times and stages. One writer and one reader; every
+// part of the run that looks at a finished tile goes through them.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/stage.h"
+
+namespace skyfall {
+
+struct TileReport {
+  std::string tile;  // the tile's id
+  StageStatus status = StageStatus::kFailed;
+  std::string message;
+  nlohmann::json options;                              // TileOptionsJson when it ran (the resume stamp)
+  nlohmann::json decisions = nlohmann::json::object();  // what each stage decided and why
+  std::size_t images = 0;
+  double seconds = 0;
+  std::map<std::string, double> metrics;  // including peak_rss_mb
+  std::vector<StageReport> stages;
+
+  double PeakRssMb() const;
+};
+
+std::string TileReportPath(const std::string& tile_dir);
+
+// Writes DIR/tile_report.json atomically.
+void WriteTileReport(const std::string& tile_dir, const TileReport& report);
+
+// The report of a tile folder; nullopt when there is none or it cannot be
+// read (a tile killed before it finished, a damaged file): either way the
+// tile has not finished.
+std::optional<TileReport> ReadTileReport(const std::string& tile_dir);
+
+// A stage's report as it appears in tile_report.json's "stages".
+nlohmann::json StageReportJson(const StageReport& report);
+
+std::optional<StageStatus> StageStatusFromString(const std::string& text);
+
+}  // namespace skyfall
