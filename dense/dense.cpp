@@ -64,10 +64,6 @@ void DenseOptions::Check() const {
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   positive(step_min_m, "step_min_m");
-  positive(step_pull_min_m, "step_pull_min_m");
-  if (step_pull_run_cells < 0 || step_pull_run_cells > StepPullOptions::kMaxRunCells)
-    throw Error("dense", "step_pull_run_cells", "must be in [0, " + std::to_string(StepPullOptions::kMaxRunCells) +
-                                                    "] (0 = off), got " + std::to_string(step_pull_run_cells));
   positive(support_grey_sigma, "support_grey_sigma");
   if (!(step_cost_margin >= 0)) throw Error("dense", "step_cost_margin", "must be >= 0, got " + std::to_string(step_cost_margin));
   if (step_reach_cells < 1) throw Error("dense", "step_reach_cells", "must be >= 1, got " + std::to_string(step_reach_cells));
@@ -622,79 +618,6 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
   return count + prior > 0 ? (sum + prior * trunc) / (count + prior) : trunc;
 }
 
-// DenseOptions::refine_steps: each measured cell within step_reach_cells of
-// a step takes whichever of the lowest and highest measured heights within
-// that reach scores the lower support-weighted cost (SupportWeightedCost),
-// where that cost is at most max_cost and step_cost_margin below the other
-// side's; the other cells keep their height. With `to_cameras` (per view
-// slot), a side counts only the views that see it past the surface less
-// the cells being decided: with the fattened band in it, the ground beside
-// a roof is under the roof and no view would see it. Returns how many cells
-// changed side.
-std::size_t RefineSteps(const Sweep& s, const std::vector<Eigen::Vector3d>* to_cameras,
-                        const std::vector<int>& nadir_first, std::vector<float>& height_m, Progress& progress) {
-  const HeightGrid& g = s.grid;
-  const int reach = s.o.step_reach_cells;
-  const float step_min = static_cast<float>(s.o.step_min_m);
-  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
-  const std::vector<float> before = height_m;
-  // Each cell's step: the lowest and highest measured height within reach;
-  // NaN where there is no step.
-  std::vector<float> lo(before.size(), kNan), hi(before.size(), kNan);
-  tbb::parallel_for(0, g.ny, [&](int j) {
-    for (int i = 0; i < g.nx; ++i) {
-      const float own = before[g.Index(i, j)];
-      if (!std::isfinite(own)) continue;
-      float low = own, high = own;
-      for (int b = std::max(0, j - reach); b <= std::min(g.ny - 1, j + reach); ++b)
-        for (int a = std::max(0, i - reach); a <= std::min(g.nx - 1, i + reach); ++a) {
-          const float h = before[g.Index(a, b)];
-          if (!std::isfinite(h)) continue;
-          low = std::min(low, h);
-          high = std::max(high, h);
-        }
-      if (high - low <= step_min) continue;
-      lo[g.Index(i, j)] = low;
-      hi[g.Index(i, j)] = high;
-    }
-  });
-  std::vector<std::vector<float>> seen_above;
-  if (to_cameras) {
-    std::vector<float> surface = before;
-    for (std::size_t k = 0; k < surface.size(); ++k)
-      if (std::isfinite(lo[k])) surface[k] = kNan;
-    seen_above = SeenAbove(g, surface, *to_cameras, s.z_lo, s.o.visibility_tolerance_m, 0);
-  }
-  progress.Begin("dense: deciding cells beside steps", g.ny);
-  std::atomic<int> rows_done{0};
-  std::atomic<std::size_t> changed{0};
-  tbb::enumerable_thread_specific<SupportScratch> scratch;
-  tbb::parallel_for(0, g.ny, [&](int j) {
-    SupportScratch& t = scratch.local();
-    for (int i = 0; i < g.nx; ++i) {
-      const std::size_t k = g.Index(i, j);
-      if (!std::isfinite(lo[k])) continue;
-      const auto* seen = to_cameras ? &seen_above : nullptr;
-      const float cost_lo = SupportWeightedCost(s, seen, nadir_first, i, j, lo[k], t);
-      const float cost_hi = SupportWeightedCost(s, seen, nadir_first, i, j, hi[k], t);
-      if (!std::isfinite(cost_lo) || !std::isfinite(cost_hi)) continue;
-      // Only a clear match moves a cell: both sides poorly matched (a plain
-      // or changing surface) or nearly tied decide nothing.
-      const float best = std::min(cost_lo, cost_hi);
-      if (best > max_cost || std::abs(cost_lo - cost_hi) < margin) continue;
-      const float side = cost_lo < cost_hi ? lo[k] : hi[k];
-      // A cell already on that side (within the step's threshold) keeps its
-      // own, finer height.
-      if (std::abs(side - before[k]) <= 0.5f * step_min) continue;
-      height_m[k] = side;
-      ++changed;
-    }
-    progress.Advance(++rows_done, "");
-  });
-  progress.End();
-  return changed;
-}
-
 // The view slots ordered most nadir first: the reference view of
 // SupportWeightedCost's weights.
 std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
@@ -999,9 +922,8 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
     // the pairs that see it there.
     std::vector<float> surface = first.height_m;
     const std::vector<std::uint8_t> filled = fill_holes(surface);
-    if (!o.visibility_fill_seen_holes)
-      for (std::size_t k = 0; k < cells; ++k)
-        if (filled[k] && !fill_occluded[k]) surface[k] = kNan;
+    for (std::size_t k = 0; k < cells; ++k)
+      if (filled[k] && !fill_occluded[k]) surface[k] = kNan;
     const std::vector<std::vector<float>> seen_above =
         SeenAbove(g, surface, to_cameras, z_lo, o.visibility_tolerance_m,
                   o.visibility_near_cells >= 0 ? o.visibility_near_cells : o.window_cells / 2);
@@ -1013,10 +935,6 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
         ++visibility_changed;
     first = std::move(second);
   }
-  std::size_t step_changed = 0;
-  if (o.refine_steps)
-    step_changed = RefineSteps(sweep, o.visibility_pass ? &to_cameras : nullptr, NadirFirst(views, used_views, centre),
-                               first.height_m, progress);
   g.height_m = std::move(first.height_m);
   g.cost = std::move(first.cost);
   const std::size_t low_cost = first.low_cost, speckles = first.speckles;
@@ -1059,17 +977,6 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
     }
     // Coarse heights count as filled: not measured at the grid's own scale.
     for (std::size_t k = 0; k < cells; ++k) g.filled[k] |= from_coarse[k];
-  }
-  std::size_t step_pulled = 0;
-  if (o.step_pull_run_cells > 0) {
-    StepPullOptions pull;
-    pull.run_cells = o.step_pull_run_cells;
-    pull.min_step_m = static_cast<float>(o.step_pull_min_m);
-    pull.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
-    // The ground surface alone (GroundModelOf's ground_m), of the filled heights.
-    const std::vector<float> ground =
-        GroundSurface(g.height_m, g.nx, g.ny, fill.ground_radius_cells, fill.ground_max_rise_m);
-    step_pulled = PullStepsToGround(g.height_m, ground, g.nx, g.ny, pull, &g.filled);
   }
 
   // Colour from the most nadir view that sees the cell.
@@ -1117,8 +1024,6 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   r.metrics["terrain_trend_terms"] = terrain_trend_terms;
   r.metrics["filled_sides_changed_fraction"] = static_cast<double>(filled_sides_changed) / static_cast<double>(cells);
   r.metrics["visibility_changed_fraction"] = static_cast<double>(visibility_changed) / static_cast<double>(cells);
-  r.metrics["step_changed_fraction"] = static_cast<double>(step_changed) / static_cast<double>(cells);
-  r.metrics["step_pulled_fraction"] = static_cast<double>(step_pulled) / static_cast<double>(cells);
   r.seconds = clock.Seconds();
   return result;
 }

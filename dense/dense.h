@@ -71,19 +71,16 @@ struct DenseOptions {
   int coarse_window_cells = 5;      // the coarse sweep's NCC window side [coarse cells], odd
   // Windows fatten what they straddle: beside a roof's edge the roof's
   // texture fills most of a ground cell's window, and a band of ground
-  // about a window radius wide takes the roof's height. Cells within
-  // step_reach_cells of a step (measured heights differing by more than
-  // step_min_m) are decided again between the step's low and high side,
-  // each scored with adaptive support weights (Yoon and Kweon's): a window
-  // of support_radius_cells whose cells weigh by how like the centre they
-  // look in the most nadir view that sees it (support_grey_sigma, on grey
-  // scaled so its 99th percentile is 1) and by distance, so the centre's
-  // own surface decides, not the wall's other side.
-  // Off by default: it narrows the band on the synthetic scenes but moves
-  // real edges both ways, so the real scene loses (decision D-063).
-  bool refine_steps = false;
+  // about a window radius wide takes the roof's height. Filled cells are
+  // decided again (decide_filled_sides) with adaptive support weights (Yoon
+  // and Kweon's): a window of support_radius_cells whose cells weigh by how
+  // like the centre they look in the most nadir view that sees it
+  // (support_grey_sigma, on grey scaled so its 99th percentile is 1) and by
+  // distance, so the centre's own surface decides, not the wall's other
+  // side. (Deciding measured cells beside steps the same way was tried and
+  // not adopted: decision D-063.)
   double step_min_m = 2.0;          // [m] a rise beyond this within step_reach_cells is a step
-  int step_reach_cells = 3;         // [cells] the band re-decided: window radius (2) + 1
+  int step_reach_cells = 3;         // [cells] measured ground this near keeps a filled cell at the ground
   int support_radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
   double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
   double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
@@ -97,18 +94,8 @@ struct DenseOptions {
   // geometry alone: holes in roofs that join the unmatched streets beside
   // them took the terrain (decision D-096).
   bool decide_filled_sides = true;
-  // After filling, steps onto the ground move back by one cell where the
-  // windows fattened them (PullStepsToGround): a cell whose next
-  // step_pull_run_cells cells in one of 8 directions all lie more than
-  // step_pull_min_m lower, were matched (not filled) and lie on the ground
-  // (within fill_ground_tolerance_m of the ground surface) takes their
-  // median. Steps onto lower roofs and the rims of holes filled with the
-  // ground are left alone: pulling those cost JAX_068 and gable roofs.
-  // Off by default: with the surface anchor off beside steps
-  // (train.surface_step_weight 0) it gains nothing that holds across the
-  // tuning scenes (decisions D-082 and D-083). 0 = off.
-  int step_pull_run_cells = 0;
-  double step_pull_min_m = 2.0;
+  // (Pulling steps onto matched ground back by a cell after filling was
+  // tried and not adopted: decisions D-082 and D-083.)
   double fill_radius_m = 5.0;
   // A seen hole whose rim of measured cells is at least this share roof
   // (more than 2 m above the ground) takes the roof, though ground is
@@ -165,13 +152,11 @@ struct DenseOptions {
   // A point counts as seen when the first surface rises at most this much
   // above the ray toward the camera [m]: the first surface's own error.
   double visibility_tolerance_m = 1.0;
-  // Whether holes the views see, filled from their surroundings, hide what
-  // is behind them in the visibility pass. Off: only the measured surface
-  // and the occluded ground (filled with the terrain) do. A street between
-  // two roofs that the first sweep missed is filled at the roofs' height
-  // (the nearest measured surface); with that fill hiding it, no view sees
-  // the street's own heights in the second sweep, and it stays a roof.
-  bool visibility_fill_seen_holes = false;
+  // In the visibility pass only the measured surface and the occluded
+  // ground (filled with the terrain) hide what is behind them, not the
+  // holes the views see: a street between two roofs that the first sweep
+  // missed is filled at the roofs' height, and with that fill hiding it no
+  // view would see the street's own heights in the second sweep (D-062).
   // Heights seen by few pairs get a noisy mean whose chance minima would
   // win: the mean is taken as if this many more pairs had added the
   // truncation cost.

@@ -470,35 +470,6 @@ StepBand BrightRoofBand(const HeightGrid& g, double roof_m, double from_m, doubl
   return b;
 }
 
-TEST(Dense, CellsBesideAStepTakeTheirOwnSide) {
-  NullProgress progress;
-  const BrightRoofScene scene;
-  const std::vector<DenseView>& views = scene.views;
-  const std::vector<DensePair>& pairs = scene.pairs;
-  const std::vector<Eigen::Vector3d>& points = scene.points;
-  DenseOptions o;
-  o.fill_holes = false;  // only what the sweep measured
-  o.refine_steps = false;
-  const DenseResult plain = RunDenseHeights(o, views, pairs, points, progress);
-  o.refine_steps = true;
-  const DenseResult refined = RunDenseHeights(o, views, pairs, points, progress);
-  ASSERT_EQ(refined.report.status, StageStatus::kOk) << refined.report.message;
-  EXPECT_GT(refined.report.metrics.at("step_changed_fraction"), 0.0);
-  auto band = [&](const HeightGrid& g, double from_m, double to_m) { return BrightRoofBand(g, scene.roof_m, from_m, to_m); };
-  // Ground 0.25-2 m outside the edge: the fattened band.
-  const StepBand ground_plain = band(plain.grid, 0.25, 2.0), ground_refined = band(refined.grid, 0.25, 2.0);
-  ASSERT_GT(ground_plain.measured, 100);
-  ASSERT_GT(ground_plain.wrong, ground_plain.measured / 4) << "the scene no longer fattens the roof";
-  EXPECT_LT(ground_refined.wrong, ground_plain.wrong / 4);
-  // The roof's own rim (within 2 m inside the edge) stays roof.
-  const StepBand rim_plain = band(plain.grid, -2.0, -0.25), rim_refined = band(refined.grid, -2.0, -0.25);
-  EXPECT_LE(rim_refined.wrong, rim_plain.wrong + rim_plain.measured / 50);
-  // Away from the step nothing changes.
-  const StepBand far_plain = band(plain.grid, 4.0, 100.0), far_refined = band(refined.grid, 4.0, 100.0);
-  EXPECT_EQ(far_refined.wrong, far_plain.wrong);
-  EXPECT_EQ(far_refined.measured, far_plain.measured);
-}
-
 // One band view of two buildings (boxes with textured roofs and walls)
 // either side of a narrow street running north-south, on textured ground:
 // rays stop at the first roof, wall or ground they meet.
@@ -560,31 +531,25 @@ TEST(Dense, AStreetBetweenRoofsIsNotHiddenByItsOwnFilling) {
   for (int a = 0; a < 6; ++a)
     for (int b = a + 1; b < 6; ++b) pairs.push_back({a, b, 100});
   const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
-  auto street_share = [&](bool fill_seen_holes, double* roof_share) {
-    DenseOptions o;
-    o.visibility_fill_seen_holes = fill_seen_holes;
-    const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
-    EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
-    const HeightGrid& g = r.grid;
-    int n = 0, ground = 0, roof = 0;
-    for (int j = 0; j < g.ny; ++j)
-      for (int i = 0; i < g.nx; ++i) {
-        const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
-        if (std::abs(x) > kStreetHalfM - 0.5 || std::abs(y) > 8) continue;  // the street's middle, between the roofs
-        ++n;
-        ground += std::abs(g.height_m[g.Index(i, j)]) <= 1.0f;
-        roof += g.height_m[g.Index(i, j)] > 0.5f * kBuildingM;
-      }
-    *roof_share = static_cast<double>(roof) / n;
-    return static_cast<double>(ground) / n;
-  };
-  double roof_hidden = 0, roof_open = 0;
-  const double hidden = street_share(true, &roof_hidden), open = street_share(false, &roof_open);
-  // Measured: with the filled holes hiding, 74.9% of the street's middle at
-  // the ground and 25.1% at the roofs; without, 84.4% and 15.6%.
-  ASSERT_GT(roof_hidden, 0.15) << "the scene no longer fills its street at the roofs' height";
-  EXPECT_GE(open, hidden + 0.05);
-  EXPECT_LE(roof_open, roof_hidden - 0.05);
+  const DenseResult r = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  ASSERT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+  const HeightGrid& g = r.grid;
+  int n = 0, ground = 0, roof = 0;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const double x = g.x0_m + i * g.cell_m, y = g.y0_m + j * g.cell_m;
+      if (std::abs(x) > kStreetHalfM - 0.5 || std::abs(y) > 8) continue;  // the street's middle, between the roofs
+      ++n;
+      ground += std::abs(g.height_m[g.Index(i, j)]) <= 1.0f;
+      roof += g.height_m[g.Index(i, j)] > 0.5f * kBuildingM;
+    }
+  // Measured with the filled holes hiding what is behind them (the rule
+  // left out, D-062): 74.9% of the street's middle at the ground and 25.1%
+  // at the roofs; as the product runs, 84.4% and 15.6%. The bounds sit
+  // halfway between.
+  ASSERT_GT(n, 0);
+  EXPECT_GE(static_cast<double>(ground) / n, 0.80);
+  EXPECT_LE(static_cast<double>(roof) / n, 0.20);
 }
 
 // A 20 m roof, textured but for a plain patch 2 m inside its east edge:

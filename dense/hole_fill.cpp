@@ -607,44 +607,4 @@ std::size_t RemoveFloatingPatches(std::vector<float>& h, int nx, int ny, const s
   return removed;
 }
 
-std::size_t PullStepsToGround(std::vector<float>& h, const std::vector<float>& ground, int nx, int ny,
-                              const StepPullOptions& o, const std::vector<std::uint8_t>* filled) {
-  CheckGrid(h, nx, ny);
-  if (ground.size() != h.size()) throw Error("dense", "ground surface", "size differs from the height grid's");
-  if (filled && filled->size() != h.size()) throw Error("dense", "filled", "size differs from the height grid's");
-  constexpr int kMaxRun = StepPullOptions::kMaxRunCells;
-  if (o.run_cells < 0 || o.run_cells > kMaxRun)
-    throw Error("dense", "step_pull_run_cells",
-                std::to_string(o.run_cells) + " must be in [0, " + std::to_string(kMaxRun) + "] (0 = off)");
-  if (o.run_cells == 0) return 0;
-  const std::vector<float> before = h;
-  const int n = o.run_cells;
-  constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
-  std::size_t pulled = 0;
-  float run[kMaxRun];
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      const float high = before[static_cast<std::size_t>(j) * nx + i];
-      if (!std::isfinite(high)) continue;
-      for (const auto& d : kDirections) {
-        const int last_i = i + n * d[0], last_j = j + n * d[1];
-        if (last_i < 0 || last_j < 0 || last_i >= nx || last_j >= ny) continue;
-        bool onto_ground = true;
-        for (int s = 1; s <= n && onto_ground; ++s) {
-          const std::size_t k = static_cast<std::size_t>(j + s * d[1]) * nx + (i + s * d[0]);
-          // NaN compares false: an unknown cell is no evidence of ground.
-          onto_ground = before[k] < high - o.min_step_m && before[k] <= ground[k] + o.ground_tolerance_m &&
-                        !(filled && (*filled)[k]);
-          run[s - 1] = before[k];
-        }
-        if (!onto_ground) continue;
-        std::nth_element(run, run + n / 2, run + n);
-        h[static_cast<std::size_t>(j) * nx + i] = run[n / 2];
-        ++pulled;
-        break;
-      }
-    }
-  return pulled;
-}
-
 }  // namespace skyfall

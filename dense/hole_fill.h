@@ -138,24 +138,4 @@ struct FloatingPatchOptions {
 std::size_t RemoveFloatingPatches(std::vector<float>& height_m, int nx, int ny, const std::vector<float>& terrain_m,
                                   const FloatingPatchOptions& options);
 
-// Windows fatten what they straddle: beside a roof's edge the roof's
-// texture fills most of a ground cell's window, so the roof's height spills
-// a cell or so onto the ground. Each cell of `height_m` whose next
-// `run_cells` cells in one of the 8 grid directions all lie more than
-// `min_step_m` below it and on the ground (at most `ground_tolerance_m`
-// above `ground_m`), and were matched (not `filled`, when given), takes
-// those cells' median height: a step onto the ground moves one cell toward
-// its high side. Steps onto lower roofs (a rooftop unit, a terrace) are
-// left alone, and so are the rims of holes filled with the ground (a hole
-// in a roof that took the terrain would only grow). Decided on the heights
-// as given, not as changed; returns how many cells changed.
-struct StepPullOptions {
-  static constexpr int kMaxRunCells = 16;
-  int run_cells = 4;               // 0 = off, at most kMaxRunCells
-  float min_step_m = 2.0f;
-  float ground_tolerance_m = 1.0f;
-};
-std::size_t PullStepsToGround(std::vector<float>& height_m, const std::vector<float>& ground_m, int nx, int ny,
-                              const StepPullOptions& options, const std::vector<std::uint8_t>* filled = nullptr);
-
 }  // namespace skyfall

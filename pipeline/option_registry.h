@@ -176,21 +176,10 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Before filling, holes get a second sweep on a grid this many times coarser, on images blurred to it; 1 = off");
   io("coarse_window_cells", o.coarse_window_cells,
      "NCC window side of the coarse sweep, in coarse cells, odd");
-  io("visibility_fill_seen_holes", o.visibility_fill_seen_holes,
-     "In the visibility pass, filled holes that the views see also hide what is behind them (off: only the measured "
-     "surface and the occluded ground do)");
-  io("refine_steps", o.refine_steps,
-     "Decide cells within step_reach_cells of a step again, between the step's low and high side, with adaptive "
-     "support weights");
-  io("step_pull_run_cells", o.step_pull_run_cells,
-     "After filling, a cell whose next this many cells in one of 8 directions are all matched ground more than "
-     "step_pull_min_m lower takes their median; 0 = off");
-  io("step_pull_min_m", o.step_pull_min_m,
-     "How much lower the cells beyond a step must lie for step_pull_run_cells to pull the step back");
   io("step_min_m", o.step_min_m,
-     "A rise beyond this within step_reach_cells is a step (for refine_steps and decide_filled_sides)");
+     "decide_filled_sides: a filled cell's roof side must stand more than this above its ground side");
   io("step_reach_cells", o.step_reach_cells,
-     "Width of the band beside a step that is decided again");
+     "decide_filled_sides: a cell filled at the ground with measured ground this near keeps the ground");
   io("support_radius_cells", o.support_radius_cells,
      "Radius of the adaptive support-weight window");
   io("support_grey_sigma", o.support_grey_sigma,
@@ -306,8 +295,6 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   // Set by the synthesis stage for its episodes from idu.* (IduOptions).
   io.NotAnOption(t.synthetic_fraction);
   io.NotAnOption(t.lambda_view_depth);
-  io.NotAnOption(t.anchor_synthetic_views);
-  io.NotAnOption(t.fixed_geometry_count);
   io("iterations", t.iterations,
      "Splat training steps per tile");
   io("downscale", o.downscale,
@@ -325,9 +312,6 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
      "heights exist)");
   io("init_spacing_m", o.init_spacing_m,
      "A dense start keeps one dense point per cell of this size");
-  io("init_facade_step_m", o.init_facade_step_m,
-     "With a dense start, also put Gaussians on the walls of the dense heights where neighbouring cells differ by "
-     "this much; 0 = none");
   io("mask_beyond_reconstruction", o.mask_beyond_reconstruction,
      "With a dense start, leave the pixels that see past the tile's dense heights out of the loss and the scores");
   io("surface_filled_weight", o.anchor.filled_weight,
@@ -520,15 +504,11 @@ template <class IO> void Visit(IO& io, IduStageOptions& o) {
   io("geometry", i.geometry,
      "Where refined views get their geometry: 'surface' (the dense heights' height field, walls included) or "
      "'render' (the depth the scene renders at the episode's start)");
-  io("anchor_refined_views", i.anchor_refined_views,
-     "With geometry 'surface', also hold the refined views to the height field with the surface anchor");
   io("fill_holes", i.fill_holes,
      "With geometry 'surface', also refine and train on orbit pixels where the height field has a surface but the "
      "scene is transparent, adding Gaussians there");
   io("fill_voxel_m", i.fill_voxel_m,
      "Edge of the cubes in which fill_holes adds one Gaussian each");
-  io("hold_geometry", i.hold_geometry,
-     "The reconstruction's Gaussians keep their geometry through the episodes and train only their colours");
   io("seed", i.seed,
      "Random seed of the stage's training and refined samples");
   io("prompts", i.request);

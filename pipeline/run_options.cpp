@@ -236,8 +236,6 @@ void TrainStageOptions::Check() const {
   if (!(init_max_scale_m >= 0)) throw Error("train", "init_max_scale_m", "must be >= 0 (0 = no cap), got " + FormatDouble(init_max_scale_m));
   if (init_pieces < 1) throw Error("train", "init_pieces", "must be >= 1, got " + std::to_string(init_pieces));
   if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
-  if (!(init_facade_step_m >= 0))
-    throw Error("train", "init_facade_step_m", "must be >= 0, got " + FormatDouble(init_facade_step_m));
   if (!(anchor.filled_weight >= 0 && anchor.filled_weight <= 1))
     throw Error("train", "surface_filled_weight", "must be in [0, 1], got " + FormatDouble(anchor.filled_weight));
   if (!(anchor.step_weight >= 0 && anchor.step_weight <= 1))

@@ -70,9 +70,8 @@ struct TrainStageOptions {
   // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
   InitPoints init_points = InitPoints::kAuto;
   double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
-  // [m] With a dense start, Gaussians also on the walls of the dense heights
-  // where neighbouring cells differ by this much (FacadePoints); 0 = none.
-  double init_facade_step_m = 0.0;
+  // (Wall Gaussians at the start, from the dense heights' steps, were tried
+  // and not adopted: decision D-034.)
   AnchorWeightOptions anchor;  // per dense cell, the surface anchor's confidence
   // With a dense start, each view's pixels that see past the tile's dense
   // heights (a crop's fringe beyond the extent) are left out of the loss and

@@ -219,6 +219,17 @@ TEST(OptionRegistry, EveryOptionSaysWhatItDoes) {
   for (const OptionDescription& row : DescribeRunOptions()) EXPECT_GE(row.help.size(), 10u) << row.path;
 }
 
+TEST(OptionRegistry, DocsOutputsShowsTheDefaultConfiguration) {
+  const std::string doc = ReadTextFile(std::string(SKYFALL_SOURCE_DIR) + "/docs/outputs.md");
+  const std::size_t section = doc.find("## run_config.json");
+  ASSERT_NE(section, std::string::npos);
+  const std::size_t a = doc.find("```json\n", section), b = doc.find("```\n", a + 8);
+  ASSERT_NE(a, std::string::npos);
+  ASSERT_NE(b, std::string::npos);
+  EXPECT_EQ(doc.substr(a + 8, b - a - 8), RunOptionsToJson(RunOptions{}))
+      << "docs/outputs.md's run_config.json example is stale: paste `skyfall run --print-config`";
+}
+
 TEST(OptionRegistry, UnitsComeFromTheNamesSuffix) {
   EXPECT_EQ(UnitOfKey("cell_m"), "m");
   EXPECT_EQ(UnitOfKey("fov_deg"), "deg");

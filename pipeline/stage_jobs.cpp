@@ -304,8 +304,6 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
       stage.init_points == InitPoints::kDense || (stage.init_points == InitPoints::kAuto && fs::exists(dense_path));
   const std::size_t tie_points = points.size();
   std::unique_ptr<SurfaceDepthPrior> surface;  // the dense heights, to anchor training to
-  std::vector<Eigen::Vector3f> facades, facade_colours;
-  std::vector<int> facade_normals;
   DenseCells dense;
   if (decided.dense_start) {
     dense = ReadDenseCells(dense_path.string());
@@ -313,9 +311,6 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
                                                     AnchorCellWeights(dense, stage.anchor));
     ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
-    if (stage.init_facade_step_m > 0)
-      FacadePoints(dense.points, dense.colours, dense.cell_m, stage.init_spacing_m, stage.init_facade_step_m, &facades,
-                   &facade_colours, &facade_normals);
   }
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
@@ -351,7 +346,6 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"init_pieces", stage.init_pieces},
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
                            {"init_spacing_m", stage.init_spacing_m},
-                           {"init_facade_step_m", stage.init_facade_step_m},
                            {"mask_beyond_reconstruction", stage.mask_beyond_reconstruction},
                            {"densify", decided.densify},
                            {"surface_anchor", decided.surface_anchor ? nlohmann::json({options.lambda_surface_depth,
@@ -361,16 +355,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                                                                      : nlohmann::json(nullptr)}},
                           progress);
   const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
-  std::vector<Eigen::Vector3f> init_points = points, init_colours = colours;
-  init_points.insert(init_points.end(), facades.begin(), facades.end());
-  init_colours.insert(init_colours.end(), facade_colours.begin(), facade_colours.end());
-  GaussianCloud init =
-      InitializeFromPoints(init_points, init_colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
-  // Wall Gaussians start flat in their wall, so that seen from above they
-  // add nothing beyond it.
-  constexpr float kWallThicknessM = 0.05f;
-  for (std::size_t k = 0; k < facades.size(); ++k)
-    init.log_scales[points.size() + k][facade_normals[k]] = std::log(kWallThicknessM);
+  GaussianCloud init = InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),
                                 surface.get());
   WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);

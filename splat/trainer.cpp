@@ -147,17 +147,6 @@ void AdamStepAppearance(AppearanceState& a, AppearanceModel& grad, long step, co
   for (std::size_t k = 0; k < p.size(); ++k) AdamUpdate(p[k].data, m[k].data, v[k].data, g[k].data, p[k].size, p[k].lr, scale);
 }
 
-// Zeroes the geometry gradients (centre, scales, rotation, opacity) of the
-// first `count` Gaussians; their colours still train. With zero gradients
-// from the first step on, Adam's moments stay zero and so do the updates.
-void HoldGeometry(std::size_t count, GaussianCloud* g) {
-  count = std::min(count, g->size());
-  std::fill_n(g->means.begin(), count, Eigen::Vector3f::Zero());
-  std::fill_n(g->log_scales.begin(), count, Eigen::Vector3f::Zero());
-  std::fill_n(g->rotations.begin(), count, Eigen::Vector4f::Zero());
-  std::fill_n(g->opacity_logits.begin(), count, 0.0f);
-}
-
 void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainOptions& o, double lr_mean) {
   ++adam.step;
   const AdamStepScale scale = ScaleAtStep(adam.step);
@@ -188,18 +177,17 @@ std::uint32_t SpreadBits(std::uint32_t v) {
   return v;
 }
 
-// Gaussians [fixed, n) in the order of a Morton (Z-order) curve through
-// their centres' x and y, the first `fixed` in place (the trainer holds
-// those by index). A view of part of the scene (a nadir patch, a crop)
+// The Gaussians in the order of a Morton (Z-order) curve through their
+// centres' x and y. A view of part of the scene (a nadir patch, a crop)
 // then reads its Gaussians from a few runs of memory: in a cloud in random
 // order, projecting the Gaussians a nadir patch sees waited on memory for
 // each of them, longer than culling the whole cloud (decision D-077).
-std::vector<std::size_t> SpatialOrder(const GaussianCloud& c, std::size_t fixed) {
+std::vector<std::size_t> SpatialOrder(const GaussianCloud& c) {
   std::vector<std::size_t> order(c.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
-  if (fixed + 1 >= c.size()) return order;
+  if (c.size() <= 1) return order;
   Eigen::Array2f lo = Eigen::Array2f::Constant(std::numeric_limits<float>::max()), hi = -lo;
-  for (std::size_t i = fixed; i < c.size(); ++i) {
+  for (std::size_t i = 0; i < c.size(); ++i) {
     const Eigen::Array2f xy = c.means[i].head<2>().array();
     if (!xy.allFinite()) continue;
     lo = lo.min(xy);
@@ -208,8 +196,8 @@ std::vector<std::size_t> SpatialOrder(const GaussianCloud& c, std::size_t fixed)
   constexpr float kCells = 65535.0f;  // 16 bits per axis
   const Eigen::Array2f scale = kCells / (hi - lo).max(1e-6f);
   std::vector<std::pair<std::uint32_t, std::size_t>> keyed;
-  keyed.reserve(c.size() - fixed);
-  for (std::size_t i = fixed; i < c.size(); ++i) {
+  keyed.reserve(c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) {
     const Eigen::Array2f xy = c.means[i].head<2>().array();
     Eigen::Array2f q = Eigen::Array2f::Zero();
     if (xy.allFinite()) q = ((xy - lo) * scale).max(0.0f).min(kCells);
@@ -218,7 +206,7 @@ std::vector<std::size_t> SpatialOrder(const GaussianCloud& c, std::size_t fixed)
     keyed.emplace_back(key, i);
   }
   std::sort(keyed.begin(), keyed.end());  // ties by index: deterministic
-  for (std::size_t k = 0; k < keyed.size(); ++k) order[fixed + k] = keyed[k].second;
+  for (std::size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
   return order;
 }
 
@@ -249,13 +237,6 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
   source->clear();
   const float split_scale = static_cast<float>(o.percent_dense * extent_m);
   for (std::size_t i = 0; i < c.size(); ++i) {
-    if (i < o.fixed_geometry_count) {  // held: its opacity and shape do not change, so neither does its fate
-      out.Append(c, i);
-      m.Append(adam.m, i);
-      v.Append(adam.v, i);
-      source->push_back(i);
-      continue;
-    }
     const float opacity = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
     const float max_scale = std::exp(c.log_scales[i].maxCoeff());
     if (opacity < o.min_opacity || max_scale > o.max_scale_m) continue;
@@ -292,7 +273,7 @@ void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const Trai
       ++added;
     }
   }
-  const std::vector<std::size_t> order = SpatialOrder(out, o.fixed_geometry_count);
+  const std::vector<std::size_t> order = SpatialOrder(out);
   c = Gather(out, order);
   adam.m = Gather(m, order);
   adam.v = Gather(v, order);
@@ -899,7 +880,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     throw Error("train", "appearance", "synthetic views have no acquisition to embed: train them without the appearance model");
 
   const int fused_view = AppearanceViewIndex(o, views);
-  cloud = Gather(cloud, SpatialOrder(cloud, o.fixed_geometry_count));
+  cloud = Gather(cloud, SpatialOrder(cloud));
   Adam adam;
   adam.Resize(cloud.size());
   std::mt19937_64 rng(o.seed);
@@ -957,11 +938,9 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   const bool anchored = surface && (o.lambda_surface_depth > 0 || o.lambda_surface_alpha > 0);
   std::vector<DepthMap> surface_depth(views.size());
   if (anchored) {
-    std::vector<int> anchored_ids = train_ids;
-    if (o.anchor_synthetic_views) anchored_ids.insert(anchored_ids.end(), synthetic_ids.begin(), synthetic_ids.end());
-    tbb::parallel_for(std::size_t{0}, anchored_ids.size(), [&](std::size_t k) {
-      const PinholeCamera& cam = views[anchored_ids[k]].camera;
-      surface_depth[anchored_ids[k]] = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
+    tbb::parallel_for(std::size_t{0}, train_ids.size(), [&](std::size_t k) {
+      const PinholeCamera& cam = views[train_ids[k]].camera;
+      surface_depth[train_ids[k]] = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
     });
   }
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
@@ -991,7 +970,7 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     }
     std::vector<float> d_alpha, d_depth;
     if (!view.depth_target.empty() && o.lambda_view_depth > 0) loss += ViewDepthLoss(r, view, o.lambda_view_depth, &d_depth);
-    if (anchored && (!view.synthetic || o.anchor_synthetic_views)) {
+    if (anchored && !view.synthetic) {
       std::vector<float> anchor_depth;
       loss += SurfaceAnchorLoss(r, surface_depth[view_id], o, &d_alpha, &anchor_depth);
       if (d_depth.empty()) {
@@ -1063,7 +1042,6 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
       nonfinite_gaussians += dropped;
       ++nonfinite_steps;
     }
-    if (o.fixed_geometry_count > 0) HoldGeometry(o.fixed_geometry_count, &g.d);
     AdamStep(cloud, adam, g.d, o, lr_mean);
     if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
     phase.Lap(kOptimizer);

@@ -117,12 +117,6 @@ struct TrainOptions {
   // and the weight of the Pearson depth loss on views with a depth target.
   double synthetic_fraction = 0.75;
   double lambda_view_depth = 0.5;
-  bool anchor_synthetic_views = false;  // the surface anchor also holds synthetic views
-  // The first `fixed_geometry_count` Gaussians keep their geometry (centre,
-  // scales, rotation, opacity) and train only their colours; densification
-  // neither splits nor clones them. The synthesis stage holds the
-  // reconstruction's Gaussians so: its refined views are not measurements.
-  std::size_t fixed_geometry_count = 0;
   // Per-image appearance (multi-date imagery). The exported cloud is fused
   // with the embedding of `appearance_image` (a training view name; empty:
   // the view whose embedding is nearest the mean).

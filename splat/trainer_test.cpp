@@ -130,33 +130,6 @@ TEST(Trainer, DensificationGrowsAndPrunes) {
   }
 }
 
-// The synthesis stage holds the reconstruction's geometry: the held
-// Gaussians must come out with the very centre, shape and opacity they went
-// in with (densification must neither split, clone nor prune them), while
-// their colours and the other Gaussians train.
-TEST(Trainer, FixedGeometryCountHoldsTheFirstGaussians) {
-  const Fixture f = MakeFixture(4);
-  NullProgress progress;
-  TrainOptions o = ShortRun(121);  // densifies at 40, 80 and 120
-  o.appearance.enabled = false;    // the exported colours are then the trained SH themselves
-  o.fixed_geometry_count = f.init.size() / 2;
-  const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);
-  ASSERT_GE(r.cloud.size(), o.fixed_geometry_count);
-  std::size_t colour_moved = 0;
-  for (std::size_t i = 0; i < o.fixed_geometry_count; ++i) {
-    ASSERT_EQ(r.cloud.means[i], f.init.means[i]) << i;
-    ASSERT_EQ(r.cloud.log_scales[i], f.init.log_scales[i]) << i;
-    ASSERT_EQ(r.cloud.rotations[i], f.init.rotations[i]) << i;
-    ASSERT_EQ(r.cloud.opacity_logits[i], f.init.opacity_logits[i]) << i;
-    colour_moved += r.cloud.sh[i] != f.init.sh[i];
-  }
-  std::size_t geometry_moved = 0;
-  for (std::size_t i = o.fixed_geometry_count; i < std::min(r.cloud.size(), f.init.size()); ++i)
-    geometry_moved += r.cloud.means[i] != f.init.means[i];
-  EXPECT_GT(colour_moved, o.fixed_geometry_count / 2);
-  EXPECT_GT(geometry_moved, (f.init.size() - o.fixed_geometry_count) / 2);
-}
-
 // A Gaussian with one NaN or infinite gradient component (any field, its
 // colour transform's included) loses its whole update; the others keep theirs.
 TEST(Trainer, DropNonFiniteGradientsZeroesOnlyTheAffectedGaussians) {

@@ -194,11 +194,8 @@ double MedianHeight(const GaussianCloud& cloud) {
   return z[z.size() / 2];
 }
 
-// `reconstruction_size`: how many Gaussians the reconstruction handed over
-// (the cloud's first ones; hole Gaussians are appended after them).
-TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episode, std::size_t reconstruction_size) {
+TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episode) {
   t.iterations = o.iterations_per_episode;
-  t.fixed_geometry_count = o.hold_geometry ? reconstruction_size : 0;
   t.seed = o.seed + 7919ull * static_cast<std::uint64_t>(episode + 1);
   t.lambda_opacity = o.lambda_opacity;  // the paper turns opacity regularization off for IDU
   t.opacity_reg_from = 0;               // the scene is trained: no warm-up
@@ -208,7 +205,6 @@ TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episod
   t.synthetic_fraction = o.synthetic_fraction;
   t.lambda_view_depth = o.lambda_depth;
   t.keep_snapshots = false;
-  t.anchor_synthetic_views = o.geometry == IduGeometry::kSurface && o.anchor_refined_views;
   t.eval_interval = std::max(1, o.iterations_per_episode);
   t.checkpoint_interval = std::max(1, o.iterations_per_episode);
   if (o.densify) {
@@ -300,7 +296,6 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
   IduResult result;
   result.report.stage = "idu";
   ForgetOtherRuns(out_dir, options_json, progress);
-  const std::size_t reconstruction_size = cloud.size();
   result.episodes = FinishedEpisodes(out_dir, o.orbit.episodes);
   if (!result.episodes.empty()) {
     const int last = result.episodes.back().episode;
@@ -371,7 +366,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
       ep.hole_gaussians = added.size();
     }
     Stopwatch train_clock;
-    TrainResult trained = TrainGaussians(EpisodeTrainOptions(o, train, k, reconstruction_size), std::move(cloud), mixed, "", progress,
+    TrainResult trained = TrainGaussians(EpisodeTrainOptions(o, train, k), std::move(cloud), mixed, "", progress,
                                          nullptr, surface);
     cloud = std::move(trained.cloud);
     ep.train_seconds = train_clock.Seconds();

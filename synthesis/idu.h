@@ -58,11 +58,8 @@ struct IduOptions {
   // start). The Gaussians of a satellite reconstruction hardly hold facades;
   // the paper's diffusion refiner paints them in, a reprojecting one cannot.
   IduGeometry geometry = IduGeometry::kSurface;
-  // With geometry "surface": also hold refined views to the height field
-  // with the reconstruction's surface anchor (absolute depth and opacity).
-  // Off: it filled facades but pulled Gaussians off the roofs, and the
-  // stage does better at oblique views without it (decision D-024).
-  bool anchor_refined_views = false;
+  // (Holding refined views to the height field with the surface anchor was
+  // tried and not adopted: decision D-024.)
   // With geometry "surface": orbit pixels where the height field has a
   // surface but the scene renders transparent (walls the reconstruction left
   // as holes) are refined and trained on too, and each episode adds a
@@ -71,12 +68,8 @@ struct IduOptions {
   // with densification off, stay holes. 1 m cubes: nearly the oblique
   // views of 0.5 m cubes with far fewer Gaussians (decision D-043).
   bool fill_holes = true;
-  // The reconstruction's Gaussians keep their geometry (centre, shape,
-  // opacity) through the episodes and train only their colours; the hole
-  // Gaussians the stage adds train fully. Off by default: it helped one
-  // scene's DSM but cost the default city DSM accuracy and oblique views
-  // (decision D-054).
-  bool hold_geometry = false;
+  // (Holding the reconstruction's geometry through the episodes, training
+  // only its colours, was tried and not adopted: decision D-054.)
   double fill_voxel_m = 1.0;
   std::uint64_t seed = 1;
   RefineRequest request;              // prompts and FlowEdit settings for external refiners
