@@ -1,0 +1,196 @@
+#include "dense/sweep.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <numeric>
+
+#include "dense/hole_fill.h"
+
+namespace skyfall::dense_detail {
+namespace {
+
+// One candidate height of one cell scored with adaptive support weights:
+// every view that sees the point (all views without `seen_above`) is
+// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
+// cell weighs exp(-|grey - centre grey| / sigma - distance / R) in the first
+// view of `nadir_first` that sees it with the whole window inside the
+// image; each pair scores 1 - weighted NCC (truncated, the truncation where
+// a window is too plain), averaged as the masked sweep does. NaN when no
+// view can serve as the reference.
+struct SupportScratch {
+  std::vector<float> samples, weights, weighted, mean, inv_std;
+  std::vector<std::uint8_t> usable;
+};
+
+float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
+                          const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
+  const HeightGrid& g = s.grid;
+  const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
+  const std::size_t views = s.grey.size();
+  const std::size_t centre_cell = g.Index(i, j);
+  t.samples.resize(views * n);
+  t.weights.resize(n);
+  t.usable.assign(views, 0);
+  for (std::size_t v = 0; v < views; ++v) {
+    if (seen_above && height_m < (*seen_above)[v][centre_cell]) continue;
+    const GreyImage& image = s.grey[v];
+    float* out = t.samples.data() + v * n;
+    bool inside = true;
+    for (int b = -r; b <= r && inside; ++b)
+      for (int a = -r; a <= r && inside; ++a) {
+        const Eigen::Vector3d h = s.projection[v] * Eigen::Vector4d(g.x0_m + (i + a) * g.cell_m,
+                                                                    g.y0_m + (j + b) * g.cell_m, height_m, 1.0);
+        const double x = h.x() / h.z(), y = h.y() / h.z();
+        const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+        if (!(h.z() > 0) || x0 < 0 || y0 < 0 || x0 + 1 >= image.width || y0 + 1 >= image.height) {
+          inside = false;
+          break;
+        }
+        const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+        const float* p = image.values.data() + static_cast<std::size_t>(y0) * image.width + x0;
+        const float top = p[0] + fx * (p[1] - p[0]);
+        const float bottom = p[image.width] + fx * (p[image.width + 1] - p[image.width]);
+        const float value = top + fy * (bottom - top);
+        inside = std::isfinite(value);
+        out[(b + r) * w + (a + r)] = value;
+      }
+    t.usable[v] = inside ? 1 : 0;
+  }
+  const auto reference = std::find_if(nadir_first.begin(), nadir_first.end(), [&](int v) { return t.usable[v]; });
+  if (reference == nadir_first.end()) return kNan;
+  const float* ref = t.samples.data() + static_cast<std::size_t>(*reference) * n;
+  const float centre = ref[r * w + r];
+  const float inv_sigma = static_cast<float>(1.0 / s.o.support_grey_sigma);
+  for (int b = -r; b <= r; ++b)
+    for (int a = -r; a <= r; ++a) {
+      const int q = (b + r) * w + (a + r);
+      const float distance = std::sqrt(static_cast<float>(a * a + b * b)) / static_cast<float>(r);
+      t.weights[q] = std::exp(-std::abs(ref[q] - centre) * inv_sigma - distance);
+    }
+  float weight_sum = 0;
+  for (int q = 0; q < n; ++q) weight_sum += t.weights[q];
+  const float inv_weight = 1.0f / weight_sum;
+  const float trunc = static_cast<float>(s.o.cost_truncation);
+  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  // Per view: its weighted samples (w x) and weighted mean and variance;
+  // per pair only the weighted product remains.
+  t.weighted.resize(views * n);
+  t.mean.assign(views, 0.0f);
+  t.inv_std.assign(views, 0.0f);  // 0: too plain to correlate
+  for (std::size_t v = 0; v < views; ++v) {
+    if (!t.usable[v]) continue;
+    const float* x = t.samples.data() + v * n;
+    float* wx = t.weighted.data() + v * n;
+    float sx = 0, sxx = 0;
+    for (int q = 0; q < n; ++q) {
+      wx[q] = t.weights[q] * x[q];
+      sx += wx[q];
+      sxx += wx[q] * x[q];
+    }
+    const float mean = sx * inv_weight, var = sxx * inv_weight - mean * mean;
+    t.mean[v] = mean;
+    if (var > min_var) t.inv_std[v] = 1.0f / std::sqrt(var);
+  }
+  float sum = 0, count = 0;
+  for (const DensePair& p : s.pairs) {
+    const int va = s.slot[p.a], vb = s.slot[p.b];
+    if (!t.usable[va] || !t.usable[vb]) continue;
+    count += 1;
+    if (t.inv_std[va] == 0 || t.inv_std[vb] == 0) {
+      sum += trunc;
+      continue;
+    }
+    const float* wx = t.weighted.data() + static_cast<std::size_t>(va) * n;
+    const float* y = t.samples.data() + static_cast<std::size_t>(vb) * n;
+    float sxy = 0;
+    for (int q = 0; q < n; ++q) sxy += wx[q] * y[q];
+    const float covariance = sxy * inv_weight - t.mean[va] * t.mean[vb];
+    sum += std::min(trunc, 1.0f - covariance * t.inv_std[va] * t.inv_std[vb]);
+  }
+  const float prior = seen_above ? static_cast<float>(s.o.visibility_prior_pairs) : 0.0f;
+  return count + prior > 0 ? (sum + prior * trunc) / (count + prior) : trunc;
+}
+
+}  // namespace
+
+// The view slots ordered most nadir first: the reference view of
+// SupportWeightedCost's weights.
+std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
+                            const Eigen::Vector3d& centre) {
+  std::vector<int> order(used_views.size());
+  std::iota(order.begin(), order.end(), 0);
+  auto up = [&](int k) { return (views[used_views[k]].camera.Centre() - centre).normalized().z(); };
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return up(a) > up(b); });
+  return order;
+}
+
+// DenseOptions::decide_filled_sides: each filled cell (`candidates`) is
+// scored (SupportWeightedCost) at the ground (`terrain_m`) and at a raised
+// height: its fill where that stands more than step_min_m above the
+// ground, else the lowest measured height raised that much within
+// `reach_cells` (then 4 x reach_cells) of it. The cell takes the other side
+// where that side's cost is at most max_cost and step_cost_margin below its
+// fill's, and where a cell filled at the ground has no measured ground
+// within step_reach_cells: there the roof's side wins by the windows'
+// fattening, as beside any step. A side no view can score decides nothing.
+// Views count where they see the point past the measured surface
+// (`measured_m`; holes hide nothing), near cells excepted as in the
+// visibility pass. Returns how many cells changed side.
+std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
+                              const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                              const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
+                              int reach_cells, std::vector<float>& height_m, Progress& progress) {
+  const HeightGrid& g = s.grid;
+  const float step_min = static_cast<float>(s.o.step_min_m);
+  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
+  // The measured heights raised above the ground, and their lowest within
+  // the two reaches (the fill's first and largest, 5 and 20 m by default).
+  std::vector<float> raised(measured_m.size(), kNan);
+  for (std::size_t k = 0; k < raised.size(); ++k)
+    if (measured_m[k] > terrain_m[k] + step_min) raised[k] = measured_m[k];
+  const std::vector<float> raised_near = MinFilter(raised, g.nx, g.ny, reach_cells, WindowEdge::kClip);
+  const std::vector<float> raised_far = MinFilter(raised, g.nx, g.ny, 4 * reach_cells, WindowEdge::kClip);
+  // Measured ground within the step's reach: beside it a roof hypothesis
+  // is the windows' fattening again.
+  std::vector<float> ground_cells(measured_m.size(), kNan);
+  for (std::size_t k = 0; k < ground_cells.size(); ++k)
+    if (std::abs(measured_m[k] - terrain_m[k]) <= step_min) ground_cells[k] = 0.0f;
+  const std::vector<float> ground_near =
+      MinFilter(ground_cells, g.nx, g.ny, s.o.step_reach_cells, WindowEdge::kClip);
+  const std::vector<std::vector<float>> seen_above =
+      SeenAbove(g, measured_m, to_cameras, s.z_lo, s.o.visibility_tolerance_m,
+                s.o.visibility_near_cells >= 0 ? s.o.visibility_near_cells : s.o.window_cells / 2);
+  progress.Begin("dense: deciding filled cells between ground and roof", g.ny);
+  std::atomic<int> rows_done{0};
+  std::atomic<std::size_t> changed{0};
+  tbb::enumerable_thread_specific<SupportScratch> scratch;
+  const std::vector<float> before = height_m;
+  tbb::parallel_for(0, g.ny, [&](int j) {
+    SupportScratch& t = scratch.local();
+    for (int i = 0; i < g.nx; ++i) {
+      const std::size_t k = g.Index(i, j);
+      if (!candidates[k] || !std::isfinite(terrain_m[k]) || !std::isfinite(before[k])) continue;
+      const bool filled_raised = before[k] > terrain_m[k] + step_min;
+      if (!filled_raised && std::isfinite(ground_near[k])) continue;
+      const float ground = terrain_m[k];
+      const float roof = filled_raised ? before[k] : std::isfinite(raised_near[k]) ? raised_near[k] : raised_far[k];
+      if (!std::isfinite(roof)) continue;
+      const float cost_ground = SupportWeightedCost(s, &seen_above, nadir_first, i, j, ground, t);
+      const float cost_roof = SupportWeightedCost(s, &seen_above, nadir_first, i, j, roof, t);
+      if (!std::isfinite(cost_ground) || !std::isfinite(cost_roof)) continue;
+      const float other = filled_raised ? cost_ground : cost_roof, own = filled_raised ? cost_roof : cost_ground;
+      if (other > max_cost || own - other < margin) continue;
+      height_m[k] = filled_raised ? ground : roof;
+      ++changed;
+    }
+    progress.Advance(++rows_done, "");
+  });
+  progress.End();
+  return changed;
+}
+
+}  // namespace skyfall::dense_detail

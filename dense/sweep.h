@@ -1,0 +1,79 @@
+// The plane sweep's parts that the dense stage's sources share (not a
+// public header): grey images, the sweep of one run, its cost volume and
+// the heights picked from it, the coarse sweep, what each view sees, and
+// the decision of filled cells' sides.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/stage.h"
+#include "dense/dense.h"
+
+namespace skyfall::dense_detail {
+
+constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+
+// Grey level of a view scaled so that its 99th percentile is 1: NCC ignores
+// the scale, but min_std is then the same threshold for every sensor range.
+struct GreyImage {
+  int width = 0, height = 0;
+  std::vector<float> values;
+};
+
+GreyImage ToGrey(const DenseView& v);
+
+using Projection = Eigen::Matrix<double, 3, 4>;
+Projection ProjectionOf(const PinholeCamera& c);
+
+// What the sweeps of one run share: the grid, the heights and the views.
+struct Sweep {
+  const DenseOptions& o;
+  const HeightGrid& grid;  // geometry only
+  double z_lo = 0;
+  double step_m = 0;  // height_step_m, or coarser where the range needs more than max_heights
+  int nh = 0;
+  const std::vector<DensePair>& pairs;
+  const std::vector<int>& slot;  // view index -> index into grey / projection
+  const std::vector<GreyImage>& grey;
+  const std::vector<Projection>& projection;
+  std::size_t Cells() const { return static_cast<std::size_t>(grid.nx) * grid.ny; }
+  double Height(int d) const { return z_lo + d * step_m; }
+};
+
+// The cost volume of `s` (sweep.cpp: CostVolume).
+std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
+                              const std::string& label, Progress& progress);
+
+// Heights chosen from a cost volume: SGM, the best height per cell refined
+// by a parabola through its neighbours, cells matching worse than max_cost
+// and speckles (far from their 3x3 median) left NaN.
+struct CellHeights {
+  std::vector<float> height_m, cost;
+  std::size_t low_cost = 0, speckles = 0;
+};
+
+CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress& progress);
+
+// Heights from a sweep at coarse_factor times the cell (sweep.cpp).
+std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress);
+
+// Per view, the height above which each cell is seen (visibility.cpp).
+std::vector<std::vector<float>> SeenAbove(const HeightGrid& g, const std::vector<float>& surface_m,
+                                          const std::vector<Eigen::Vector3d>& to_cameras, double floor_m,
+                                          double tolerance_m, int near_cells);
+
+// The view slots most nadir first, and the decision of filled cells'
+// sides (filled_sides.cpp).
+std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
+                            const Eigen::Vector3d& centre);
+std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
+                              const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                              const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
+                              int reach_cells, std::vector<float>& height_m, Progress& progress);
+
+}  // namespace skyfall::dense_detail
