@@ -35,8 +35,8 @@ void AddTrain(CLI::App& splat, Runner* runner) {
                 "Per-image appearance model: 'auto' (on for multi-date views), 'on' or 'off'");
   cmd->add_option("--appearance-image", o.appearance_image,
                   "Training view whose appearance is fused into scene.ply (default: the most typical one)");
-  cmd->add_option("--densify-from", o.densify_from, "First densification step")->capture_default_str();
-  cmd->add_option("--densify-until", o.densify_until, "Last step that adds Gaussians")->capture_default_str();
+  cmd->add_option("--densify-from", o.density.from_step, "First densification step")->capture_default_str();
+  cmd->add_option("--densify-until", o.density.until_step, "Last step that adds Gaussians")->capture_default_str();
   cmd->add_option("--opacity-reg-from", o.opacity_reg_from, "First step of the entropy opacity term")
       ->capture_default_str();
   cmd->add_option("--init-max-scale", stage->init_max_scale_m, "Cap on the initial Gaussian size [m] (0 = none)")

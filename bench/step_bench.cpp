@@ -73,7 +73,7 @@ int Main(int argc, char** argv) {
   TrainOptions o;
   o.iterations = args.steps;
   o.eval_interval = 1000000;      // the one evaluation at the end is excluded below
-  o.densify_from = 1000000;       // densification is not part of a step
+  o.density.from_step = 1000000;       // densification is not part of a step
   o.appearance.enabled = args.appearance != "off";
   if (o.appearance.enabled) o.appearance.model = args.appearance;
   NullProgress progress;

@@ -349,22 +349,22 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
      "Adam learning rate of the degree-0 spherical-harmonics colour");
   io("lr_sh_rest", t.lr_sh_rest,
      "Adam learning rate of the higher spherical-harmonics coefficients");
-  io("densify_from", t.densify_from,
+  io("densify_from", t.density.from_step,
      "First step of adaptive density control (clone, split, prune)");
-  io("densify_until", t.densify_until,
+  io("densify_until", t.density.until_step,
      "Last step that adds Gaussians by cloning or splitting");
-  io("densify_interval", t.densify_interval,
+  io("densify_interval", t.density.interval_steps,
      "Steps between densification passes");
-  io("densify_grad_threshold", t.densify_grad_threshold,
+  io("densify_grad_threshold", t.density.grad_threshold,
      "Mean view-space gradient of a Gaussian's centre above which it is cloned or split, in the 3DGS reference's "
      "normalized units");
-  io("percent_dense", t.percent_dense,
+  io("percent_dense", t.density.percent_dense,
      "Gaussians smaller than this fraction of the scene extent are cloned, larger ones split");
-  io("min_opacity", t.min_opacity,
+  io("min_opacity", t.density.min_opacity,
      "Gaussians more transparent than this are pruned");
-  io("max_scale_m", t.max_scale_m,
+  io("max_scale_m", t.density.max_scale_m,
      "Gaussians larger than this are pruned");
-  io("max_gaussians", t.max_gaussians,
+  io("max_gaussians", t.density.max_gaussians,
      "Densification adds no Gaussians beyond this count");
   io("eval_interval", t.eval_interval,
      "Steps between held-out PSNR evaluations, recorded in the report");

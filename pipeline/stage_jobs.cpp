@@ -94,7 +94,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"gaussians", r.cloud.size()},
       {"seconds_this_run", r.report.seconds},
       {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
-                   {"densification", o.densify_from <= o.densify_until},
+                   {"densification", o.density.from_step <= o.density.until_step},
                    {"appearance_model", o.appearance.enabled},
                    {"pseudo_camera_depth", o.pseudo_interval > 0}}},
       {"appearance", {{"reason", appearance_reason},
@@ -314,7 +314,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   }
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
-  if (!decided.densify) options.densify_from = options.iterations + 1;  // never reached
+  if (!decided.densify) options.density.from_step = options.iterations + 1;  // never reached
   std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
   if (stage.mask_beyond_reconstruction)
     decided.masked_beyond_fraction = MaskBeyondReconstruction(dense, stage.init_spacing_m, options.raster, &views);

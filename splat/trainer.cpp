@@ -162,126 +162,6 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
                [step_dc, step_rest](std::size_t j) { return j % 4 == 0 ? step_dc : step_rest; });
 }
 
-Eigen::Matrix3f RotationOf(const Eigen::Vector4f& q) {
-  const Eigen::Vector4f u = q.normalized();
-  return Eigen::Quaternionf(u[0], u[1], u[2], u[3]).toRotationMatrix();
-}
-
-// Spreads the low 16 bits of v to the even bits of the result.
-std::uint32_t SpreadBits(std::uint32_t v) {
-  v &= 0xFFFFu;
-  v = (v | (v << 8)) & 0x00FF00FFu;
-  v = (v | (v << 4)) & 0x0F0F0F0Fu;
-  v = (v | (v << 2)) & 0x33333333u;
-  v = (v | (v << 1)) & 0x55555555u;
-  return v;
-}
-
-// The Gaussians in the order of a Morton (Z-order) curve through their
-// centres' x and y. A view of part of the scene (a nadir patch, a crop)
-// then reads its Gaussians from a few runs of memory: in a cloud in random
-// order, projecting the Gaussians a nadir patch sees waited on memory for
-// each of them, longer than culling the whole cloud (decision D-077).
-std::vector<std::size_t> SpatialOrder(const GaussianCloud& c) {
-  std::vector<std::size_t> order(c.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  if (c.size() <= 1) return order;
-  Eigen::Array2f lo = Eigen::Array2f::Constant(std::numeric_limits<float>::max()), hi = -lo;
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    const Eigen::Array2f xy = c.means[i].head<2>().array();
-    if (!xy.allFinite()) continue;
-    lo = lo.min(xy);
-    hi = hi.max(xy);
-  }
-  constexpr float kCells = 65535.0f;  // 16 bits per axis
-  const Eigen::Array2f scale = kCells / (hi - lo).max(1e-6f);
-  std::vector<std::pair<std::uint32_t, std::size_t>> keyed;
-  keyed.reserve(c.size());
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    const Eigen::Array2f xy = c.means[i].head<2>().array();
-    Eigen::Array2f q = Eigen::Array2f::Zero();
-    if (xy.allFinite()) q = ((xy - lo) * scale).max(0.0f).min(kCells);
-    const std::uint32_t key = SpreadBits(static_cast<std::uint32_t>(q.x())) |
-                              (SpreadBits(static_cast<std::uint32_t>(q.y())) << 1);
-    keyed.emplace_back(key, i);
-  }
-  std::sort(keyed.begin(), keyed.end());  // ties by index: deterministic
-  for (std::size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
-  return order;
-}
-
-GaussianCloud Gather(const GaussianCloud& c, const std::vector<std::size_t>& order) {
-  GaussianCloud out;
-  for (std::size_t i : order) out.Append(c, i);
-  return out;
-}
-
-struct DensifyStats {
-  std::vector<float> grad_sum;
-  std::vector<int> seen;
-  void Reset(std::size_t n) {
-    grad_sum.assign(n, 0.0f);
-    seen.assign(n, 0);
-  }
-};
-
-// Clone small and split large Gaussians with large view-space gradients,
-// prune transparent and huge ones, and put the cloud back in spatial order
-// (SpatialOrder). The source of every Gaussian kept or added goes to
-// `source` (per-Gaussian state kept elsewhere follows it).
-void Densify(GaussianCloud& c, Adam& adam, const DensifyStats& stats, const TrainOptions& o, double extent_m, bool grow,
-             std::mt19937_64& rng, std::vector<std::size_t>* source) {
-  GaussianCloud out, m, v;
-  std::normal_distribution<float> normal(0.0f, 1.0f);
-  int added = 0;
-  source->clear();
-  const float split_scale = static_cast<float>(o.percent_dense * extent_m);
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    const float opacity = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
-    const float max_scale = std::exp(c.log_scales[i].maxCoeff());
-    if (opacity < o.min_opacity || max_scale > o.max_scale_m) continue;
-    const float avg_grad = stats.seen[i] ? stats.grad_sum[i] / stats.seen[i] : 0.0f;
-    const bool hot = grow && avg_grad >= o.densify_grad_threshold &&
-                     c.size() + added < static_cast<std::size_t>(o.max_gaussians);
-    if (hot && max_scale > split_scale) {
-      // Split: two samples from the Gaussian, each 1.6x smaller.
-      const Eigen::Matrix3f R = RotationOf(c.rotations[i]);
-      const Eigen::Vector3f s = c.log_scales[i].array().exp();
-      for (int k = 0; k < 2; ++k) {
-        out.Append(c, i);
-        m.Append(adam.m, i);
-        v.Append(adam.v, i);
-        source->push_back(i);
-        const Eigen::Vector3f z(normal(rng), normal(rng), normal(rng));
-        out.means.back() += R * (s.cwiseProduct(z));
-        out.log_scales.back() = (s / 1.6f).array().log();
-        m.means.back().setZero();
-        v.means.back().setZero();
-      }
-      ++added;  // two replace one
-      continue;
-    }
-    out.Append(c, i);
-    m.Append(adam.m, i);
-    v.Append(adam.v, i);
-    source->push_back(i);
-    if (hot) {  // clone
-      out.Append(c, i);
-      m.Append(adam.m, i);
-      v.Append(adam.v, i);
-      source->push_back(i);
-      ++added;
-    }
-  }
-  const std::vector<std::size_t> order = SpatialOrder(out);
-  c = Gather(out, order);
-  adam.m = Gather(m, order);
-  adam.v = Gather(v, order);
-  std::vector<std::size_t> ordered_source(order.size());
-  for (std::size_t k = 0; k < order.size(); ++k) ordered_source[k] = (*source)[order[k]];
-  *source = std::move(ordered_source);
-}
-
 // --- checkpoints: the cloud, Adam state, RNG and series, in one binary file.
 template <typename V>
 void Put(std::string& s, const V& v) {
@@ -697,10 +577,7 @@ void TrainOptions::Check() const {
   need(surface_nadir_gsd_m > 0, "surface_nadir_gsd_m", surface_nadir_gsd_m);
   for (double lr : {lr_mean_initial, lr_mean_final, lr_scale, lr_rotation, lr_opacity, lr_sh_dc, lr_sh_rest})
     need(lr > 0 && std::isfinite(lr), "learning rate", lr);
-  need(densify_interval >= 1, "densify_interval", densify_interval);
-  need(densify_grad_threshold > 0, "densify_grad_threshold", densify_grad_threshold);
-  need(min_opacity >= 0 && min_opacity < 1, "min_opacity", min_opacity);
-  need(max_scale_m > 0, "max_scale_m", max_scale_m);
+  density.Check();
   need(eval_interval >= 1, "eval_interval", eval_interval);
   need(opacity_reg_from >= 0, "opacity_reg_from", opacity_reg_from);
   need(lambda_depth >= 0, "lambda_depth", lambda_depth);
@@ -853,19 +730,21 @@ std::size_t DropNonFiniteGradients(GaussianGradients<float>* gradients) {
       std::plus<>());
 }
 
-TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
-                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior,
-                           const SurfaceDepthPrior* surface) {
-  o.Check();
-  Stopwatch clock;
-  TrainResult result;
-  result.report.stage = "splat_train";
-  std::vector<int> train_ids, synthetic_ids;  // satellite training views; synthetic views
+namespace {
+
+// The satellite training views and the synthetic ones, by index; checks
+// that every view's buffers match its camera.
+struct ViewIds {
+  std::vector<int> train, synthetic;
+};
+
+ViewIds SplitTrainingViews(const TrainOptions& o, const std::vector<TrainView>& views) {
+  ViewIds ids;
   for (int k = 0; k < static_cast<int>(views.size()); ++k) {
     if (views[k].held_out) continue;
-    (views[k].synthetic ? synthetic_ids : train_ids).push_back(k);
+    (views[k].synthetic ? ids.synthetic : ids.train).push_back(k);
   }
-  if (train_ids.empty()) throw Error("train", "views", "no training view (all are held out or none given)");
+  if (ids.train.empty()) throw Error("train", "views", "no training view (all are held out or none given)");
   for (const TrainView& v : views) {
     if (v.rgb.size() != 3u * v.camera.width_px * v.camera.height_px) {
       throw Error("train", v.name, "image size does not match its camera");
@@ -876,242 +755,335 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
     if (!v.depth_target.empty() && v.depth_target.size() != v.rgb.size() / 3)
       throw Error("train", v.name, "depth target size does not match its image");
   }
-  if (o.appearance.enabled && !synthetic_ids.empty())
+  if (o.appearance.enabled && !ids.synthetic.empty())
     throw Error("train", "appearance", "synthetic views have no acquisition to embed: train them without the appearance model");
+  return ids;
+}
 
-  const int fused_view = AppearanceViewIndex(o, views);
-  cloud = Gather(cloud, SpatialOrder(cloud));
-  Adam adam;
-  adam.Resize(cloud.size());
-  std::mt19937_64 rng(o.seed);
-  AppearanceState appearance;
-  if (o.appearance.enabled) {
-    appearance.enabled = true;
-    appearance.model = InitAppearance(o.appearance, static_cast<int>(views.size()), cloud.size(), o.seed);
-    appearance.m = appearance.model.ZerosLike();
-    appearance.v = appearance.model.ZerosLike();
+// One training run: the state a checkpoint saves and the parts of a step.
+class TrainingRun {
+ public:
+  TrainingRun(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views, DepthPrior* depth_prior,
+              const SurfaceDepthPrior* surface, Progress& progress, TrainResult* result)
+      : o_(o),
+        views_(views),
+        ids_(SplitTrainingViews(o, views)),
+        depth_prior_(depth_prior),
+        surface_(surface),
+        progress_(progress),
+        result_(*result),
+        cloud_(Gather(cloud, SpatialOrder(cloud))),
+        rng_(o.seed),
+        // The extent scales the position learning rate and the split size. It
+        // is taken from the initial cloud (the caller passes the same one
+        // when resuming), so a resumed run uses the same value.
+        extent_(SceneExtent(cloud_)),
+        density_(o.density, extent_),
+        phase_(&result->profile) {
+    adam_.Resize(cloud_.size());
+    if (o.appearance.enabled) {
+      appearance_.enabled = true;
+      appearance_.model = InitAppearance(o.appearance, static_cast<int>(views.size()), cloud_.size(), o.seed);
+      appearance_.m = appearance_.model.ZerosLike();
+      appearance_.v = appearance_.model.ZerosLike();
+    }
+    for (const auto& p : cloud_.means) scene_centre_ += p.cast<double>();
+    scene_centre_ /= std::max<std::size_t>(1, cloud_.size());
+    density_.stats().Reset(cloud_.size());
   }
-  // The extent scales the position learning rate and the split size. It is
-  // taken from the initial cloud (the caller passes the same one when
-  // resuming), so a resumed run uses the same value.
-  const double extent = SceneExtent(cloud);
-  Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();
-  for (const auto& p : cloud.means) scene_centre += p.cast<double>();
-  scene_centre /= std::max<std::size_t>(1, cloud.size());
-  int start = 0;
-  DensifyStats stats;
-  stats.Reset(cloud.size());
-  double loss_sum = 0;
-  int loss_count = 0;
-  const std::string ck_path = checkpoint_dir.empty() ? "" : (fs::path(checkpoint_dir) / "checkpoint.bin").string();
-  if (!ck_path.empty() && fs::exists(ck_path)) {
+
+  // Continues from a checkpoint written with the same settings; returns the
+  // step it was written at.
+  int ResumeFrom(const std::string& ck_path) {
     Checkpoint ck = LoadCheckpoint(ck_path);
-    cloud = std::move(ck.cloud);
-    adam = std::move(ck.adam);
-    std::istringstream(ck.rng_state) >> rng;
-    result.series = std::move(ck.series);
-    stats = std::move(ck.stats);
-    loss_sum = ck.loss_sum;
-    loss_count = static_cast<int>(ck.loss_count);
-    start = ck.iteration;
-    result.start_iteration = start;
-    if (ck.appearance.enabled != o.appearance.enabled ||
-        (ck.appearance.enabled && (ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views.size()) ||
-                                   ck.appearance.model.kind() != o.appearance.model))) {
+    cloud_ = std::move(ck.cloud);
+    adam_ = std::move(ck.adam);
+    std::istringstream(ck.rng_state) >> rng_;
+    result_.series = std::move(ck.series);
+    density_.stats() = std::move(ck.stats);
+    loss_sum_ = ck.loss_sum;
+    loss_count_ = static_cast<int>(ck.loss_count);
+    if (ck.appearance.enabled != o_.appearance.enabled ||
+        (ck.appearance.enabled && (ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views_.size()) ||
+                                   ck.appearance.model.kind() != o_.appearance.model))) {
       throw Error("train", ck_path,
                   "was written with different appearance-model settings (on/off, model or image count); delete it to "
                   "start again");
     }
-    appearance = std::move(ck.appearance);
+    appearance_ = std::move(ck.appearance);
+    return ck.iteration;
   }
-  const PhotometricLossOptions photometric{o.lambda_dssim};
-  const double previous_seconds = result.series.empty() ? 0.0 : result.series.back().seconds;
-  if (result.series.empty()) {  // the starting point of the error-versus-time series
-    TrainSample s;
-    s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
-    s.gaussians = cloud.size();
-    s.loss = std::numeric_limits<double>::quiet_NaN();
-    result.series.push_back(s);
+
+  // The starting point of the error-versus-time series, and the surface's
+  // depth in each anchored training view, computed once before the steps.
+  void Prepare() {
+    previous_seconds_ = result_.series.empty() ? 0.0 : result_.series.back().seconds;
+    if (result_.series.empty()) {
+      TrainSample s;
+      s.psnr_test_db = HeldOutPsnr(cloud_, views_, o_.raster, appearance_, ids_.train);
+      s.gaussians = cloud_.size();
+      s.loss = std::numeric_limits<double>::quiet_NaN();
+      result_.series.push_back(s);
+    }
+    anchored_ = surface_ && (o_.lambda_surface_depth > 0 || o_.lambda_surface_alpha > 0);
+    surface_depth_.resize(views_.size());
+    if (anchored_) {
+      tbb::parallel_for(std::size_t{0}, ids_.train.size(), [&](std::size_t k) {
+        const PinholeCamera& cam = views_[ids_.train[k]].camera;
+        surface_depth_[ids_.train[k]] = surface_->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
+      });
+    }
+    phase_.Skip();
   }
-  // The surface's depth in each anchored training view, computed once
-  // before the steps (the views in parallel).
-  const bool anchored = surface && (o.lambda_surface_depth > 0 || o.lambda_surface_alpha > 0);
-  std::vector<DepthMap> surface_depth(views.size());
-  if (anchored) {
-    tbb::parallel_for(std::size_t{0}, train_ids.size(), [&](std::size_t k) {
-      const PinholeCamera& cam = views[train_ids[k]].camera;
-      surface_depth[train_ids[k]] = surface->DepthRelativeTo(cam, cam.cam_from_world_translation.z());
-    });
+
+  void Step(int it, const std::string& checkpoint_dir, const std::string& ck_path, int fused_view) {
+    ++result_.profile.steps;
+    phase_.Lap(kBookkeeping);  // the end of the previous step
+    const int view_id = PickView(ids_.train, ids_.synthetic, o_.synthetic_fraction, rng_);
+    StepGradients s = ViewGradients(view_id);
+    s.loss += RegularizerTerms(it, &s.g);
+    phase_.Lap(kRegularizerViews);
+    loss_sum_ += s.loss;
+    ++loss_count_;
+    density_.Accumulate(s.radius_px, s.g.mean2d_norm, views_[view_id].camera.width_px);
+    Optimize(it, &s);
+    phase_.Lap(kOptimizer);
+    if (density_.Due(it)) {
+      const std::vector<std::size_t> source = density_.Densify(it, &cloud_, &adam_.m, &adam_.v, rng_);
+      if (appearance_.enabled) {
+        for (AppearanceModel* a : {&appearance_.model, &appearance_.m, &appearance_.v}) a->GatherGaussians(source);
+      }
+    }
+    phase_.Lap(kDensify);
+    if (it % o_.eval_interval == 0 || it == o_.iterations) RecordSample(it);
+    phase_.Lap(kEvaluation);
+    if (!ck_path.empty() && (it % o_.checkpoint_interval == 0 || it == o_.iterations))
+      SaveState(it, checkpoint_dir, ck_path, fused_view);
   }
-  progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
-  std::size_t nonfinite_gaussians = 0, nonfinite_steps = 0;  // DropNonFiniteGradients, this run
-  PhaseClock phase(&result.profile);
-  bool held_out_rendered = false;
-  for (int it = start + 1; it <= o.iterations; ++it) {
-    ++result.profile.steps;
-    phase.Lap(kBookkeeping);  // the end of the previous step
-    const int view_id = PickView(train_ids, synthetic_ids, o.synthetic_fraction, rng);
-    const TrainView& view = views[view_id];
+
+  // The exported cloud and the report's figures.
+  void Finish(int fused_view) {
+    phase_.Lap(kBookkeeping);
+    progress_.End();
+    const int export_view = ExportView(appearance_, fused_view, ids_.train);
+    result_.cloud = ExportCloud(cloud_, appearance_, export_view);
+    if (export_view >= 0) result_.appearance_image = views_[export_view].name;
+    std::map<std::string, double>& m = result_.report.metrics;
+    m["gaussians"] = static_cast<double>(result_.cloud.size());
+    if (!result_.series.empty()) m["psnr_test_db"] = result_.series.back().psnr_test_db;
+    m["nonfinite_gradient_steps"] = static_cast<double>(nonfinite_steps_);
+    m["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians_);
+    // A run resumed from its last checkpoint has no step left to render them.
+    if (!held_out_rendered_) result_.held_out = HeldOutRenders(cloud_, views_, o_.raster, appearance_, ids_.train);
+    m["psnr_test_fitted_db"] = MeanOverHeldOut(result_.held_out, &HeldOutRender::fitted_psnr_db);
+    // Without the model there is no embedding to choose: psnr_test_db is the figure.
+    if (appearance_.enabled && !result_.held_out.empty())
+      m["psnr_test_best_embedding_db"] = MeanOverHeldOut(result_.held_out, &HeldOutRender::best_embedding_psnr_db);
+    m["psnr_train_db"] = TrainingPsnr(cloud_, views_, o_.raster, appearance_, ids_.train);
+    const bool any_held_out = std::any_of(views_.begin(), views_.end(), [](const TrainView& v) { return v.held_out; });
+    if (appearance_.enabled && any_held_out) {
+      m["psnr_test_mean_embedding_db"] =
+          HeldOutPsnr(cloud_, views_, o_.raster, appearance_, ids_.train, /*by_date=*/false);
+      for (const auto& [name, n] : HeldOutEmbeddingRules(views_, appearance_, ids_.train)) m[name] = n;
+    }
+  }
+
+ private:
+  struct StepGradients {
+    double loss = 0;
+    GaussianGradients<float> g;
+    AppearanceModel appearance_grad;
+    std::size_t dropped = 0;      // Gaussians with a non-finite gradient
+    std::vector<int> radius_px;   // which Gaussians the view saw
+  };
+
+  // The photometric, view-depth and anchor losses on one view and their
+  // gradients (the appearance model's too).
+  StepGradients ViewGradients(int view_id) {
+    const TrainView& view = views_[view_id];
     std::vector<ColourAffine<float>> affine;
     Eigen::VectorXf embedding;
     AppearanceActivations<float> activations;
-    if (appearance.enabled) {
-      embedding = appearance.model.image_embeddings.col(view_id);
-      affine = EvaluateAppearance(appearance.model, embedding, cloud, &activations);
+    if (appearance_.enabled) {
+      embedding = appearance_.model.image_embeddings.col(view_id);
+      affine = EvaluateAppearance(appearance_.model, embedding, cloud_, &activations);
     }
-    phase.Lap(kAppearance);
-    const std::vector<ColourAffine<float>>* colour_affine = appearance.enabled ? &affine : nullptr;
-    const RenderOutput<float> r = RenderGaussians(cloud, view.camera, o.raster, colour_affine);
-    phase.Lap(kRasterFwd);
+    phase_.Lap(kAppearance);
+    const std::vector<ColourAffine<float>>* colour_affine = appearance_.enabled ? &affine : nullptr;
+    const RenderOutput<float> r = RenderGaussians(cloud_, view.camera, o_.raster, colour_affine);
+    phase_.Lap(kRasterFwd);
+    StepGradients s;
     std::vector<float> d_rgb;
-    double loss = ViewPhotometricLoss(r, view, photometric, &d_rgb);
+    s.loss = ViewPhotometricLoss(r, view, PhotometricLossOptions{o_.lambda_dssim}, &d_rgb);
     for (std::size_t p = 0; p < view.valid.size(); ++p) {
       if (!view.valid[p]) d_rgb[3 * p] = d_rgb[3 * p + 1] = d_rgb[3 * p + 2] = 0.0f;  // no data: no pull
     }
     std::vector<float> d_alpha, d_depth;
-    if (!view.depth_target.empty() && o.lambda_view_depth > 0) loss += ViewDepthLoss(r, view, o.lambda_view_depth, &d_depth);
-    if (anchored && !view.synthetic) {
+    if (!view.depth_target.empty() && o_.lambda_view_depth > 0)
+      s.loss += ViewDepthLoss(r, view, o_.lambda_view_depth, &d_depth);
+    if (anchored_ && !view.synthetic) {
       std::vector<float> anchor_depth;
-      loss += SurfaceAnchorLoss(r, surface_depth[view_id], o, &d_alpha, &anchor_depth);
+      s.loss += SurfaceAnchorLoss(r, surface_depth_[view_id], o_, &d_alpha, &anchor_depth);
       if (d_depth.empty()) {
         d_depth = std::move(anchor_depth);
       } else {  // a view with a depth target too: both gradients count
         for (std::size_t p = 0; p < d_depth.size(); ++p) d_depth[p] += anchor_depth[p];
       }
     }
-    phase.Lap(kLoss);
-    GaussianGradients<float> g = BackwardGaussians(cloud, view.camera, o.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
+    phase_.Lap(kLoss);
+    s.g = BackwardGaussians(cloud_, view.camera, o_.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
     // Before the appearance model's gradient is built from them.
-    std::size_t dropped = DropNonFiniteGradients(&g);
-    phase.Lap(kRasterBwd);
-    AppearanceModel appearance_grad;
-    if (appearance.enabled) {
-      appearance_grad = appearance.model.ZerosLike();
-      appearance_grad.image_embeddings.col(view_id) = BackwardAppearance(
-          appearance.model, embedding, cloud, g.d_colour_affine, &appearance_grad, &g.d.sh, &activations);
+    s.dropped = DropNonFiniteGradients(&s.g);
+    phase_.Lap(kRasterBwd);
+    if (appearance_.enabled) {
+      s.appearance_grad = appearance_.model.ZerosLike();
+      s.appearance_grad.image_embeddings.col(view_id) = BackwardAppearance(
+          appearance_.model, embedding, cloud_, s.g.d_colour_affine, &s.appearance_grad, &s.g.d.sh, &activations);
     }
-    phase.Lap(kAppearance);
-    if (o.lambda_opacity > 0 && it >= o.opacity_reg_from) {
+    phase_.Lap(kAppearance);
+    s.radius_px = r.state.radius_px;
+    return s;
+  }
+
+  // The regularizers: entropy on opacities, centres held to the surface,
+  // the anchor on a nadir patch and the pseudo view's depth prior. Their
+  // gradients go into `g`; returns their loss.
+  double RegularizerTerms(int it, GaussianGradients<float>* g) {
+    double loss = 0;
+    if (o_.lambda_opacity > 0 && it >= o_.opacity_reg_from) {
       std::vector<float> d_op;
-      loss += o.lambda_opacity * OpacityEntropy(cloud.opacity_logits, &d_op);
-      for (std::size_t i = 0; i < cloud.size(); ++i) g.d.opacity_logits[i] += static_cast<float>(o.lambda_opacity) * d_op[i];
+      loss += o_.lambda_opacity * OpacityEntropy(cloud_.opacity_logits, &d_op);
+      for (std::size_t i = 0; i < cloud_.size(); ++i)
+        g->d.opacity_logits[i] += static_cast<float>(o_.lambda_opacity) * d_op[i];
     }
-    if (surface && o.lambda_surface_height > 0) loss += SurfaceHeightTerm(*surface, cloud, o, &g.d);
-    phase.Lap(kLoss);
-    if (anchored && o.surface_nadir_interval > 0 && it % o.surface_nadir_interval == 0) {
+    if (surface_ && o_.lambda_surface_height > 0) loss += SurfaceHeightTerm(*surface_, cloud_, o_, &g->d);
+    phase_.Lap(kLoss);
+    if (anchored_ && o_.surface_nadir_interval > 0 && it % o_.surface_nadir_interval == 0) {
       // A nadir patch around a look-at point drawn like the pseudo views'.
       std::mt19937_64 pick(0xA11C0000ull + static_cast<std::uint64_t>(it));
-      std::normal_distribution<double> offset(0.0, o.pseudo.look_at_sigma_m);
-      const Eigen::Vector3d look_at = scene_centre + Eigen::Vector3d(offset(pick), offset(pick), 0.0);
+      std::normal_distribution<double> offset(0.0, o_.pseudo.look_at_sigma_m);
+      const Eigen::Vector3d look_at = scene_centre_ + Eigen::Vector3d(offset(pick), offset(pick), 0.0);
       constexpr double kNadirHeightM = 1.0e5;  // far: rays tilt < 0.1 deg over the patch
-      const PinholeCamera nadir = NadirCamera(look_at, o.surface_nadir_gsd_m, o.surface_nadir_size_px, kNadirHeightM);
-      const RenderOutput<float> nr = RenderGaussians(cloud, nadir, o.raster);
-      const DepthMap target = surface->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
+      const PinholeCamera nadir = NadirCamera(look_at, o_.surface_nadir_gsd_m, o_.surface_nadir_size_px, kNadirHeightM);
+      const RenderOutput<float> nr = RenderGaussians(cloud_, nadir, o_.raster);
+      const DepthMap target = surface_->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
       std::vector<float> n_alpha, n_depth;
-      loss += SurfaceAnchorLoss(nr, target, o, &n_alpha, &n_depth);
-      AddGeometryGradients(BackwardGaussians(cloud, nadir, o.raster, nr, {}, n_alpha, n_depth), nr.state, &g);
+      loss += SurfaceAnchorLoss(nr, target, o_, &n_alpha, &n_depth);
+      AddGeometryGradients(BackwardGaussians(cloud_, nadir, o_.raster, nr, {}, n_alpha, n_depth), nr.state, g);
     }
-    if (depth_prior && o.pseudo_interval > 0 && it % o.pseudo_interval == 0) {
+    if (depth_prior_ && o_.pseudo_interval > 0 && it % o_.pseudo_interval == 0) {
       // Pseudo view: the same sample for the same iteration, so resumes match.
-      const PinholeCamera pc = SamplePseudoCamera(o.pseudo, scene_centre, static_cast<std::uint64_t>(it));
-      const RenderOutput<float> pr = RenderGaussians(cloud, pc, o.raster);
-      DepthMap prior = depth_prior->Estimate(pc, pr.rgb);
+      const PinholeCamera pc = SamplePseudoCamera(o_.pseudo, scene_centre_, static_cast<std::uint64_t>(it));
+      const RenderOutput<float> pr = RenderGaussians(cloud_, pc, o_.raster);
+      DepthMap prior = depth_prior_->Estimate(pc, pr.rgb);
       for (std::size_t k = 0; k < prior.valid.size(); ++k) prior.valid[k] &= pr.alpha[k] > 0.5f;
       std::vector<float> d_depth;
-      loss += o.lambda_depth * PearsonDepthLoss(pr.depth, prior.depth, prior.valid, &d_depth);
-      for (float& v : d_depth) v *= static_cast<float>(o.lambda_depth);
-      AddGeometryGradients(BackwardGaussians(cloud, pc, o.raster, pr, {}, {}, d_depth), pr.state, &g);
+      loss += o_.lambda_depth * PearsonDepthLoss(pr.depth, prior.depth, prior.valid, &d_depth);
+      for (float& v : d_depth) v *= static_cast<float>(o_.lambda_depth);
+      AddGeometryGradients(BackwardGaussians(cloud_, pc, o_.raster, pr, {}, {}, d_depth), pr.state, g);
     }
-    phase.Lap(kRegularizerViews);
-    loss_sum += loss;
-    ++loss_count;
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      if (r.state.radius_px[i]) {
-        stats.grad_sum[i] += g.mean2d_norm[i] * 0.5f * static_cast<float>(view.camera.width_px);
-        ++stats.seen[i];
-      }
-    }
-    const double t = static_cast<double>(it) / o.iterations;
-    const double lr_mean = extent * std::exp((1 - t) * std::log(o.lr_mean_initial) + t * std::log(o.lr_mean_final));
-    dropped += DropNonFiniteGradients(&g);  // and those the regularizer views added
-    if (dropped > 0) {
-      if (nonfinite_steps == 0) {
-        progress.Warn("splat train: step " + std::to_string(it) + ": " + std::to_string(dropped) +
-                      " Gaussian(s) with a non-finite gradient; their update is skipped (counted in the train report)");
-      }
-      nonfinite_gaussians += dropped;
-      ++nonfinite_steps;
-    }
-    AdamStep(cloud, adam, g.d, o, lr_mean);
-    if (appearance.enabled) AdamStepAppearance(appearance, appearance_grad, adam.step, o.appearance);
-    phase.Lap(kOptimizer);
+    return loss;
+  }
 
-    if (it >= o.densify_from && it % o.densify_interval == 0 && it <= o.densify_until + o.densify_interval) {
-      std::vector<std::size_t> source;
-      Densify(cloud, adam, stats, o, extent, it <= o.densify_until, rng, &source);
-      if (appearance.enabled) {
-        for (AppearanceModel* a : {&appearance.model, &appearance.m, &appearance.v}) a->GatherGaussians(source);
+  // Adam on the Gaussians (and the appearance model), the centres' rate
+  // decaying exponentially; Gaussians with a non-finite gradient skip it.
+  void Optimize(int it, StepGradients* s) {
+    const double t = static_cast<double>(it) / o_.iterations;
+    const double lr_mean = extent_ * std::exp((1 - t) * std::log(o_.lr_mean_initial) + t * std::log(o_.lr_mean_final));
+    s->dropped += DropNonFiniteGradients(&s->g);  // and those the regularizer views added
+    if (s->dropped > 0) {
+      if (nonfinite_steps_ == 0) {
+        progress_.Warn("splat train: step " + std::to_string(it) + ": " + std::to_string(s->dropped) +
+                       " Gaussian(s) with a non-finite gradient; their update is skipped (counted in the train report)");
       }
-      stats.Reset(cloud.size());
+      nonfinite_gaussians_ += s->dropped;
+      ++nonfinite_steps_;
     }
-    phase.Lap(kDensify);
-    if (it % o.eval_interval == 0 || it == o.iterations) {
-      TrainSample s;
-      s.iteration = it;
-      s.seconds = previous_seconds + clock.Seconds();
-      s.loss = loss_sum / std::max(1, loss_count);
-      if (it == o.iterations) {  // the report's renders are the last point's: rendered once
-        // Not a step's work (each held-out view under every training
-        // embedding): left out of the step profile, as after the loop.
-        phase.Lap(kEvaluation);
-        result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
-        phase.Skip();
-        held_out_rendered = true;
-        s.psnr_test_db = MeanOverHeldOut(result.held_out, &HeldOutRender::psnr_db);
-      } else {
-        s.psnr_test_db = HeldOutPsnr(cloud, views, o.raster, appearance, train_ids);
-      }
-      s.gaussians = cloud.size();
-      result.series.push_back(s);
-      loss_sum = 0;
-      loss_count = 0;
+    AdamStep(cloud_, adam_, s->g.d, o_, lr_mean);
+    if (appearance_.enabled) AdamStepAppearance(appearance_, s->appearance_grad, adam_.step, o_.appearance);
+  }
+
+  void RecordSample(int it) {
+    TrainSample s;
+    s.iteration = it;
+    s.seconds = previous_seconds_ + clock_.Seconds();
+    s.loss = loss_sum_ / std::max(1, loss_count_);
+    if (it == o_.iterations) {  // the report's renders are the last point's: rendered once
+      // Not a step's work (each held-out view under every training
+      // embedding): left out of the step profile, as after the loop.
+      phase_.Lap(kEvaluation);
+      result_.held_out = HeldOutRenders(cloud_, views_, o_.raster, appearance_, ids_.train);
+      phase_.Skip();
+      held_out_rendered_ = true;
+      s.psnr_test_db = MeanOverHeldOut(result_.held_out, &HeldOutRender::psnr_db);
+    } else {
+      s.psnr_test_db = HeldOutPsnr(cloud_, views_, o_.raster, appearance_, ids_.train);
     }
-    phase.Lap(kEvaluation);
-    if (!ck_path.empty() && (it % o.checkpoint_interval == 0 || it == o.iterations)) {
-      std::ostringstream state;
-      state << rng;
-      SaveCheckpoint(ck_path, {it, cloud, adam, state.str(), result.series, stats, loss_sum, loss_count, appearance});
-      if (o.keep_snapshots) {
-        WriteGaussiansPly((fs::path(checkpoint_dir) / "snapshots" / ("scene_" + std::to_string(it) + ".ply")).string(),
-                          ExportCloud(cloud, appearance, ExportView(appearance, fused_view, train_ids)));
-      }
+    s.gaussians = cloud_.size();
+    result_.series.push_back(s);
+    loss_sum_ = 0;
+    loss_count_ = 0;
+  }
+
+  void SaveState(int it, const std::string& checkpoint_dir, const std::string& ck_path, int fused_view) {
+    std::ostringstream state;
+    state << rng_;
+    SaveCheckpoint(ck_path, {it, cloud_, adam_, state.str(), result_.series, density_.stats(), loss_sum_, loss_count_,
+                             appearance_});
+    if (o_.keep_snapshots) {
+      WriteGaussiansPly((fs::path(checkpoint_dir) / "snapshots" / ("scene_" + std::to_string(it) + ".ply")).string(),
+                        ExportCloud(cloud_, appearance_, ExportView(appearance_, fused_view, ids_.train)));
     }
+  }
+
+  const TrainOptions& o_;
+  const std::vector<TrainView>& views_;
+  const ViewIds ids_;
+  DepthPrior* depth_prior_;
+  const SurfaceDepthPrior* surface_;
+  Progress& progress_;
+  TrainResult& result_;
+  Stopwatch clock_;
+  GaussianCloud cloud_;
+  Adam adam_;
+  std::mt19937_64 rng_;
+  AppearanceState appearance_;
+  const double extent_;
+  Eigen::Vector3d scene_centre_ = Eigen::Vector3d::Zero();
+  DensityControl density_;
+  PhaseClock phase_;
+  double loss_sum_ = 0;
+  int loss_count_ = 0;
+  double previous_seconds_ = 0;
+  bool anchored_ = false;
+  std::vector<DepthMap> surface_depth_;
+  std::size_t nonfinite_gaussians_ = 0, nonfinite_steps_ = 0;  // DropNonFiniteGradients, this run
+  bool held_out_rendered_ = false;
+};
+
+}  // namespace
+
+TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std::vector<TrainView>& views,
+                           const std::string& checkpoint_dir, Progress& progress, DepthPrior* depth_prior,
+                           const SurfaceDepthPrior* surface) {
+  o.Check();
+  Stopwatch clock;
+  TrainResult result;
+  result.report.stage = "splat_train";
+  TrainingRun run(o, std::move(cloud), views, depth_prior, surface, progress, &result);
+  const int fused_view = AppearanceViewIndex(o, views);
+  const std::string ck_path = checkpoint_dir.empty() ? "" : (fs::path(checkpoint_dir) / "checkpoint.bin").string();
+  int start = 0;
+  if (!ck_path.empty() && fs::exists(ck_path)) start = run.ResumeFrom(ck_path);
+  result.start_iteration = start;
+  run.Prepare();
+  progress.Begin("splat train", static_cast<std::size_t>(o.iterations));
+  for (int it = start + 1; it <= o.iterations; ++it) {
+    run.Step(it, checkpoint_dir, ck_path, fused_view);
     CrashPoint("train", it);
     progress.Advance(static_cast<std::size_t>(it), "");
   }
-  phase.Lap(kBookkeeping);
-  progress.End();
-  const int export_view = ExportView(appearance, fused_view, train_ids);
-  result.cloud = ExportCloud(cloud, appearance, export_view);
-  if (export_view >= 0) result.appearance_image = views[export_view].name;
-  result.report.metrics["gaussians"] = static_cast<double>(result.cloud.size());
-  if (!result.series.empty()) result.report.metrics["psnr_test_db"] = result.series.back().psnr_test_db;
-  result.report.metrics["nonfinite_gradient_steps"] = static_cast<double>(nonfinite_steps);
-  result.report.metrics["nonfinite_gradient_gaussians"] = static_cast<double>(nonfinite_gaussians);
-  // A run resumed from its last checkpoint has no step left to render them.
-  if (!held_out_rendered) result.held_out = HeldOutRenders(cloud, views, o.raster, appearance, train_ids);
-  result.report.metrics["psnr_test_fitted_db"] = MeanOverHeldOut(result.held_out, &HeldOutRender::fitted_psnr_db);
-  // Without the model there is no embedding to choose: psnr_test_db is the figure.
-  if (appearance.enabled && !result.held_out.empty())
-    result.report.metrics["psnr_test_best_embedding_db"] =
-        MeanOverHeldOut(result.held_out, &HeldOutRender::best_embedding_psnr_db);
-  result.report.metrics["psnr_train_db"] = TrainingPsnr(cloud, views, o.raster, appearance, train_ids);
-  const bool any_held_out = std::any_of(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; });
-  if (appearance.enabled && any_held_out) {
-    result.report.metrics["psnr_test_mean_embedding_db"] =
-        HeldOutPsnr(cloud, views, o.raster, appearance, train_ids, /*by_date=*/false);
-    for (const auto& [name, n] : HeldOutEmbeddingRules(views, appearance, train_ids)) result.report.metrics[name] = n;
-  }
+  run.Finish(fused_view);
   result.report.seconds = clock.Seconds();
   return result;
 }

@@ -15,6 +15,7 @@
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "splat/appearance.h"
+#include "splat/density_control.h"
 #include "splat/depth_prior.h"
 #include "splat/rasterizer.h"
 
@@ -66,18 +67,7 @@ struct TrainOptions {
   double lr_opacity = 0.05;
   double lr_sh_dc = 0.0025;
   double lr_sh_rest = 0.0025 / 20;
-  // Adaptive density control.
-  int densify_from = 500;
-  int densify_until = 2100;
-  int densify_interval = 100;
-  // Mean view-space gradient that triggers densification, in the 3DGS
-  // reference's normalized device units (|dL/d(uv)| [1/px] times half the
-  // image width), so the familiar 0.0002 keeps its meaning at any resolution.
-  double densify_grad_threshold = 0.0002;
-  double percent_dense = 0.01;             // clone below, split above this fraction of the extent
-  double min_opacity = 0.005;              // pruned below
-  double max_scale_m = 20.0;               // pruned above (paper: max covariance > 20)
-  int max_gaussians = 2000000;
+  DensityControlOptions density;  // adaptive density control (clone, split, prune)
   // Bookkeeping.
   int eval_interval = 250;        // held-out PSNR into the report
   int checkpoint_interval = 500;  // resumable state

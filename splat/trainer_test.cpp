@@ -77,9 +77,9 @@ constexpr double kAppearanceGainDb = 1.0;
 TrainOptions ShortRun(int iterations) {
   TrainOptions o;
   o.iterations = iterations;
-  o.densify_from = 40;
-  o.densify_interval = 40;
-  o.densify_until = 120;
+  o.density.from_step = 40;
+  o.density.interval_steps = 40;
+  o.density.until_step = 120;
   o.opacity_reg_from = 80;
   o.eval_interval = 50;
   o.checkpoint_interval = 30;
@@ -93,7 +93,7 @@ TEST(Trainer, HeldOutPsnrRises) {
   // the entropy term lower held-out PSNR in a 200-iteration run (measured:
   // 19.1 dB without, 17.4 with densification, 14.6 with entropy from 80).
   TrainOptions o = ShortRun(200);
-  o.densify_from = o.iterations + 1;
+  o.density.from_step = o.iterations + 1;
   o.lambda_opacity = 0;
   const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);
   ASSERT_GE(r.series.size(), 3u);
@@ -252,7 +252,7 @@ TEST(Trainer, SurfaceHeightTermHoldsCentresOnTheSurface) {
   };
   const auto run = [&](double lambda) {
     TrainOptions o = ShortRun(60);
-    o.densify_from = o.iterations + 1;
+    o.density.from_step = o.iterations + 1;
     o.lambda_opacity = 0;
     o.lambda_surface_depth = o.lambda_surface_alpha = 0;  // the term alone
     o.lambda_surface_height = lambda;
@@ -280,7 +280,7 @@ TEST(Trainer, AppearanceModelAbsorbsPerDateBrightness) {
   EXPECT_EQ(DistinctAcquisitionDates(f.views), 4);  // training views only
   NullProgress progress;
   TrainOptions o = ShortRun(200);
-  o.densify_from = o.iterations + 1;
+  o.density.from_step = o.iterations + 1;
   o.lambda_opacity = 0;
   const TrainResult plain = TrainGaussians(o, f.init, f.views, "", progress);
   o.appearance.enabled = true;
@@ -312,7 +312,7 @@ TEST(Trainer, HeldOutScoresNameTheTrainingEmbeddingThatMatchesTheView) {
   }
   NullProgress progress;
   TrainOptions o = ShortRun(150);
-  o.densify_from = o.iterations + 1;
+  o.density.from_step = o.iterations + 1;
   o.lambda_opacity = 0;
   o.appearance.enabled = true;
   const TrainResult r = TrainGaussians(o, f.init, f.views, "", progress);

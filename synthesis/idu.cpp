@@ -208,11 +208,11 @@ TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episod
   t.eval_interval = std::max(1, o.iterations_per_episode);
   t.checkpoint_interval = std::max(1, o.iterations_per_episode);
   if (o.densify) {
-    t.densify_interval = std::max(1, o.densify_interval);
-    t.densify_from = std::max(1, static_cast<int>(o.densify_from_fraction * o.iterations_per_episode));
-    t.densify_until = static_cast<int>(o.densify_until_fraction * o.iterations_per_episode);
+    t.density.interval_steps = std::max(1, o.densify_interval);
+    t.density.from_step = std::max(1, static_cast<int>(o.densify_from_fraction * o.iterations_per_episode));
+    t.density.until_step = static_cast<int>(o.densify_until_fraction * o.iterations_per_episode);
   } else {
-    t.densify_from = o.iterations_per_episode + 1;
+    t.density.from_step = o.iterations_per_episode + 1;
   }
   return t;
 }
