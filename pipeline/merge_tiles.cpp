@@ -61,114 +61,91 @@ TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions&
   return PlanSeamLines(o, specs, surfaces);
 }
 
-}  // namespace
-
-MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
-                        const DsmOptions& dsm, Progress& progress) {
-  Stopwatch clock;
-  options.Check();
-  dsm.Check();
-  const DsmExportOptions& dsm_options = dsm.export_options;
-  const bool from_reconstruction = dsm.source == DsmSource::kReconstruction;
-  MergeSummary summary;
-  summary.report.stage = "merge";
+json ReadTileIndex(const std::string& tiles_dir) {
   const fs::path index_path = fs::path(tiles_dir) / "tiles.json";
-  json index;
   try {
-    index = json::parse(ReadTextFile(index_path.string()));
+    return json::parse(ReadTextFile(index_path.string()));
   } catch (const json::exception& e) {
     throw Error("merge", index_path.string(), std::string("not valid JSON: ") + e.what());
   }
+}
+
+// The finished tiles' scenes; per tile, its reconstruction when the DSMs
+// come from it and it differs from the tile's scene (the synthesis stage
+// ran), else empty; and the tiles that have no finished scene.
+struct TileScenes {
   std::vector<TileCloud> clouds;
-  // Per merged tile, its reconstruction when the DSMs come from it and it
-  // differs from the tile's scene (the synthesis stage ran), else empty.
   std::vector<std::string> reconstruction_of;
   std::vector<std::string> missing;
+};
+
+TileScenes ReadTileScenes(const std::string& tiles_dir, const json& index, bool from_reconstruction,
+                          Progress& progress, MergeSummary* summary) {
+  TileScenes read;
   const json& tiles = index.at("tiles");
   progress.Begin("merge: reading tiles", tiles.size());
   std::size_t k = 0;
   for (const json& t : tiles) {
     const fs::path dir = fs::path(tiles_dir) / t.at("id").get<std::string>();
     const TileSpec spec = ReadTileSpec((dir / "tile.json").string());
-    if (summary.epsg == 0 && fs::exists(dir / "aoi.json")) summary.epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
+    if (summary->epsg == 0 && fs::exists(dir / "aoi.json")) summary->epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
     const fs::path scene = TileScenePath(dir.string());
     const std::optional<TileReport> report = ReadTileReport(dir.string());
-    const bool ok = report && report->status == StageStatus::kOk && fs::exists(scene);
-    if (ok) {
-      clouds.push_back({spec, ReadGaussiansPly(scene.string())});
+    if (report && report->status == StageStatus::kOk && fs::exists(scene)) {
+      read.clouds.push_back({spec, ReadGaussiansPly(scene.string())});
       const std::string reconstruction = TileReconstructionPath(dir.string());
       const bool differs = from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction);
-      reconstruction_of.push_back(differs ? reconstruction : std::string());
+      read.reconstruction_of.push_back(differs ? reconstruction : std::string());
     } else {
-      missing.push_back(spec.id);
+      read.missing.push_back(spec.id);
       progress.Warn("merge: tile " + spec.id + " has no finished scene; its area is left to its neighbours");
     }
     progress.Advance(++k, spec.id);
   }
   progress.End();
-  if (clouds.empty()) throw Error("merge", tiles_dir, "no finished tile to merge (run `skyfall run-tile` first)");
-  const json& o = index.at("enu_origin");
-  summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
+  return read;
+}
 
-  const TileOwnership ownership = PlanOwnership(options, dsm_options, clouds, summary.epsg, progress);
-  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, clouds, &ownership);
-  fs::create_directories(out_dir);
-  summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
-  WriteGaussiansPly(summary.scene_path, stitched.cloud);
-  const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
-  WriteLod(out_dir, lod);
-
-  // The surface the DSMs come from: the reconstructions stitched alike when
-  // some tile's synthesis stage changed its scene, else the merged scene.
-  // The tiles' scenes are not needed past the stitch: they become the
-  // reconstructions where those are the same, so one city's worth of tiles
-  // is held at a time.
-  std::optional<StitchResult> surface_stitched;
-  summary.surface_path = summary.scene_path;
-  summary.surface_source = "final";
+// The surface the DSMs come from: the reconstructions stitched alike when
+// some tile's synthesis stage changed its scene (written to surface.ply),
+// else none (the merged scene is the surface). The tiles' scenes are not
+// needed past the stitch: they become the reconstructions where those are
+// the same, so one city's worth of tiles is held at a time.
+std::optional<StitchResult> StitchReconstructions(const MergeOptions& options, const DsmExportOptions& dsm_options,
+                                                  const std::string& out_dir, TileScenes* read, Progress& progress,
+                                                  MergeSummary* summary) {
   const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
-  const bool any_synthesized =
-      std::any_of(reconstruction_of.begin(), reconstruction_of.end(), [](const std::string& p) { return !p.empty(); });
-  if (any_synthesized) {
-    std::vector<TileCloud> reconstructions;
-    for (std::size_t k = 0; k < clouds.size(); ++k) {
-      if (reconstruction_of[k].empty())
-        reconstructions.push_back(std::move(clouds[k]));
-      else
-        reconstructions.push_back({clouds[k].tile, ReadGaussiansPly(reconstruction_of[k])});
-      clouds[k].cloud = GaussianCloud();
-    }
-    const TileOwnership surface_ownership = PlanOwnership(options, dsm_options, reconstructions, summary.epsg, progress);
-    surface_stitched = StitchTiles(options.stitch, summary.enu_origin, reconstructions, &surface_ownership);
-    summary.surface_path = surface_ply.string();
-    WriteGaussiansPly(summary.surface_path, surface_stitched->cloud);
-    summary.surface_source = "reconstruction";
-  } else {
+  const bool any_synthesized = std::any_of(read->reconstruction_of.begin(), read->reconstruction_of.end(),
+                                           [](const std::string& p) { return !p.empty(); });
+  if (!any_synthesized) {
     fs::remove(surface_ply);  // an earlier run's would no longer match the scene
+    return std::nullopt;
   }
-  const StitchResult& surface = surface_stitched ? *surface_stitched : stitched;
+  std::vector<TileCloud> reconstructions;
+  for (std::size_t k = 0; k < read->clouds.size(); ++k) {
+    if (read->reconstruction_of[k].empty())
+      reconstructions.push_back(std::move(read->clouds[k]));
+    else
+      reconstructions.push_back({read->clouds[k].tile, ReadGaussiansPly(read->reconstruction_of[k])});
+    read->clouds[k].cloud = GaussianCloud();
+  }
+  const TileOwnership ownership = PlanOwnership(options, dsm_options, reconstructions, summary->epsg, progress);
+  StitchResult stitched = StitchTiles(options.stitch, summary->enu_origin, reconstructions, &ownership);
+  summary->surface_path = surface_ply.string();
+  WriteGaussiansPly(summary->surface_path, stitched.cloud);
+  summary->surface_source = "reconstruction";
+  return stitched;
+}
 
-  // Seam metric on a city DSM rendered from that surface.
-  const GroundBox bounds = BoxFromJson(index.at("bounds"));
-  DsmGrid city = GridCovering(bounds, summary.enu_origin, summary.epsg, options.seam_gsd_m);
-  RasterizeDsm(surface.cloud, summary.enu_origin, dsm_options, &city);
-  WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
-  summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
-  summary.tiles_merged = clouds.size();
-  summary.tiles_missing = missing.size();
-  summary.lod_levels = static_cast<int>(lod.size());
-
+void WriteMergeReport(const std::string& out_dir, const json& index, const StitchResult& stitched,
+                      const std::vector<LodLevel>& lod, const std::vector<std::string>& missing,
+                      const MergeSummary& summary) {
   json levels = json::array();
   for (const LodLevel& l : lod) {
     levels.push_back({{"level", l.level}, {"count", l.cloud.size()}, {"voxel_m", l.voxel_m},
                       {"geometric_error_m", l.geometric_error_m}});
   }
   auto finite = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-  const json frame = {{"enu_origin", o}, {"epsg", summary.epsg}, {"city", index.at("city")}};
-  WriteFileAtomic((fs::path(out_dir) / "frame.json").string(), frame.dump(2) + "\n");
-  summary.report.seconds = clock.Seconds();
-  summary.report.metrics = stitched.report.metrics;
-  summary.report.metrics["seam_ratio"] = summary.seam.ratio;
   const json doc = {{"city", index.at("city")},
                     {"tiles_merged", summary.tiles_merged},
                     {"tiles_missing", missing},
@@ -182,6 +159,52 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
                     {"dsm_source", summary.surface_source},
                     {"seconds", summary.report.seconds}};
   WriteFileAtomic((fs::path(out_dir) / "merge_report.json").string(), doc.dump(2) + "\n");
+}
+
+}  // namespace
+
+MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir, const MergeOptions& options,
+                        const DsmOptions& dsm, Progress& progress) {
+  Stopwatch clock;
+  options.Check();
+  dsm.Check();
+  const DsmExportOptions& dsm_options = dsm.export_options;
+  MergeSummary summary;
+  summary.report.stage = "merge";
+  const json index = ReadTileIndex(tiles_dir);
+  TileScenes read =
+      ReadTileScenes(tiles_dir, index, dsm.source == DsmSource::kReconstruction, progress, &summary);
+  if (read.clouds.empty()) throw Error("merge", tiles_dir, "no finished tile to merge (run `skyfall run-tile` first)");
+  const json& o = index.at("enu_origin");
+  summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
+
+  const TileOwnership ownership = PlanOwnership(options, dsm_options, read.clouds, summary.epsg, progress);
+  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, read.clouds, &ownership);
+  fs::create_directories(out_dir);
+  summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
+  WriteGaussiansPly(summary.scene_path, stitched.cloud);
+  const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
+  WriteLod(out_dir, lod);
+  summary.surface_path = summary.scene_path;
+  summary.surface_source = "final";
+  const std::optional<StitchResult> surface_stitched =
+      StitchReconstructions(options, dsm_options, out_dir, &read, progress, &summary);
+  const StitchResult& surface = surface_stitched ? *surface_stitched : stitched;
+
+  // Seam metric on a city DSM rendered from that surface.
+  DsmGrid city = GridCovering(BoxFromJson(index.at("bounds")), summary.enu_origin, summary.epsg, options.seam_gsd_m);
+  RasterizeDsm(surface.cloud, summary.enu_origin, dsm_options, &city);
+  WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
+  summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
+  summary.tiles_merged = read.clouds.size();
+  summary.tiles_missing = read.missing.size();
+  summary.lod_levels = static_cast<int>(lod.size());
+  const json frame = {{"enu_origin", o}, {"epsg", summary.epsg}, {"city", index.at("city")}};
+  WriteFileAtomic((fs::path(out_dir) / "frame.json").string(), frame.dump(2) + "\n");
+  summary.report.seconds = clock.Seconds();
+  summary.report.metrics = stitched.report.metrics;
+  summary.report.metrics["seam_ratio"] = summary.seam.ratio;
+  WriteMergeReport(out_dir, index, stitched, lod, read.missing, summary);
   return summary;
 }
 

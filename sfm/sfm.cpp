@@ -118,16 +118,13 @@ ReprojectionStats ComputeStats(std::vector<double> e) {
   return s;
 }
 
-SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress& progress) {
-  options.Check();
-  Stopwatch clock;
-  SfmResult result;
-  result.report.stage = "sfm";
+namespace {
+
+// 1. Cameras (the RPC approximated by a pinhole) and features per image.
+Loaded LoadImages(const SfmOptions& options, const AoiCatalog& catalog, Progress& progress, SfmResult* result) {
   const EnuFrame frame(catalog.enu_origin);
   const auto enu = [&frame](const GeodeticPoint& g) { return frame.EnuFromGeodetic(g); };
   const int n = static_cast<int>(catalog.images.size());
-
-  // 1. Cameras and features per image.
   Loaded loaded;
   progress.Begin("sfm cameras+features " + catalog.aoi, n);
   for (int i = 0; i < n; ++i) {
@@ -149,13 +146,24 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
         DetectFeatures(pixels.rgb, pixels.width_px, pixels.height_px, 3, options.features, &pixels.valid));
     im.keypoints = static_cast<int>(loaded.features.back().keypoints.size());
     loaded.cameras.push_back(im.camera);
-    result.images.push_back(im);
+    result->images.push_back(im);
     progress.Advance(i + 1, rec.name);
   }
   progress.End();
+  return loaded;
+}
 
-  // 2. Pairwise matching and verification, pairs in parallel; results are
-  // collected by pair index so the outcome does not depend on scheduling.
+// The image pairs with enough verified matches, and those matches.
+struct VerifiedPairs {
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<std::vector<std::pair<int, int>>> matches;
+};
+
+// 2. Pairwise matching and verification, pairs in parallel; results are
+// collected by pair index so the outcome does not depend on scheduling.
+VerifiedPairs MatchPairs(const SfmOptions& options, const AoiCatalog& catalog, const Loaded& loaded,
+                         Progress& progress, SfmResult* result) {
+  const int n = static_cast<int>(catalog.images.size());
   VerifyOptions verify = options.verify;
   verify.min_up = EnuUpAtOrigin(EllipsoidHeightM(catalog.min_ellipsoid_height_m), catalog.enu_origin);
   verify.max_up = EnuUpAtOrigin(EllipsoidHeightM(catalog.max_ellipsoid_height_m), catalog.enu_origin);
@@ -174,67 +182,56 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     verified[k] = VerifyMatches(loaded.cameras[a], loaded.cameras[b], loaded.features[a].keypoints,
                                 loaded.features[b].keypoints, raw, verify);
     const std::lock_guard<std::mutex> lock(progress_mutex);
-    progress.Advance(++done, result.images[a].name + " x " + result.images[b].name);
+    progress.Advance(++done, result->images[a].name + " x " + result->images[b].name);
   });
   progress.End();
-  std::vector<std::pair<int, int>> pairs;
-  std::vector<std::vector<std::pair<int, int>>> pair_matches;
+  VerifiedPairs kept;
   for (std::size_t k = 0; k < all_pairs.size(); ++k) {
     const auto [a, b] = all_pairs[k];
-    result.pairs.push_back({a, b, ratio_counts[k], static_cast<int>(verified[k].size())});
+    result->pairs.push_back({a, b, ratio_counts[k], static_cast<int>(verified[k].size())});
     if (static_cast<int>(verified[k].size()) >= options.min_matches_per_pair) {
-      pairs.emplace_back(a, b);
-      pair_matches.push_back(std::move(verified[k]));
+      kept.pairs.emplace_back(a, b);
+      kept.matches.push_back(std::move(verified[k]));
     }
   }
-  result.verified_pairs = static_cast<int>(pairs.size());
+  result->verified_pairs = static_cast<int>(kept.pairs.size());
+  return kept;
+}
 
-  // 3. Tracks and triangulation with the RPC cameras.
+// 3-4. Tracks triangulated with the RPC cameras; images with too few
+// observations are left out. Returns how many images are used.
+int BuildBundleProblem(const SfmOptions& options, const AoiCatalog& catalog, const Loaded& loaded,
+                       const VerifiedPairs& verified, BundleProblem* bp, SfmResult* result) {
+  const int n = static_cast<int>(catalog.images.size());
   std::vector<std::vector<Eigen::Vector2d>> keypoints;
   for (const auto& f : loaded.features) keypoints.push_back(f.keypoints);
-  const auto tracks = BuildTracks(pairs, pair_matches, keypoints);
-  BundleProblem bp;
-  bp.cameras = loaded.cameras;
-  bp.offsets_px.assign(n, Eigen::Vector2d::Zero());
-  bp.image_used.assign(n, true);
-  bp.anchor_image = AnchorIndex(options.anchor_image, result.images, catalog.aoi, &result.report.warnings);
-  TriangulateTracks(tracks, loaded.cameras, options, &bp);
-
-  // 4. Images with too few observations are left out.
+  const auto tracks = BuildTracks(verified.pairs, verified.matches, keypoints);
+  bp->cameras = loaded.cameras;
+  bp->offsets_px.assign(n, Eigen::Vector2d::Zero());
+  bp->image_used.assign(n, true);
+  bp->anchor_image = AnchorIndex(options.anchor_image, result->images, catalog.aoi, &result->report.warnings);
+  TriangulateTracks(tracks, loaded.cameras, options, bp);
   std::vector<int> observations(n, 0);
-  for (const auto& t : bp.tracks)
+  for (const auto& t : bp->tracks)
     for (const auto& o : t) ++observations[o.image];
   int used = 0;
   for (int i = 0; i < n; ++i) {
-    bp.image_used[i] = observations[i] >= options.min_observations_per_image;
-    used += bp.image_used[i];
-    if (!bp.image_used[i]) {
-      result.images[i].status = "left out: " + std::to_string(observations[i]) + " observations (minimum " +
-                                std::to_string(options.min_observations_per_image) + ")";
-      result.report.warnings.push_back(result.images[i].name + ": " + result.images[i].status);
+    bp->image_used[i] = observations[i] >= options.min_observations_per_image;
+    used += bp->image_used[i];
+    if (!bp->image_used[i]) {
+      result->images[i].status = "left out: " + std::to_string(observations[i]) + " observations (minimum " +
+                                 std::to_string(options.min_observations_per_image) + ")";
+      result->report.warnings.push_back(result->images[i].name + ": " + result->images[i].status);
     }
   }
-  KeepUsedImages(&bp);
-  result.before = ComputeStats(ReprojectionErrors(bp));
-  if (used < 2 || bp.tracks.empty()) {
-    result.report.status = StageStatus::kDegenerate;
-    result.report.message = "sfm: " + catalog.aoi + ": " + std::to_string(used) +
-                            " usable image(s) and " + std::to_string(bp.tracks.size()) +
-                            " tracks; at least 2 images with tie points are needed";
-    result.report.seconds = clock.Seconds();
-    return result;
-  }
+  KeepUsedImages(bp);
+  return used;
+}
 
-  // 5. Bundle adjustment rounds with an outlier cut in between.
-  for (int round = 0; round < options.ba_rounds; ++round) {
-    RunBundleAdjustment(&bp, options.bundle);
-    CutOutliers(&bp, options.max_reprojection_after_ba_px);
-  }
-  RunBundleAdjustment(&bp, options.bundle);
-  result.after = ComputeStats(ReprojectionErrors(bp));
-
-  // 6. Products: offsets folded into the principal points, coloured points.
-  std::fill(observations.begin(), observations.end(), 0);
+// 6. Products: coloured points with their mean residual, and each image's
+// BA offset folded into its principal point.
+void CollectProducts(const BundleProblem& bp, const Loaded& loaded, SfmResult* result) {
+  std::vector<int> observations(result->images.size(), 0);
   for (size_t t = 0; t < bp.tracks.size(); ++t) {
     SfmPoint p;
     p.enu_m = bp.points[t];
@@ -250,10 +247,10 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     rgb /= static_cast<double>(p.track.size());
     for (int k = 0; k < 3; ++k) p.rgb[k] = static_cast<std::uint8_t>(std::lround(rgb[k]));
     p.reprojection_error_px = err / static_cast<double>(p.track.size());
-    result.points.push_back(std::move(p));
+    result->points.push_back(std::move(p));
   }
-  for (int i = 0; i < n; ++i) {
-    SfmImage& im = result.images[i];
+  for (std::size_t i = 0; i < result->images.size(); ++i) {
+    SfmImage& im = result->images[i];
     im.observations = observations[i];
     im.used = bp.image_used[i] && observations[i] > 0;
     if (!im.used && im.status.empty()) im.status = "left out: no observation survived bundle adjustment";
@@ -262,10 +259,16 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     im.camera.cx += im.ba_offset_px.x();
     im.camera.cy += im.ba_offset_px.y();
   }
+}
+
+// The report: fit and residual figures, what fixed the absolute position,
+// and what a stereo pair cannot do. Returns how many images are used.
+int ReportSfm(const SfmOptions& options, const AoiCatalog& catalog, const BundleProblem& bp, Progress& progress,
+              SfmResult* result) {
   int images_used = 0;
   double dlt_max = 0, dlt_mean_sum = 0, largest_offset_px = 0;
   Eigen::Vector2d mean_offset_px = Eigen::Vector2d::Zero();
-  for (const auto& im : result.images) {
+  for (const auto& im : result->images) {
     images_used += im.used;
     dlt_max = std::max(dlt_max, im.approximation.max_error_px);
     dlt_mean_sum += im.approximation.mean_error_px;
@@ -274,37 +277,68 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     largest_offset_px = std::max(largest_offset_px, im.ba_offset_px.norm());
   }
   if (images_used > 0) mean_offset_px /= images_used;
-  auto& m = result.report.metrics;
+  auto& m = result->report.metrics;
   m["dlt_max_error_px"] = dlt_max;
-  m["dlt_mean_error_px"] = dlt_mean_sum / n;
-  m["ba_median_reproj_px_before"] = result.before.median_px;
-  m["ba_median_reproj_px_after"] = result.after.median_px;
-  m["num_points"] = static_cast<double>(result.points.size());
+  m["dlt_mean_error_px"] = dlt_mean_sum / static_cast<int>(result->images.size());
+  m["ba_median_reproj_px_before"] = result->before.median_px;
+  m["ba_median_reproj_px_after"] = result->after.median_px;
+  m["num_points"] = static_cast<double>(result->points.size());
   m["num_images_used"] = images_used;
   // The gauge: a shift common to every image is invisible to tie points, so
   // the absolute position is the robust average of the images' RPCs (the
   // Cauchy prior on each offset). These say how far BA moved them from it.
   m["ba_mean_offset_px"] = mean_offset_px.norm();
   m["ba_largest_offset_px"] = largest_offset_px;
-  const bool anchored = bp.anchor_image >= 0 && result.images[bp.anchor_image].used;
-  result.absolute_position =
-      anchored ? "the RPC of " + result.images[bp.anchor_image].name + " (sfm.anchor_image)"
+  const bool anchored = bp.anchor_image >= 0 && result->images[bp.anchor_image].used;
+  result->absolute_position =
+      anchored ? "the RPC of " + result->images[bp.anchor_image].name + " (sfm.anchor_image)"
                : "the average of " + std::to_string(images_used) + " images' RPCs";
   if (bp.anchor_image >= 0 && !anchored) {
-    result.report.warnings.push_back("sfm " + catalog.aoi + ": anchor image " + options.anchor_image +
-                                     " was left out; the absolute position is the images' average");
+    result->report.warnings.push_back("sfm " + catalog.aoi + ": anchor image " + options.anchor_image +
+                                      " was left out; the absolute position is the images' average");
   }
   progress.Info(fmt::format("sfm {}: absolute position from {} (mean BA offset {:.2f} px, largest {:.2f} px)",
-                            catalog.aoi, result.absolute_position, mean_offset_px.norm(), largest_offset_px));
+                            catalog.aoi, result->absolute_position, mean_offset_px.norm(), largest_offset_px));
   if (images_used == 2) {
     // The most common real input and the minimum: say what it cannot do.
-    result.report.warnings.push_back(
+    result->report.warnings.push_back(
         "sfm " + catalog.aoi +
         ": a stereo pair: one intersection per point, so a mismatch cannot be outvoted; ground that either view "
         "cannot see (beside buildings, away from its look direction) gets no height and is filled; no view is left "
         "to hold out for scoring");
   }
-  if (images_used < 2) {
+  return images_used;
+}
+
+}  // namespace
+
+SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress& progress) {
+  options.Check();
+  Stopwatch clock;
+  SfmResult result;
+  result.report.stage = "sfm";
+  const Loaded loaded = LoadImages(options, catalog, progress, &result);
+  const VerifiedPairs verified = MatchPairs(options, catalog, loaded, progress, &result);
+  BundleProblem bp;
+  const int used = BuildBundleProblem(options, catalog, loaded, verified, &bp, &result);
+  result.before = ComputeStats(ReprojectionErrors(bp));
+  if (used < 2 || bp.tracks.empty()) {
+    result.report.status = StageStatus::kDegenerate;
+    result.report.message = "sfm: " + catalog.aoi + ": " + std::to_string(used) + " usable image(s) and " +
+                            std::to_string(bp.tracks.size()) +
+                            " tracks; at least 2 images with tie points are needed";
+    result.report.seconds = clock.Seconds();
+    return result;
+  }
+  // 5. Bundle adjustment rounds with an outlier cut in between.
+  for (int round = 0; round < options.ba_rounds; ++round) {
+    RunBundleAdjustment(&bp, options.bundle);
+    CutOutliers(&bp, options.max_reprojection_after_ba_px);
+  }
+  RunBundleAdjustment(&bp, options.bundle);
+  result.after = ComputeStats(ReprojectionErrors(bp));
+  CollectProducts(bp, loaded, &result);
+  if (ReportSfm(options, catalog, bp, progress, &result) < 2) {
     result.report.status = StageStatus::kDegenerate;
     result.report.message = "sfm: " + catalog.aoi + ": fewer than 2 images kept after bundle adjustment";
   }
