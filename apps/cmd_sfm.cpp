@@ -68,7 +68,7 @@ void AddDenseCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--visibility-prior", opts->visibility_prior_pairs,
                   "Pairs of truncation cost added to each height's mean in the second sweep")
       ->capture_default_str();
-  cmd->add_option("--fill-radius", opts->fill_radius_m,
+  cmd->add_option("--fill-radius", opts->fill.radius_m,
                   "Holes that views see take the terrain plus the lowest height above it within this distance [m]")
       ->capture_default_str();
   cmd->callback([runner, sfm, opts, tile] {

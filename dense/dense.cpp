@@ -28,13 +28,7 @@ void DenseOptions::Check() const {
   positive(min_std, "min_std");
   positive(max_cost, "max_cost");
   positive(max_median_deviation_m, "max_median_deviation_m");
-  positive(fill_radius_m, "fill_radius_m");
-  if (!(fill_roof_rim_fraction >= 0 && fill_roof_rim_fraction <= 1))
-    throw Error("dense", "fill_roof_rim_fraction", "must be in [0, 1] (0 = off), got " + std::to_string(fill_roof_rim_fraction));
-  if (!(max_fill_reach_m >= fill_radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
-  positive(fill_ground_radius_m, "fill_ground_radius_m");
-  if (!(fill_ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
-  if (!(fill_ground_max_rise_m >= 0)) throw Error("dense", "fill_ground_max_rise_m", "must be >= 0 (0 = off)");
+  fill.Check();
   if (!(floating_patch_max_m2 >= 0)) throw Error("dense", "floating_patch_max_m2", "must be >= 0 (0 = off)");
   if (!(floating_patch_min_rise_m >= 0)) throw Error("dense", "floating_patch_min_rise_m", "must be >= 0");
   if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
@@ -188,23 +182,6 @@ ViewSlots SlotViews(const std::vector<DenseView>& views, const std::vector<Dense
   return v;
 }
 
-// The hole filling's options on the grid of `o.cell_m`.
-HoleFillOptions FillOptionsOnGrid(const DenseOptions& o) {
-  auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / o.cell_m))); };
-  HoleFillOptions fill;
-  fill.radius_cells = cells_of(o.fill_radius_m);
-  fill.max_reach_cells = cells_of(o.max_fill_reach_m);
-  fill.roof_rim_fraction = static_cast<float>(o.fill_roof_rim_fraction);
-  fill.roof_rim_occluded = o.fill_roof_rim_occluded;
-  fill.roof_enclosed = o.fill_roof_enclosed;
-  fill.far_raised_takes_ground = o.fill_far_raised_ground;
-  fill.seen_ground_takes_terrain = o.fill_seen_ground_terrain;
-  fill.ground_radius_cells = cells_of(o.fill_ground_radius_m);
-  fill.ground_tolerance_m = static_cast<float>(o.fill_ground_tolerance_m);
-  fill.ground_max_rise_m = static_cast<float>(o.fill_ground_max_rise_m);
-  return fill;
-}
-
 // What the steps after the sweep count, for the report.
 struct DenseCounts {
   std::size_t visibility_changed = 0, measured = 0, occluded = 0, coarse = 0, floating = 0, sides_changed = 0;
@@ -214,7 +191,7 @@ struct DenseCounts {
 
 // The sweep, and with o.visibility_pass a second one that scores each height
 // only with the pairs that see it on the first surface (holes filled).
-CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillOptions& fill, Progress& progress,
+CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillGrid& fill, Progress& progress,
                          DenseCounts* counts) {
   const DenseOptions& o = sweep.o;
   const HeightGrid& g = sweep.grid;
@@ -247,7 +224,7 @@ CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillO
 // by the views (o.decide_filled_sides). Coarse heights count as filled: they
 // are not measured at the grid's own scale.
 void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<DenseView>& views,
-                   const Eigen::Vector3d& centre, const HoleFillOptions& fill, Progress& progress, HeightGrid* g,
+                   const Eigen::Vector3d& centre, const HoleFillGrid& fill, Progress& progress, HeightGrid* g,
                    DenseCounts* counts) {
   const DenseOptions& o = sweep.o;
   const std::size_t cells = sweep.Cells();
@@ -363,7 +340,7 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   result.pairs_used = SelectDensePairs(o, views, pairs, plan.centre);
   if (result.pairs_used.empty()) return degenerate("no image pair has enough tie points at a usable intersection angle");
   const ViewSlots v = SlotViews(views, result.pairs_used, plan.centre);
-  const HoleFillOptions fill = FillOptionsOnGrid(o);
+  const HoleFillGrid fill = o.fill.OnGrid(o.cell_m);
   const Sweep sweep{o, g, plan.z_lo, plan.step_m, plan.nh, result.pairs_used, v.slot, v.grey, v.projection};
   DenseCounts counts;
   CellHeights picked = SweepHeights(sweep, v, fill, progress, &counts);

@@ -44,7 +44,7 @@ struct DenseOptions {
   double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
   // Holes (cells without a height) are filled (FillHoles): ground no pair
   // can see (OccludedAtGround) takes the terrain; any other hole looks for
-  // the lowest height above the ground within fill_radius_m (doubled until
+  // the lowest height above the ground within fill.radius_m (doubled until
   // something is in reach): ground takes the terrain, a raised height is
   // added to the opening at the hole. Filled cells are flagged.
   bool fill_holes = true;
@@ -96,48 +96,8 @@ struct DenseOptions {
   bool decide_filled_sides = true;
   // (Pulling steps onto matched ground back by a cell after filling was
   // tried and not adopted: decisions D-082 and D-083.)
-  double fill_radius_m = 5.0;
-  // A seen hole whose rim of measured cells is at least this share roof
-  // (more than 2 m above the ground) takes the roof, though ground is
-  // within fill_radius_m (HoleFillOptions::roof_rim_fraction). 0 = off.
-  double fill_roof_rim_fraction = 0.9;
-  // Whether the rule also counts holes whose ground no pair sees: a hole in
-  // the middle of a roof hides its own ground behind the roof around it,
-  // and the occluded-ground rule alone would fill it with the terrain
-  // (HoleFillOptions::roof_rim_occluded).
-  bool fill_roof_rim_occluded = true;
-  // A hole cell enclosed by roof on all sides (HoleFillOptions::roof_enclosed)
-  // takes the roof even where its piece of holes reaches hidden ground
-  // beyond the roof's edge.
-  bool fill_roof_enclosed = true;
-  // A seen hole cell with nothing measured within fill_radius_m, whose
-  // lowest measured neighbour further out is raised, takes the ground
-  // (HoleFillOptions::far_raised_takes_ground): a street between tall
-  // buildings, seen along its length but matched by no pair, took the
-  // roofs' height (decision D-094).
-  bool fill_far_raised_ground = true;
-  // A seen hole cell whose lowest measured neighbour in reach is ground
-  // takes the terrain model (HoleFillOptions::seen_ground_takes_terrain):
-  // on a hillside with little ground measured between tall buildings, the
-  // plain opening it took before stood metres above the ground downhill
-  // (decision D-102).
-  bool fill_seen_ground_terrain = true;
-  // Cells further than this from every measured cell stay empty: beyond
-  // the area the views share there is nothing to fill from, and filling it
-  // would only add Gaussians to train.
-  double max_fill_reach_m = 20.0;
-  // [m] The ground surface is a morphological opening of this radius
-  // (larger than half the widest building): it keeps planes and smooth
-  // terrain and removes buildings and trees.
-  double fill_ground_radius_m = 30.0;
-  // [m] Where the ground surface stands more than this above the opening of
-  // twice fill_ground_radius_m, its squares held roofs only (the ground
-  // hidden between tall buildings): no ground there, and the terrain model
-  // spans it from the ground measured further away. 0 = off.
-  double fill_ground_max_rise_m = 10.0;
-  // [m] A measured cell at most this far above the ground surface is ground
-  // (it shapes the terrain model).
-  double fill_ground_tolerance_m = 1.0;
+  // How holes are filled (FillHoles): run configuration keys dense.fill_*.
+  HoleFillOptions fill;
   // A second sweep that scores each height of a cell only with the pairs
   // whose two views see that point, judged against the first sweep's
   // surface (holes filled): beside a wall half the views see the ground and

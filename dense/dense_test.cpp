@@ -582,8 +582,8 @@ TEST(Dense, FilledCellsTakeTheSideTheViewsMatchBetter) {
   auto run = [&](bool decide, const HeightGrid* compare) {
     DenseOptions o;
     o.coarse_factor = 1;             // the patch stays a hole
-    o.fill_roof_rim_fraction = 0.0;  // and the fill takes the ground within reach
-    o.fill_roof_enclosed = false;    // (the patch is enclosed by roof)
+    o.fill.roof_rim_fraction = 0.0;  // and the fill takes the ground within reach
+    o.fill.roof_enclosed = false;    // (the patch is enclosed by roof)
     o.decide_filled_sides = decide;
     const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;

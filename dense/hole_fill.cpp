@@ -324,7 +324,7 @@ std::vector<float> GroundSurface(const std::vector<float>& h, int nx, int ny, in
 }
 
 std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<float>& ground, int nx, int ny,
-                                const HoleFillOptions& o, int* trend_terms) {
+                                const HoleFillGrid& o, int* trend_terms) {
   CheckGrid(h, nx, ny);
   if (ground.size() != h.size()) throw Error("dense", "ground surface", "size differs from the height grid's");
   const int block = o.terrain_block_cells;
@@ -383,7 +383,7 @@ std::vector<float> TerrainModel(const std::vector<float>& h, const std::vector<f
   return terrain;
 }
 
-GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const HoleFillOptions& o) {
+GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const HoleFillGrid& o) {
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells, o.ground_max_rise_m);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o, &model.terrain_trend_terms);
@@ -396,7 +396,7 @@ namespace {
 // Whether cell k can be part of a roof's hole: a hole (NaN in `h`), and not
 // `occluded` unless roof_rim_occluded.
 bool RoofHoleCandidate(const std::vector<float>& h, const std::vector<std::uint8_t>* occluded,
-                       const HoleFillOptions& o, std::size_t k) {
+                       const HoleFillGrid& o, std::size_t k) {
   return !std::isfinite(h[k]) && (o.roof_rim_occluded || !(occluded && (*occluded)[k]));
 }
 
@@ -407,7 +407,7 @@ bool RoofHoleCandidate(const std::vector<float>& h, const std::vector<std::uint8
 // of its rim cells counted once. All 0 when the rule is off.
 std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vector<float>& above,
                                     const std::vector<std::uint8_t>* occluded, int nx, int ny,
-                                    const HoleFillOptions& o) {
+                                    const HoleFillGrid& o) {
   std::vector<std::uint8_t> roof_hole(h.size(), 0);
   if (o.roof_rim_fraction <= 0) return roof_hole;
   auto hole = [&](std::size_t k) { return RoofHoleCandidate(h, occluded, o, k); };
@@ -454,7 +454,7 @@ std::vector<std::uint8_t> RoofHoles(const std::vector<float>& h, const std::vect
 // are enclosed. A street between two roofs is not: its rays along the street
 // meet the ground, or nothing within reach.
 void MarkEnclosedByRoof(const std::vector<float>& h, const std::vector<float>& above,
-                        const std::vector<std::uint8_t>* occluded, int nx, int ny, const HoleFillOptions& o,
+                        const std::vector<std::uint8_t>* occluded, int nx, int ny, const HoleFillGrid& o,
                         std::vector<std::uint8_t>& roof_hole) {
   if (!o.roof_enclosed) return;
   constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
@@ -488,7 +488,7 @@ void MarkEnclosedByRoof(const std::vector<float>& h, const std::vector<float>& a
 
 }  // namespace
 
-std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
+std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillGrid& o,
                                     const GroundModel& model, const std::vector<std::uint8_t>* occluded) {
   CheckGrid(h, nx, ny);
   if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
@@ -605,6 +605,40 @@ std::size_t RemoveFloatingPatches(std::vector<float>& h, int nx, int ny, const s
     removed += members.size();
   }
   return removed;
+}
+
+HoleFillGrid HoleFillOptions::OnGrid(double cell_m) const {
+  auto cells_of = [&](double m) { return std::max(1, static_cast<int>(std::lround(m / cell_m))); };
+  HoleFillGrid g;
+  g.radius_cells = cells_of(radius_m);
+  g.max_reach_cells = cells_of(max_reach_m);
+  g.ground_radius_cells = cells_of(ground_radius_m);
+  g.ground_tolerance_m = static_cast<float>(ground_tolerance_m);
+  g.ground_max_rise_m = static_cast<float>(ground_max_rise_m);
+  g.terrain_block_cells = terrain_block_cells;
+  g.roof_rim_fraction = static_cast<float>(roof_rim_fraction);
+  g.roof_rim_min_m = static_cast<float>(roof_rim_min_m);
+  g.roof_rim_occluded = roof_rim_occluded;
+  g.roof_enclosed = roof_enclosed;
+  g.far_raised_takes_ground = far_raised_takes_ground;
+  g.seen_ground_takes_terrain = seen_ground_takes_terrain;
+  return g;
+}
+
+void HoleFillOptions::Check() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
+  };
+  positive(radius_m, "fill_radius_m");
+  if (!(roof_rim_fraction >= 0 && roof_rim_fraction <= 1))
+    throw Error("dense", "fill_roof_rim_fraction", "must be in [0, 1] (0 = off), got " + std::to_string(roof_rim_fraction));
+  if (!(max_reach_m >= radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
+  positive(ground_radius_m, "fill_ground_radius_m");
+  if (!(ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
+  if (!(ground_max_rise_m >= 0)) throw Error("dense", "fill_ground_max_rise_m", "must be >= 0 (0 = off)");
+  if (terrain_block_cells < 1)
+    throw Error("dense", "fill_terrain_block_cells", "must be >= 1, got " + std::to_string(terrain_block_cells));
+  if (!(roof_rim_min_m >= 0)) throw Error("dense", "fill_roof_rim_min_m", "must be >= 0");
 }
 
 }  // namespace skyfall

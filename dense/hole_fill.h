@@ -20,19 +20,22 @@ enum class WindowEdge { kClip, kShift };
 // three comparisons per cell whatever r.
 std::vector<float> MinFilter(const std::vector<float>& h, int nx, int ny, int r, WindowEdge edge);
 
-struct HoleFillOptions {
-  int radius_cells = 10;            // first reach of a hole cell, doubled while nothing is in it
-  int max_reach_cells = 40;         // cells further than this from every measured cell stay NaN
-  int ground_radius_cells = 60;     // radius of the ground surface's opening (GroundSurface)
-  float ground_tolerance_m = 1.0f;  // measured cells this close above the ground surface are ground
+// The hole filling's rules on a grid of cells (HoleFillOptions::OnGrid):
+// what FillHoles and GroundModelOf take. Nothing here is a default; a grid
+// form not made by OnGrid states every field.
+struct HoleFillGrid {
+  int radius_cells = 0;            // first reach of a hole cell, doubled while nothing is in it
+  int max_reach_cells = 0;         // cells further than this from every measured cell stay NaN
+  int ground_radius_cells = 0;     // radius of the ground surface's opening (GroundSurface)
+  float ground_tolerance_m = 0.0f;  // measured cells this close above the ground surface are ground
   float ground_max_rise_m = 0.0f;   // GroundSurface's max_rise_m: 0 = off
-  int terrain_block_cells = 8;      // block side of the terrain model (TerrainModel)
+  int terrain_block_cells = 0;      // block side of the terrain model (TerrainModel)
   // A seen hole (one piece of connected hole cells) whose rim of measured
   // cells lies at least this share higher than roof_rim_min_m above the
   // ground is a roof's hole: it is filled from the raised cells in reach
   // only, not from the ground beyond the roof's edge. 0 = off.
-  float roof_rim_fraction = 0.9f;
-  float roof_rim_min_m = 2.0f;      // [m] above the ground, a rim cell is raised
+  float roof_rim_fraction = 0.0f;
+  float roof_rim_min_m = 0.0f;      // [m] above the ground, a rim cell is raised
   // Pieces of holes also take in the occluded cells: a roof's hole whose
   // ground is hidden behind the roof around it then takes the roof, not the
   // terrain. Its cells wait for the roof to come within reach.
@@ -59,6 +62,58 @@ struct HoleFillOptions {
   bool seen_ground_takes_terrain = false;
 };
 
+// The hole filling's rules as the product runs them, in metres (nested in
+// DenseOptions as `fill`; run configuration keys dense.fill_*). One set of
+// defaults: a library user who calls FillHoles with OnGrid's result gets
+// the product's algorithm.
+struct HoleFillOptions {
+  double radius_m = 5.0;  // first reach of a hole cell, doubled while nothing is in it
+  // Cells further than this from every measured cell stay empty: beyond
+  // the area the views share there is nothing to fill from, and filling it
+  // would only add Gaussians to train.
+  double max_reach_m = 20.0;
+  // The ground surface is a morphological opening of this radius (larger
+  // than half the widest building): it keeps planes and smooth terrain and
+  // removes buildings and trees.
+  double ground_radius_m = 30.0;
+  // A measured cell at most this far above the ground surface is ground (it
+  // shapes the terrain model).
+  double ground_tolerance_m = 1.0;
+  // Where the ground surface stands more than this above the opening of
+  // twice ground_radius_m, its squares held roofs only (the ground hidden
+  // between tall buildings): no ground there, and the terrain model spans
+  // it from the ground measured further away. 0 = off.
+  double ground_max_rise_m = 10.0;
+  int terrain_block_cells = 8;  // block side of the terrain model (TerrainModel), in grid cells
+  // A seen hole whose rim of measured cells is at least this share roof
+  // (more than roof_rim_min_m above the ground) takes the roof, though
+  // ground is within radius_m. 0 = off.
+  double roof_rim_fraction = 0.9;
+  double roof_rim_min_m = 2.0;  // above the ground, a rim cell is raised
+  // Whether the rule also counts holes whose ground no pair sees: a hole in
+  // the middle of a roof hides its own ground behind the roof around it,
+  // and the occluded-ground rule alone would fill it with the terrain.
+  bool roof_rim_occluded = true;
+  // A hole cell enclosed by roof on all sides takes the roof even where its
+  // piece of holes reaches hidden ground beyond the roof's edge.
+  bool roof_enclosed = true;
+  // A seen hole cell with nothing measured within radius_m, whose lowest
+  // measured neighbour further out is raised, takes the ground: a street
+  // between tall buildings, seen along its length but matched by no pair,
+  // took the roofs' height (decision D-094).
+  bool far_raised_takes_ground = true;
+  // A seen hole cell whose lowest measured neighbour in reach is ground
+  // takes the terrain model: on a hillside with little ground measured
+  // between tall buildings, the plain opening it took before stood metres
+  // above the ground downhill (decision D-102).
+  bool seen_ground_takes_terrain = true;
+
+  // The rules on a grid of `cell_m` (distances rounded to whole cells, at
+  // least one).
+  HoleFillGrid OnGrid(double cell_m) const;
+  void Check() const;  // throws Error("dense", "fill_...", ...)
+};
+
 // The ground under a height grid: its opening (GroundSurface), which tells
 // ground cells from raised ones; the terrain model through the ground cells
 // (TerrainModel), which also spans the holes; and what the lowest heights
@@ -69,7 +124,7 @@ struct GroundModel {
   std::vector<float> ground_m, terrain_m, seen_hole_base_m;
   int terrain_trend_terms = 0;  // the terrain's trend: 3 a plane, 6 a quadratic, 0 none
 };
-GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options);
+GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, const HoleFillGrid& options);
 
 // Fills the NaN cells of `height_m` (nx x ny) within reach of a measured
 // cell; returns a per-cell flag of what was filled. A cell that `occluded`
@@ -90,7 +145,7 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // height in reach is ground takes the terrain model. Raised heights are
 // measured above the ground (the base), so on a slope a raised fill stands
 // on the ground near the hole, not on the downhill one.
-std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillOptions& options,
+std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillGrid& options,
                                     const GroundModel& model, const std::vector<std::uint8_t>* occluded = nullptr);
 
 // The ground under `height_m` (nx x ny, NaN = unknown): a morphological
@@ -119,7 +174,7 @@ std::vector<float> GroundSurface(const std::vector<float>& height_m, int nx, int
 // better from each other (4 x 4 spatial folds); `trend_terms`, when given,
 // receives which (3 or 6; 0 with no trend).
 std::vector<float> TerrainModel(const std::vector<float>& height_m, const std::vector<float>& ground_surface, int nx,
-                                int ny, const HoleFillOptions& options, int* trend_terms = nullptr);
+                                int ny, const HoleFillGrid& options, int* trend_terms = nullptr);
 
 // Small patches of matched cells that float high above the terrain: where
 // the ground is hidden (a street between tall buildings), the only heights

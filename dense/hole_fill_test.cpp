@@ -13,17 +13,47 @@
 namespace skyfall {
 namespace {
 
-// Options for grids of 0.5 m cells: 5 m first reach, 20 m largest, 30 m
-// ground radius.
-HoleFillOptions FillOptions() {
-  HoleFillOptions o;
+// The basic rules on grids of 0.5 m cells: 5 m first reach, 20 m largest,
+// 30 m ground radius, the roof-rim rule; the product's further rules off
+// (each test turns on the ones it is about).
+HoleFillGrid FillOptions() {
+  HoleFillGrid o;
   o.radius_cells = 10;
   o.max_reach_cells = 40;
   o.ground_radius_cells = 60;
+  o.ground_tolerance_m = 1.0f;
+  o.ground_max_rise_m = 0.0f;
+  o.terrain_block_cells = 8;
+  o.roof_rim_fraction = 0.9f;
+  o.roof_rim_min_m = 2.0f;
+  o.roof_rim_occluded = false;
+  o.roof_enclosed = false;
+  o.far_raised_takes_ground = false;
+  o.seen_ground_takes_terrain = false;
   return o;
 }
 
-std::vector<std::uint8_t> Fill(std::vector<float>& h, int nx, int ny, const HoleFillOptions& o,
+// One set of defaults: the grid form of the options the product runs holds
+// every rule it runs, at the 0.5 m cell the distances above.
+TEST(HoleFill, TheProductsOptionsOnAGridAreTheProductsRules) {
+  const HoleFillGrid g = HoleFillOptions{}.OnGrid(0.5);
+  EXPECT_EQ(g.radius_cells, 10);
+  EXPECT_EQ(g.max_reach_cells, 40);
+  EXPECT_EQ(g.ground_radius_cells, 60);
+  EXPECT_EQ(g.ground_max_rise_m, 10.0f);
+  EXPECT_TRUE(g.roof_rim_occluded && g.roof_enclosed && g.far_raised_takes_ground && g.seen_ground_takes_terrain);
+  EXPECT_EQ(HoleFillOptions{}.OnGrid(2.0).radius_cells, 3);  // 5 m on a 2 m grid: 2.5 cells, rounded away
+  HoleFillOptions tiny;
+  tiny.radius_m = 0.1;
+  EXPECT_EQ(tiny.OnGrid(0.5).radius_cells, 1);  // never less than a cell
+  // A grid form made by hand with nothing set is refused, not run with
+  // rules of its own.
+  std::vector<float> h(16, 1.0f);
+  h[5] = NAN;
+  EXPECT_THROW(FillHoles(h, 4, 4, HoleFillGrid{}, GroundModel{}, nullptr), Error);
+}
+
+std::vector<std::uint8_t> Fill(std::vector<float>& h, int nx, int ny, const HoleFillGrid& o,
                                const std::vector<std::uint8_t>* occluded = nullptr) {
   return FillHoles(h, nx, ny, o, GroundModelOf(h, nx, ny, o), occluded);
 }
@@ -66,7 +96,7 @@ TEST(HoleFill, HolesBesideAWallAreGroundAndHolesInARoofTakeTheRoof) {
     for (int i = 0; i < nx; ++i) h[j * nx + i] = i < 10 ? 10.0f : i < 13 ? nan : 0.0f;
   h[3 * nx + 4] = nan;
   const std::vector<float> before = h;
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   o.radius_cells = 3;
   const std::vector<std::uint8_t> filled = Fill(h, nx, ny, o);
   // Tolerance: float rounding of the terrain's plane fits over ~10 m.
@@ -107,12 +137,12 @@ TEST(HoleFill, AHoleRingedByRoofTakesTheRoofThoughGroundIsInReach) {
     }
   // Off, the patch takes the ground beyond the edge: the lowest in reach.
   std::vector<float> plain = RoofWithAHoleNearItsEdge(nx, ny);
-  HoleFillOptions off = FillOptions();
+  HoleFillGrid off = FillOptions();
   off.roof_rim_fraction = 0;
   Fill(plain, nx, ny, off);
   EXPECT_NEAR(plain[static_cast<std::size_t>(6) * nx + 36], 0.0f, 1e-4f);
   // A rim share outside [0, 1] is refused, naming the option.
-  HoleFillOptions bad = FillOptions();
+  HoleFillGrid bad = FillOptions();
   bad.roof_rim_fraction = 1.5f;
   try {
     Fill(plain, nx, ny, bad);
@@ -146,7 +176,7 @@ struct RoofWithAnOccludedHole {
 
 TEST(HoleFill, AnOccludedHoleRingedByRoofTakesTheRoofAndAStripBesideAWallTheGround) {
   using Scene = RoofWithAnOccludedHole;
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   o.roof_rim_occluded = true;
   Scene on;
   const std::vector<std::uint8_t> filled = Fill(on.h, Scene::nx, Scene::ny, o, &on.occluded);
@@ -192,7 +222,7 @@ TEST(HoleFill, AHoleEnclosedByRoofTakesTheRoofThoughItsPieceReachesHiddenGround)
       scene[k] = unmatched ? std::nanf("") : i >= 120 ? 100.0f : roof(i, j) ? 20.0f : 0.0f;
       occluded[k] = unmatched ? 1 : 0;
     }
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   o.roof_rim_occluded = true;
   std::vector<float> on = scene, off = scene;
   o.roof_enclosed = true;
@@ -231,7 +261,7 @@ TEST(HoleFill, AStreetFarFromItsMeasuredGroundTakesTheGroundNotTheRoofsBesideIt)
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i)
       scene[static_cast<std::size_t>(j) * nx + i] = street(i, j) ? std::nanf("") : j < 55 ? 40.0f : 0.0f;
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   o.far_raised_takes_ground = true;
   std::vector<float> on = scene, off = scene;
   Fill(on, nx, ny, o);
@@ -266,7 +296,7 @@ TEST(HoleFill, ASeenHoleOnAHillsideTakesTheGroundOnTheSlope) {
   std::vector<float> scene(static_cast<std::size_t>(nx) * ny);
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) scene[static_cast<std::size_t>(j) * nx + i] = i < 80 ? std::nanf("") : plane(i);
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   o.seen_ground_takes_terrain = true;
   std::vector<float> on = scene, off = scene;
   const std::vector<std::uint8_t> filled = Fill(on, nx, ny, o);
@@ -298,7 +328,7 @@ TEST(HoleFill, WithoutATerrainModelASeenGroundHoleKeepsTheOpeningPlusItsLowest) 
   for (int j = 10; j < 50; ++j)
     for (int i = 85; i < 125; ++i)
       scene[static_cast<std::size_t>(j) * nx + i] = i >= 103 && i <= 106 && j >= 28 && j <= 32 ? std::nanf("") : kPlatformM;
-  HoleFillOptions o = FillOptions();
+  HoleFillGrid o = FillOptions();
   GroundModel model = GroundModelOf(scene, nx, ny, o);
   std::fill(model.terrain_m.begin(), model.terrain_m.end(), std::nanf(""));
   std::vector<float> on = scene, off = scene;
@@ -477,7 +507,7 @@ TEST(HoleFill, SquaresThatHoldOnlyRoofsGiveNoGround) {
       const bool built = i >= 120 && i < 360;
       h[static_cast<std::size_t>(j) * nx + i] = !built ? 0.0f : ((i - 120) % 50 < 40 ? 20.0f : nan);
     }
-  HoleFillOptions plain = FillOptions(), rise = FillOptions();
+  HoleFillGrid plain = FillOptions(), rise = FillOptions();
   rise.ground_max_rise_m = 10.0f;
   const GroundModel roofs = GroundModelOf(h, nx, ny, plain);
   const GroundModel ground = GroundModelOf(h, nx, ny, rise);
@@ -502,7 +532,7 @@ TEST(HoleFill, HolesOutOfReachStayEmptyAndBadInputNamesTheProblem) {
   std::vector<float> h(nx, nan);
   h[0] = h[1] = 2.0f;
   h[nx - 2] = h[nx - 1] = 2.0f;
-  HoleFillOptions options = FillOptions();
+  HoleFillGrid options = FillOptions();
   options.radius_cells = 5;
   options.max_reach_cells = 10;
   const std::vector<std::uint8_t> filled = Fill(h, nx, 1, options);
