@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
@@ -503,6 +504,43 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
   return outcome;
 }
 
+// How a city's written tiles are run and the city finished
+// (ExecutorOptions::kind): here (as local processes or in this process),
+// then merged here; or on Slurm, as a job array whose dependent job merges.
+class CityExecutor {
+ public:
+  virtual ~CityExecutor() = default;
+  virtual CityOutcome Run(const RunOptions& options, const std::vector<AoiCatalog>& aois, CityWork& work,
+                          const std::string& config_path, const Stopwatch& total, Progress& progress) const = 0;
+};
+
+class HereCityExecutor final : public CityExecutor {
+ public:
+  CityOutcome Run(const RunOptions& options, const std::vector<AoiCatalog>& aois, CityWork& work,
+                  const std::string& config_path, const Stopwatch& total, Progress& progress) const override {
+    Stopwatch clock;
+    const std::vector<TileOutcome> outcomes = RunTiles(work.tile_dirs, options, config_path, progress);
+    int failed = 0;
+    for (const TileOutcome& o : outcomes) failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
+    work.stages.push_back(StageEntry("tiles", failed ? "partial" : "ok", clock.Seconds(),
+                                     failed ? std::to_string(failed) + " tile(s) failed" : ""));
+    return FinishCity(options, aois, work, outcomes, total, progress);
+  }
+};
+
+class SlurmCityExecutor final : public CityExecutor {
+ public:
+  CityOutcome Run(const RunOptions& options, const std::vector<AoiCatalog>& /*aois*/, CityWork& work,
+                  const std::string& config_path, const Stopwatch& /*total*/, Progress& progress) const override {
+    return RunCityOnSlurm(options, work, config_path, progress);
+  }
+};
+
+std::unique_ptr<CityExecutor> MakeCityExecutor(ExecutorKind kind) {
+  if (kind == ExecutorKind::kSlurm) return std::make_unique<SlurmCityExecutor>();
+  return std::make_unique<HereCityExecutor>();  // local processes or inline: RunTiles tells them apart
+}
+
 }  // namespace
 
 CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
@@ -541,15 +579,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   const std::string config_path = (work.city_dir / "run_config.json").string();
   WriteFileIfChanged(config_path, RunOptionsToJson(options));
   WriteFileAtomic((work.city_dir / "city_job.json").string(), CityWorkJson(work, aois).dump(2) + "\n");
-  if (options.executor.kind == ExecutorKind::kSlurm) return RunCityOnSlurm(options, work, config_path, progress);
-
-  clock = Stopwatch();
-  const std::vector<TileOutcome> outcomes = RunTiles(tiles.tile_dirs, options, config_path, progress);
-  int failed = 0;
-  for (const TileOutcome& o : outcomes) failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
-  work.stages.push_back(StageEntry("tiles", failed ? "partial" : "ok", clock.Seconds(),
-                                   failed ? std::to_string(failed) + " tile(s) failed" : ""));
-  return FinishCity(options, aois, work, outcomes, total, progress);
+  return MakeCityExecutor(options.executor.kind)->Run(options, aois, work, config_path, total, progress);
 }
 
 CityOutcome FinishCityFromFiles(const std::string& city_dir, Progress& progress) {

@@ -364,6 +364,40 @@ std::vector<TileOutcome> RunTilesInline(const std::vector<std::string>& tile_dir
   return outcomes;
 }
 
+// Runs a city's tiles: each as its own `skyfall run-tile` process, or one
+// after the other in this process.
+class TileExecutor {
+ public:
+  virtual ~TileExecutor() = default;
+  virtual std::vector<TileOutcome> Run(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                                       const std::string& config_path, Progress& progress) const = 0;
+};
+
+class ProcessTileExecutor final : public TileExecutor {
+ public:
+  std::vector<TileOutcome> Run(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                               const std::string& config_path, Progress& progress) const override {
+    return RunTilesAsProcesses(tile_dirs, options, config_path, progress);
+  }
+};
+
+class InlineTileExecutor final : public TileExecutor {
+ public:
+  std::vector<TileOutcome> Run(const std::vector<std::string>& tile_dirs, const RunOptions& options,
+                               const std::string& /*config_path*/, Progress& progress) const override {
+    return RunTilesInline(tile_dirs, options, progress);
+  }
+};
+
+std::unique_ptr<TileExecutor> MakeTileExecutor(ExecutorKind kind) {
+  switch (kind) {
+    case ExecutorKind::kLocal: return std::make_unique<ProcessTileExecutor>();
+    case ExecutorKind::kInline: return std::make_unique<InlineTileExecutor>();
+    case ExecutorKind::kSlurm: break;
+  }
+  throw Error("run", "executor.kind", "slurm runs whole cities (RunCity), not RunTiles");
+}
+
 }  // namespace
 
 void DieWithParentIfAsked() {
@@ -403,9 +437,7 @@ TileOutcome TileOutcomeFromReport(const std::string& tile_dir) {
 std::vector<TileOutcome> RunTiles(const std::vector<std::string>& tile_dirs, const RunOptions& options,
                                   const std::string& config_path, Progress& progress) {
   options.executor.Check();
-  if (options.executor.kind == ExecutorKind::kInline) return RunTilesInline(tile_dirs, options, progress);
-  if (options.executor.kind == ExecutorKind::kSlurm) throw Error("run", "executor.kind", "slurm runs whole cities (RunCity), not RunTiles");
-  return RunTilesAsProcesses(tile_dirs, options, config_path, progress);
+  return MakeTileExecutor(options.executor.kind)->Run(tile_dirs, options, config_path, progress);
 }
 
 }  // namespace skyfall
