@@ -343,6 +343,40 @@ void ThrowIfNoTileFinished(const std::string& city, const std::vector<TileOutcom
                                         first_reason));
 }
 
+// The city's 3D Tiles; an export that fails does not undo the city.
+void ExportCityTiles3d(const RunOptions& options, const CityWork& work, json* stages, json* report,
+                       Progress& progress) {
+  Stopwatch clock;
+  try {
+    const Tiles3dSummary t = Export3dTiles((work.city_dir / "scene").string(), (work.city_dir / "3dtiles").string(),
+                                           options.exports.tiles3d_options, progress);
+    stages->push_back(StageEntry("3dtiles", "ok", clock.Seconds()));
+    (*report)["tiles3d"] = {{"tileset", t.tileset_path}, {"tiles", t.tiles}, {"contents", t.contents},
+                            {"gaussians", t.gaussians}};
+  } catch (const Error& e) {
+    progress.Warn("[" + work.city + "] 3D Tiles export: " + e.what());
+    stages->push_back(StageEntry("3dtiles", "failed", clock.Seconds(), e.what()));
+  }
+}
+
+// What the merge decided (LOD levels, the DSMs' surface) and why.
+json MergeDecisions(const RunOptions& options, const MergeSummary& merged) {
+  json decisions = {{"lod_levels", {{"levels", merged.lod_levels},
+                                    {"why", fmt::format("a coarser level is kept while it has at most {:.0f}% of the "
+                                                        "previous level's Gaussians, up to {} levels",
+                                                        100 * options.merge.lod.min_reduction,
+                                                        options.merge.lod.max_levels)}}}};
+  decisions["dsm_source"] = {
+      {"source", merged.surface_source},
+      {"surface", merged.surface_path},
+      {"why", merged.surface_source == "reconstruction"
+                  ? "dsm.source is reconstruction: the DSMs come from the tiles' scenes trained on the real images; "
+                    "the synthesis stage's scene (scene.ply, the LOD) also trained on the refiner's orbit renders"
+              : options.dsm.source == DsmSource::kFinal ? "dsm.source is final: the DSMs come from the merged scene"
+                                                        : "no synthesis stage ran: the reconstruction is the merged scene"}};
+  return decisions;
+}
+
 // Merge with LOD, DSM export and comparison, run report (last) and STAC
 // catalog of a city whose tiles have run.
 CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const CityWork& work,
@@ -386,34 +420,10 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   outcome.scene = true;
   CrashPoint("dsm");
   report["dsm"] = CompareAois(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
-  if (options.exports.tiles3d) {
-    clock = Stopwatch();
-    try {
-      const Tiles3dSummary t = Export3dTiles((work.city_dir / "scene").string(), (work.city_dir / "3dtiles").string(),
-                                             options.exports.tiles3d_options, progress);
-      stages.push_back(StageEntry("3dtiles", "ok", clock.Seconds()));
-      report["tiles3d"] = {{"tileset", t.tileset_path}, {"tiles", t.tiles}, {"contents", t.contents},
-                           {"gaussians", t.gaussians}};
-    } catch (const Error& e) {  // an export that fails does not undo the city
-      progress.Warn("[" + work.city + "] 3D Tiles export: " + e.what());
-      stages.push_back(StageEntry("3dtiles", "failed", clock.Seconds(), e.what()));
-    }
-  }
+  if (options.exports.tiles3d) ExportCityTiles3d(options, work, &stages, &report, progress);
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
-  report["decisions"] = {{"lod_levels", {{"levels", merged.lod_levels},
-                                         {"why", fmt::format("a coarser level is kept while it has at most {:.0f}% of the "
-                                                             "previous level's Gaussians, up to {} levels",
-                                                             100 * options.merge.lod.min_reduction,
-                                                             options.merge.lod.max_levels)}}}};
-  report["decisions"]["dsm_source"] = {
-      {"source", merged.surface_source},
-      {"surface", merged.surface_path},
-      {"why", merged.surface_source == "reconstruction"
-                  ? "dsm.source is reconstruction: the DSMs come from the tiles' scenes trained on the real images; "
-                    "the synthesis stage's scene (scene.ply, the LOD) also trained on the refiner's orbit renders"
-                  : options.dsm.source == DsmSource::kFinal ? "dsm.source is final: the DSMs come from the merged scene"
-                                                  : "no synthesis stage ran: the reconstruction is the merged scene"}};
+  report["decisions"] = MergeDecisions(options, merged);
   report["seam"] = {{"ratio", Finite(merged.seam.ratio)},
                     {"boundary_mean_step_m", Finite(merged.seam.boundary_mean_step_m)},
                     {"interior_mean_step_m", Finite(merged.seam.interior_mean_step_m)}};
@@ -616,6 +626,39 @@ CityOutcome FinishCityFromFiles(const std::string& city_dir, Progress& progress)
   return FinishCity(options, aois, work, outcomes, total, progress);
 }
 
+namespace {
+
+// Ingests the request's AOIs into OUT/catalogs: the catalogs that can run,
+// and every AOI found with what was left out of it and why.
+json IngestAois(const RunOptions& options, const RunRequest& request, Progress& progress,
+                std::vector<AoiCatalog>* catalogs, RunSummary* summary) {
+  IngestOptions ingest = options.ingest;
+  ingest.aois = request.aois;
+  const IngestResult ingested = RunIngest(ingest, request.root, (fs::path(request.out) / "catalogs").string(), progress);
+  json aoi_list = json::array();
+  for (const auto& a : ingested.aois) {
+    json skipped = json::array();
+    for (const Skipped& s : a.skipped_images) skipped.push_back({{"file", s.what}, {"reason", s.reason}});
+    aoi_list.push_back({{"aoi", a.aoi},
+                        {"ingest", a.report.status == StageStatus::kOk ? "ok" : "failed"},
+                        {"error", a.report.status == StageStatus::kOk ? "" : a.report.message},
+                        {"images", a.catalog.images.size()},
+                        {"skipped_images", skipped}});
+    if (a.report.status == StageStatus::kOk) {
+      catalogs->push_back(a.catalog);
+      Emit(progress, "info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
+    } else {
+      progress.Warn(a.aoi + ": ingest failed: " + a.report.message);
+      Emit(progress, "error", "ingest", a.aoi, "", a.report.message);
+      ++summary->aois_failed;
+    }
+  }
+  summary->aois_ingested = static_cast<int>(catalogs->size());
+  return aoi_list;
+}
+
+}  // namespace
+
 RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress& progress) {
   options.Check();
   if (request.root.empty()) throw Error("run", "root", "no input folder given");
@@ -631,29 +674,8 @@ RunSummary RunAll(const RunOptions& options, const RunRequest& request, Progress
     return summary;
   }
   Emit(progress, "info", "run", "", "", "start: " + request.root + " -> " + request.out);
-  IngestOptions ingest = options.ingest;
-  ingest.aois = request.aois;
-  const IngestResult ingested = RunIngest(ingest, request.root, (fs::path(request.out) / "catalogs").string(), progress);
   std::vector<AoiCatalog> catalogs;
-  json aoi_list = json::array();  // every AOI found, with what was left out of it and why
-  for (const auto& a : ingested.aois) {
-    json skipped = json::array();
-    for (const Skipped& s : a.skipped_images) skipped.push_back({{"file", s.what}, {"reason", s.reason}});
-    aoi_list.push_back({{"aoi", a.aoi},
-                        {"ingest", a.report.status == StageStatus::kOk ? "ok" : "failed"},
-                        {"error", a.report.status == StageStatus::kOk ? "" : a.report.message},
-                        {"images", a.catalog.images.size()},
-                        {"skipped_images", skipped}});
-    if (a.report.status == StageStatus::kOk) {
-      catalogs.push_back(a.catalog);
-      Emit(progress, "info", "ingest", a.aoi, "", "ingested", {{"images", static_cast<double>(a.catalog.images.size())}});
-    } else {
-      progress.Warn(a.aoi + ": ingest failed: " + a.report.message);
-      Emit(progress, "error", "ingest", a.aoi, "", a.report.message);
-      ++summary.aois_failed;
-    }
-  }
-  summary.aois_ingested = static_cast<int>(catalogs.size());
+  const json aoi_list = IngestAois(options, request, progress, &catalogs, &summary);
   if (catalogs.empty()) throw Error("run", request.root, "no AOI could be ingested");
   const auto cities = GroupCities(catalogs);
   progress.Info(fmt::format("run: {} AOI(s) in {} cit{} ({:.1f} s ingest)", catalogs.size(), cities.size(),

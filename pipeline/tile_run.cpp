@@ -105,6 +105,31 @@ StageReport ReusedStage(const std::string& stage, const std::string& what) {
 
 }  // namespace
 
+namespace {
+
+// What the training job decided and why, for the tile report.
+void AddTrainDecisions(const TrainStageOptions& train, const TrainDecisions& d, json* decisions) {
+  json& out = *decisions;
+  out["initial_points"] = d.dense_start ? "dense" : "sparse";
+  out["densify"] = {{"on", d.densify},
+                    {"why", std::string("train.densify '") + EnumName(train.densify) + "', " +
+                                (d.dense_start ? "dense" : "tie-point") + " start"}};
+  out["appearance"] = {{"on", d.appearance}, {"why", d.appearance_reason}};
+  out["surface_anchor"] = {
+      {"on", d.surface_anchor},
+      {"why", d.surface_anchor ? "dense start: training holds to the dense heights"
+              : d.dense_start  ? "train.lambda_surface_* are 0"
+                               : "no dense heights to hold to"}};
+  out["mask_beyond_reconstruction"] = {
+      {"on", train.mask_beyond_reconstruction && d.dense_start},
+      {"masked_fraction", d.masked_beyond_fraction},
+      {"why", !train.mask_beyond_reconstruction ? "train.mask_beyond_reconstruction is false"
+              : d.dense_start ? "dense start: pixels seeing past the dense heights are not trained on or scored"
+                              : "no dense heights to tell the tile's pixels from the rest"}};
+}
+
+}  // namespace
+
 StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int threads, Progress& progress) {
   Stopwatch clock;
   options.Check();
@@ -152,22 +177,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   CrashPoint("dense");
   const TrainJobResult trained = RunTrainJob(options.train, sfm_dir.string(), (fs::path(tile_dir) / "splat").string(),
                                              progress);
-  decisions["initial_points"] = trained.decisions.dense_start ? "dense" : "sparse";
-  decisions["densify"] = {{"on", trained.decisions.densify},
-                          {"why", std::string("train.densify '") + EnumName(options.train.densify) + "', " +
-                                      (trained.decisions.dense_start ? "dense" : "tie-point") + " start"}};
-  decisions["appearance"] = {{"on", trained.decisions.appearance}, {"why", trained.decisions.appearance_reason}};
-  decisions["surface_anchor"] = {
-      {"on", trained.decisions.surface_anchor},
-      {"why", trained.decisions.surface_anchor ? "dense start: training holds to the dense heights"
-                                               : trained.decisions.dense_start ? "train.lambda_surface_* are 0"
-                                                                               : "no dense heights to hold to"}};
-  decisions["mask_beyond_reconstruction"] = {
-      {"on", options.train.mask_beyond_reconstruction && trained.decisions.dense_start},
-      {"masked_fraction", trained.decisions.masked_beyond_fraction},
-      {"why", !options.train.mask_beyond_reconstruction ? "train.mask_beyond_reconstruction is false"
-              : trained.decisions.dense_start ? "dense start: pixels seeing past the dense heights are not trained on or scored"
-                                              : "no dense heights to tell the tile's pixels from the rest"}};
+  AddTrainDecisions(options.train, trained.decisions, &decisions);
   StageReport splat = trained.train.report;
   splat.stage = "splat";
   splat.metrics["gaussians"] = static_cast<double>(trained.train.cloud.size());
