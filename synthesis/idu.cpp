@@ -287,6 +287,53 @@ void IduOptions::Check() const {
   need(fill_voxel_m > 0 && std::isfinite(fill_voxel_m), "fill_voxel_m", fill_voxel_m);
 }
 
+namespace {
+
+// Every orbit view of an episode rendered from the scene as the episode
+// starts (placed on the height field with geometry 'surface'), their PNGs
+// under dir/renders, and the share of their pixels the scene covers.
+std::vector<OrbitRender> RenderEpisodeViews(const IduOptions& o, const RasterOptions& raster,
+                                            const GaussianCloud& cloud, const std::vector<OrbitView>& views,
+                                            const SurfaceDepthPrior* surface, const fs::path& dir,
+                                            std::vector<RefineInput>* inputs, IduEpisode* ep) {
+  Stopwatch phase;
+  std::vector<OrbitRender> renders;
+  std::size_t opaque = 0, pixels = 0;
+  for (const OrbitView& v : views) {
+    renders.push_back(RenderOrbitView(cloud, v, raster));
+    if (surface && o.geometry == IduGeometry::kSurface) PlaceOnSurface(*surface, o.fill_holes, &renders.back());
+    inputs->push_back(renders.back().input);
+    for (std::uint8_t m : renders.back().valid) opaque += m;
+    pixels += renders.back().valid.size();
+  }
+  WriteViewPngs(dir / "renders", views, [&](std::size_t v) -> const std::vector<float>& { return (*inputs)[v].rgb; });
+  ep->refined_coverage = pixels ? static_cast<double>(opaque) / pixels : 0.0;
+  ep->render_seconds = phase.Seconds();
+  return renders;
+}
+
+// The refined orbit views as synthetic training views: the first sample as
+// the target, the others as further targets, the render's mask and depth.
+void AppendRefinedViews(const std::vector<OrbitView>& views, const std::vector<OrbitRender>& renders,
+                        const std::vector<RefinedSamples>& refined, int samples, std::vector<TrainView>* mixed) {
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    if (static_cast<int>(refined[v].size()) != samples)
+      throw Error("idu", views[v].name, "the refiner returned " + std::to_string(refined[v].size()) + " samples, not " +
+                                            std::to_string(samples));
+    TrainView t;
+    t.name = views[v].name;
+    t.camera = views[v].camera;
+    t.synthetic = true;
+    t.rgb = refined[v][0];
+    t.extra_rgb.assign(refined[v].begin() + 1, refined[v].end());
+    t.valid = renders[v].valid;
+    t.depth_target = renders[v].depth_target;
+    mixed->push_back(std::move(t));
+  }
+}
+
+}  // namespace
+
 IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud cloud,
                  const std::vector<TrainView>& satellite, const GroundBox& core, const GeodeticPoint& enu_origin,
                  const std::function<double(double, double)>& surface_height_m, const SurfaceDepthPrior* surface,
@@ -319,21 +366,8 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     progress.Info("idu: episode " + std::to_string(k + 1) + "/" + std::to_string(o.orbit.episodes) + ", elevation " +
                   FormatDouble(ep.elevation_deg) + " deg, radius " + FormatDouble(ep.radius_m) + " m, " +
                   std::to_string(views.size()) + " views");
-    // Render every orbit view from the scene as the episode starts.
-    Stopwatch phase;
-    std::vector<OrbitRender> renders;
     std::vector<RefineInput> inputs;
-    std::size_t opaque = 0, pixels = 0;
-    for (const OrbitView& v : views) {
-      renders.push_back(RenderOrbitView(cloud, v, train.raster));
-      if (surface && o.geometry == IduGeometry::kSurface) PlaceOnSurface(*surface, o.fill_holes, &renders.back());
-      inputs.push_back(renders.back().input);
-      for (std::uint8_t m : renders.back().valid) opaque += m;
-      pixels += renders.back().valid.size();
-    }
-    WriteViewPngs(dir / "renders", views, [&](std::size_t v) -> const std::vector<float>& { return inputs[v].rgb; });
-    ep.refined_coverage = pixels ? static_cast<double>(opaque) / pixels : 0.0;
-    ep.render_seconds = phase.Seconds();
+    const std::vector<OrbitRender> renders = RenderEpisodeViews(o, train.raster, cloud, views, surface, dir, &inputs, &ep);
     // Refine them.
     Stopwatch refine_clock;
     RefineRequest request = o.request;
@@ -345,20 +379,7 @@ IduResult RunIdu(const IduOptions& o, const TrainOptions& train, GaussianCloud c
     ep.refine_seconds = refine_clock.Seconds();
     // The mixed dataset: the satellite views and this episode's refined orbit views.
     mixed.resize(satellite.size());
-    for (std::size_t v = 0; v < views.size(); ++v) {
-      if (static_cast<int>(refined[v].size()) != o.samples)
-        throw Error("idu", views[v].name, "the refiner returned " + std::to_string(refined[v].size()) + " samples, not " +
-                                              std::to_string(o.samples));
-      TrainView t;
-      t.name = views[v].name;
-      t.camera = views[v].camera;
-      t.synthetic = true;
-      t.rgb = refined[v][0];
-      t.extra_rgb.assign(refined[v].begin() + 1, refined[v].end());
-      t.valid = renders[v].valid;
-      t.depth_target = renders[v].depth_target;
-      mixed.push_back(std::move(t));
-    }
+    AppendRefinedViews(views, renders, refined, o.samples, &mixed);
     WriteViewPngs(dir / "refined", views, [&](std::size_t v) -> const std::vector<float>& { return refined[v][0]; });
     if (o.fill_holes) {
       const GaussianCloud added = HoleGaussians(renders, refined, o.fill_voxel_m);
