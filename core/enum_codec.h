@@ -8,7 +8,6 @@
 #include <optional>
 #include <string>
 #include <string_view>
-#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -18,13 +17,6 @@ namespace skyfall {
 // char*>, N> kNames = {...};
 template <class E>
 struct EnumNames;
-
-template <class E, class = void>
-struct HasEnumNames : std::false_type {};
-template <class E>
-struct HasEnumNames<E, std::void_t<decltype(EnumNames<E>::kNames)>> : std::true_type {};
-template <class E>
-inline constexpr bool kHasEnumNames = HasEnumNames<E>::value;
 
 template <class E>
 const char* EnumName(E value) {

@@ -81,13 +81,11 @@ json TileEntry(const TileOutcome& o) {
     entry["message"] = o.message;
     return entry;
   }
-  json stages = json::array();
-  for (const StageReport& s : report->stages) stages.push_back(StageReportJson(s));
   entry["status"] = ToString(report->status);
   entry["message"] = report->message;
   entry["tile_seconds"] = report->seconds;
   entry["peak_rss_mb"] = report->PeakRssMb();
-  entry["stages"] = stages;
+  entry["stages"] = StageReportsJson(report->stages);
   entry["decisions"] = report->decisions;
   return entry;
 }

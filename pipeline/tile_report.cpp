@@ -52,17 +52,18 @@ std::optional<StageStatus> StageStatusFromString(const std::string& text) {
   return std::nullopt;
 }
 
-json StageReportJson(const StageReport& r) {
-  return {{"stage", r.stage}, {"status", ToString(r.status)}, {"message", r.message}, {"seconds", r.seconds},
-          {"metrics", r.metrics}, {"warnings", r.warnings}};
+json StageReportsJson(const std::vector<StageReport>& reports) {
+  json list = json::array();
+  for (const StageReport& r : reports)
+    list.push_back({{"stage", r.stage}, {"status", ToString(r.status)}, {"message", r.message}, {"seconds", r.seconds},
+                    {"metrics", r.metrics}, {"warnings", r.warnings}});
+  return list;
 }
 
 void WriteTileReport(const std::string& tile_dir, const TileReport& r) {
-  json stages = json::array();
-  for (const StageReport& s : r.stages) stages.push_back(StageReportJson(s));
   const json doc = {{"tile", r.tile}, {"status", ToString(r.status)}, {"message", r.message},
                     {"options", r.options}, {"decisions", r.decisions}, {"images", r.images},
-                    {"seconds", r.seconds}, {"metrics", r.metrics}, {"stages", stages}};
+                    {"seconds", r.seconds}, {"metrics", r.metrics}, {"stages", StageReportsJson(r.stages)}};
   WriteFileAtomic(TileReportPath(tile_dir), doc.dump(2) + "\n");
 }
 

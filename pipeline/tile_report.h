@@ -38,8 +38,8 @@ void WriteTileReport(const std::string& tile_dir, const TileReport& report);
 // tile has not finished.
 std::optional<TileReport> ReadTileReport(const std::string& tile_dir);
 
-// A stage's report as it appears in tile_report.json's "stages".
-nlohmann::json StageReportJson(const StageReport& report);
+// The stages' reports as tile_report.json's "stages" holds them.
+nlohmann::json StageReportsJson(const std::vector<StageReport>& reports);
 
 std::optional<StageStatus> StageStatusFromString(const std::string& text);
 

@@ -440,7 +440,6 @@ class TrainingRun {
     phase_.Lap(kRegularizerViews);
     loss_sum_ += s.loss;
     ++loss_count_;
-    density_.Accumulate(s.radius_px, s.g.mean2d_norm, views_[view_id].camera.width_px);
     Optimize(it, &s);
     phase_.Lap(kOptimizer);
     if (density_.Due(it)) {
@@ -488,8 +487,7 @@ class TrainingRun {
     double loss = 0;
     GaussianGradients<float> g;
     AppearanceModel appearance_grad;
-    std::size_t dropped = 0;      // Gaussians with a non-finite gradient
-    std::vector<int> radius_px;   // which Gaussians the view saw
+    std::size_t dropped = 0;  // Gaussians with a non-finite gradient
   };
 
   // The photometric, view-depth and anchor losses on one view and their
@@ -529,6 +527,9 @@ class TrainingRun {
     s.g = BackwardGaussians(cloud_, view.camera, o_.raster, r, d_rgb, d_alpha, d_depth, colour_affine);
     // Before the appearance model's gradient is built from them.
     s.dropped = DropNonFiniteGradients(&s.g);
+    // The view-space gradients of the Gaussians this view saw (the
+    // regularizers below add none to them).
+    density_.Accumulate(r.state.radius_px, s.g.mean2d_norm, view.camera.width_px);
     phase_.Lap(kRasterBwd);
     if (appearance_.enabled) {
       s.appearance_grad = appearance_.model.ZerosLike();
@@ -536,7 +537,6 @@ class TrainingRun {
           appearance_.model, embedding, cloud_, s.g.d_colour_affine, &s.appearance_grad, &s.g.d.sh, &activations);
     }
     phase_.Lap(kAppearance);
-    s.radius_px = r.state.radius_px;
     return s;
   }
 
