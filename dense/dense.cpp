@@ -249,15 +249,44 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
       }
   }
   const std::vector<float> measured_m = g->height_m;  // coarse heights included: they are a surface
-  g->filled = FillHoles(g->height_m, g->nx, g->ny, fill, model, &occluded);
+  g->filled = FillHoles(g->height_m, g->nx, g->ny, fill, model, &occluded, &g->fill_rule);
   if (o.decide_filled_sides) {
     std::vector<std::uint8_t> candidates = g->filled;
     for (std::size_t k = 0; k < cells; ++k) candidates[k] &= from_coarse[k] ? 0 : 1;
+    const std::vector<float> before = g->height_m;
     counts->sides_changed = dense_detail::DecideFilledSides(
         sweep, v.to_cameras, dense_detail::NadirFirst(views, v.used, centre), measured_m, model.terrain_m,
         candidates, fill.radius_cells, g->height_m, progress);
+    for (std::size_t k = 0; k < cells; ++k)
+      if (candidates[k] && g->height_m[k] != before[k]) g->fill_rule[k] = FillRule::kSideByViews;
   }
-  for (std::size_t k = 0; k < cells; ++k) g->filled[k] |= from_coarse[k];
+  for (std::size_t k = 0; k < cells; ++k) {
+    g->filled[k] |= from_coarse[k];
+    if (from_coarse[k]) g->fill_rule[k] = FillRule::kCoarse;
+  }
+  g->terrain_m = model.terrain_m;
+}
+
+// Per cell, how many views of the matched pairs see its surface point: it
+// lies inside the view's image and nothing of the surface hides it.
+void CountSeeingViews(const Sweep& sweep, const ViewSlots& v, const std::vector<DenseView>& views, HeightGrid* g) {
+  const DenseOptions& o = sweep.o;
+  const std::vector<std::vector<float>> seen_above =
+      dense_detail::SeenAbove(*g, g->height_m, v.to_cameras, sweep.z_lo, o.visibility_tolerance_m,
+                              o.visibility_near_cells >= 0 ? o.visibility_near_cells : o.window_cells / 2);
+  g->views.assign(g->height_m.size(), 0);
+  for (std::size_t s = 0; s < v.used.size(); ++s) {
+    const DenseView& view = views[v.used[s]];
+    for (int j = 0; j < g->ny; ++j)
+      for (int i = 0; i < g->nx; ++i) {
+        const std::size_t k = g->Index(i, j);
+        const float h = g->height_m[k];
+        if (!std::isfinite(h) || h + o.visibility_tolerance_m < seen_above[s][k]) continue;
+        const Eigen::Vector2d px = view.camera.Project({g->x0_m + i * g->cell_m, g->y0_m + j * g->cell_m, h});
+        if (px.x() < -0.5 || px.y() < -0.5 || px.x() > view.width_px - 0.5 || px.y() > view.height_px - 0.5) continue;
+        g->views[k] = static_cast<std::uint8_t>(std::min(255, g->views[k] + 1));
+      }
+  }
 }
 
 // Each cell's colour from the most nadir view that sees it; returns how many
@@ -347,8 +376,14 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   g.cost = std::move(picked.cost);
   for (float h : g.height_m) counts.measured += std::isfinite(h) ? 1 : 0;
   g.filled.assign(sweep.Cells(), 0);
-  if (o.fill_holes) FillGridHoles(sweep, v, views, plan.centre, fill, progress, &g, &counts);
+  g.fill_rule.assign(sweep.Cells(), FillRule::kMatched);
+  if (o.fill_holes) {
+    FillGridHoles(sweep, v, views, plan.centre, fill, progress, &g, &counts);
+  } else {
+    g.terrain_m = GroundModelOf(g.height_m, g.nx, g.ny, fill).terrain_m;  // the DTM, holes or not
+  }
   counts.valid = ColourCells(views, plan.centre, &g);
+  CountSeeingViews(sweep, v, views, &g);
   ReportMetrics(o, plan, v, picked, counts, result.pairs_used.size(), sweep.Cells(), &result.report);
   result.report.seconds = clock.Seconds();
   return result;

@@ -147,6 +147,9 @@ struct HeightGrid {
   std::vector<float> height_m;                  // ENU up [m]; NaN where there is no answer
   std::vector<float> cost;                      // matching cost at that height [0, cost_truncation]
   std::vector<std::uint8_t> filled;             // 1 where the height was filled in, not measured
+  std::vector<FillRule> fill_rule;              // how each cell got its height (kMatched where measured)
+  std::vector<float> terrain_m;                 // ENU up of the bare-earth model (TerrainModel); NaN without ground
+  std::vector<std::uint8_t> views;              // views of the matched pairs that see the cell's surface
   std::vector<std::array<std::uint8_t, 3>> rgb; // colour of the surface (0 where no height)
   std::size_t Index(int i, int j) const { return static_cast<std::size_t>(j) * nx + i; }
 };

@@ -17,6 +17,7 @@ namespace {
 
 using testing::LookingDown;
 using testing::TexturedView;
+using testing::TwoBuildingsView;
 
 int ArgMin(const std::vector<float>& volume, std::size_t cell, int heights) {
   const float* s = volume.data() + cell * heights;
@@ -468,51 +469,6 @@ StepBand BrightRoofBand(const HeightGrid& g, double roof_m, double from_m, doubl
       b.wrong += (d > 0) != (h < 0.5 * roof_m);
     }
   return b;
-}
-
-// One band view of two buildings (boxes with textured roofs and walls)
-// either side of a narrow street running north-south, on textured ground:
-// rays stop at the first roof, wall or ground they meet.
-DenseView TwoBuildingsView(const std::string& name, const PinholeCamera& camera, double street_half_m,
-                           double building_m) {
-  DenseView v = testing::UniformView(name, camera, 0.0f);
-  const Eigen::Vector3d centre = camera.Centre();
-  const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
-  const double boxes[2][4] = {{-street_half_m - 12, -12, -street_half_m, 12}, {street_half_m, -12, street_half_m + 12, 12}};
-  for (int row = 0; row < v.height_px; ++row)
-    for (int col = 0; col < v.width_px; ++col) {
-      const Eigen::Vector3d ray =
-          world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
-      double t_hit = -centre.z() / ray.z();  // the ground
-      int face = 0;                          // 0 ground, 1 roof, 2 wall
-      for (const auto& b : boxes) {
-        // Slab intersection with the box [b0, b2] x [b1, b3] x [0, building_m].
-        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-        int entry_axis = -1;
-        const double lo[3] = {b[0], b[1], 0.0}, hi[3] = {b[2], b[3], building_m};
-        bool miss = false;
-        for (int a = 0; a < 3 && !miss; ++a) {
-          double ta = (lo[a] - centre[a]) / ray[a], tb = (hi[a] - centre[a]) / ray[a];
-          if (ta > tb) std::swap(ta, tb);
-          if (ta > t0) {
-            t0 = ta;
-            entry_axis = a;
-          }
-          t1 = std::min(t1, tb);
-          miss = t0 > t1;
-        }
-        if (!miss && t0 < t_hit) {
-          t_hit = t0;
-          face = entry_axis == 2 ? 1 : 2;
-        }
-      }
-      const Eigen::Vector3d p = centre + t_hit * ray;
-      float grey = testing::GroundTexture(p.x(), p.y());
-      if (face == 1) grey = 0.8f * testing::GroundTexture(p.x() + 50.0, p.y() - 40.0) + 40.0f;
-      if (face == 2) grey = 0.5f * testing::GroundTexture(p.x() + p.y(), p.z()) + 20.0f;
-      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = grey;
-    }
-  return v;
 }
 
 // A 4 m street between two 20 m buildings: only the views along it see its

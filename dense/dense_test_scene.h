@@ -4,8 +4,10 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "core/pinhole.h"
@@ -82,6 +84,51 @@ inline DenseView TexturedView(const std::string& name, const PinholeCamera& came
       const Eigen::Vector3d hit = on_plateau ? top : Eigen::Vector3d(centre + ray * (-centre.z() / ray.z()));
       v.pixels[static_cast<std::size_t>(row) * v.width_px + col] =
           on_plateau ? plateau_texture(hit.x(), hit.y()) : GroundTexture(hit.x(), hit.y());
+    }
+  return v;
+}
+
+// One band view of two buildings (boxes with textured roofs and walls)
+// either side of a narrow street running north-south, on textured ground:
+// rays stop at the first roof, wall or ground they meet.
+inline DenseView TwoBuildingsView(const std::string& name, const PinholeCamera& camera, double street_half_m,
+                           double building_m) {
+  DenseView v = UniformView(name, camera, 0.0f);
+  const Eigen::Vector3d centre = camera.Centre();
+  const Eigen::Matrix3d world_from_cam = camera.cam_from_world_rotation.transpose();
+  const double boxes[2][4] = {{-street_half_m - 12, -12, -street_half_m, 12}, {street_half_m, -12, street_half_m + 12, 12}};
+  for (int row = 0; row < v.height_px; ++row)
+    for (int col = 0; col < v.width_px; ++col) {
+      const Eigen::Vector3d ray =
+          world_from_cam * Eigen::Vector3d((col - camera.cx) / camera.fx, (row - camera.cy) / camera.fy, 1.0);
+      double t_hit = -centre.z() / ray.z();  // the ground
+      int face = 0;                          // 0 ground, 1 roof, 2 wall
+      for (const auto& b : boxes) {
+        // Slab intersection with the box [b0, b2] x [b1, b3] x [0, building_m].
+        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+        int entry_axis = -1;
+        const double lo[3] = {b[0], b[1], 0.0}, hi[3] = {b[2], b[3], building_m};
+        bool miss = false;
+        for (int a = 0; a < 3 && !miss; ++a) {
+          double ta = (lo[a] - centre[a]) / ray[a], tb = (hi[a] - centre[a]) / ray[a];
+          if (ta > tb) std::swap(ta, tb);
+          if (ta > t0) {
+            t0 = ta;
+            entry_axis = a;
+          }
+          t1 = std::min(t1, tb);
+          miss = t0 > t1;
+        }
+        if (!miss && t0 < t_hit) {
+          t_hit = t0;
+          face = entry_axis == 2 ? 1 : 2;
+        }
+      }
+      const Eigen::Vector3d p = centre + t_hit * ray;
+      float grey = GroundTexture(p.x(), p.y());
+      if (face == 1) grey = 0.8f * GroundTexture(p.x() + 50.0, p.y() - 40.0) + 40.0f;
+      if (face == 2) grey = 0.5f * GroundTexture(p.x() + p.y(), p.z()) + 20.0f;
+      v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = grey;
     }
   return v;
 }

@@ -489,7 +489,8 @@ void MarkEnclosedByRoof(const std::vector<float>& h, const std::vector<float>& a
 }  // namespace
 
 std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillGrid& o,
-                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded) {
+                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded,
+                                    std::vector<FillRule>* rules) {
   CheckGrid(h, nx, ny);
   if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
   if (o.max_reach_cells < o.radius_cells)
@@ -500,6 +501,7 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     throw Error("dense", "ground model", "size differs from the height grid's");
   if (occluded && occluded->size() != h.size()) throw Error("dense", "occluded", "size differs from the height grid's");
   std::vector<std::uint8_t> filled(h.size(), 0);
+  if (rules) rules->assign(h.size(), FillRule::kMatched);
   // Heights of the measured cells above the base of seen holes.
   const std::vector<float>& base = model.seen_hole_base_m;
   std::vector<float> above(h.size());
@@ -564,6 +566,12 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
       const float terrain_or_base = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
       h[k] = ground ? model.terrain_m[k] : (far_raised || seen_ground) ? terrain_or_base : base[k] + low[k];
       filled[k] = 1;
+      if (rules)
+        (*rules)[k] = ground            ? FillRule::kOccludedGround
+                      : raised_in_reach ? FillRule::kRoofHole
+                      : seen_ground     ? FillRule::kSeenGround
+                      : far_raised      ? FillRule::kFarRaised
+                                        : FillRule::kSeenHole;
     }
     if (!open || r >= o.max_reach_cells) break;
   }

@@ -126,6 +126,19 @@ struct GroundModel {
 };
 GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, const HoleFillGrid& options);
 
+// How a cell of the dense grid got its height: the codes of quality.tif's
+// fill band (docs/outputs.md lists them).
+enum class FillRule : std::uint8_t {
+  kMatched = 0,         // measured by the sweep at the grid's scale
+  kCoarse = 1,          // measured by the coarse sweep, at a coarser scale
+  kOccludedGround = 2,  // ground no image pair sees (hidden by the surface): the terrain model
+  kRoofHole = 3,        // a hole inside a roof: the roof in reach
+  kSeenHole = 4,        // seen but not matched: the lowest height in reach above the ground
+  kSeenGround = 5,      // seen, with ground the lowest in reach: the terrain model
+  kFarRaised = 6,       // only roof beyond the first reach: the ground
+  kSideByViews = 7,     // filled, then moved between ground and roof by the views (decide_filled_sides)
+};
+
 // Fills the NaN cells of `height_m` (nx x ny) within reach of a measured
 // cell; returns a per-cell flag of what was filled. A cell that `occluded`
 // marks (ground no image pair can see, hidden by the measured surface: the
@@ -145,8 +158,10 @@ GroundModel GroundModelOf(const std::vector<float>& height_m, int nx, int ny, co
 // height in reach is ground takes the terrain model. Raised heights are
 // measured above the ground (the base), so on a slope a raised fill stands
 // on the ground near the hole, not on the downhill one.
+// `rules`, when given, receives each filled cell's FillRule (kMatched elsewhere).
 std::vector<std::uint8_t> FillHoles(std::vector<float>& height_m, int nx, int ny, const HoleFillGrid& options,
-                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded = nullptr);
+                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded = nullptr,
+                                    std::vector<FillRule>* rules = nullptr);
 
 // The ground under `height_m` (nx x ny, NaN = unknown): a morphological
 // opening with a flat square of radius `radius_cells` (the highest of the

@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "ingest/gdal_util.h"
+#include "ingest/vertical_datum.h"
 
 namespace skyfall {
 
@@ -50,7 +51,8 @@ GeoGrid ReadGeoGrid(const std::string& path) {
   OGRSpatialReferenceH srs = GDALGetSpatialRef(ds.handle);
   if (srs) {
     OSRAutoIdentifyEPSG(srs);
-    const char* code = OSRGetAuthorityCode(srs, nullptr);
+    // A compound CRS (UTM + EGM96 height) has its zone's code on the PROJCS node.
+    const char* code = OSRGetAuthorityCode(srs, OSRIsCompound(srs) ? "PROJCS" : nullptr);
     if (code) g.epsg = std::atoi(code);
   }
   return g;
@@ -200,20 +202,40 @@ void WriteUnitPng(const std::string& path, int width_px, int height_px, int band
   WriteBytePng(path, width_px, height_px, bands, bytes.data(), compression);
 }
 
-void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
-                   const NorthUpGrid& grid) {
+void WriteCog(const std::string& path, int width_px, int height_px, SampleType type, const void* pixels,
+              const NorthUpGrid& grid, const CogBands& bands) {
+  const GDALDataType gdal_type = type == SampleType::kByte     ? GDT_Byte
+                                 : type == SampleType::kUInt16 ? GDT_UInt16
+                                                               : GDT_Float32;
   WriteThroughMem(
-      path, "COG", width_px, height_px, 1, GDT_Float32, pixels,
+      path, "COG", width_px, height_px, bands.count, gdal_type, pixels,
       [&](GDALDatasetH ds) {
         double gt[6] = {grid.upper_left_x, grid.pixel_size, 0, grid.upper_left_y, 0, -grid.pixel_size};
         GDALSetGeoTransform(ds, gt);
-        OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
-        OSRImportFromEPSG(srs, grid.epsg);
-        GDALSetSpatialRef(ds, srs);
-        OSRDestroySpatialReference(srs);
-        GDALSetRasterNoDataValue(GDALGetRasterBand(ds, 1), std::numeric_limits<double>::quiet_NaN());
+        GDALSetProjection(ds, GeoTiffCrsWkt(grid.epsg, grid.heights).c_str());
+        if (grid.heights) {
+          GDALSetMetadataItem(ds, kHeightReferenceItem, EnumName(*grid.heights), nullptr);
+          GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+          GDALSetRasterUnitType(band, "m");
+          if (bands.descriptions.empty())
+            GDALSetDescription(band, ("height above the " + HeightReferenceDescription(*grid.heights)).c_str());
+        }
+        for (const auto& [key, value] : bands.metadata) GDALSetMetadataItem(ds, key.c_str(), value.c_str(), nullptr);
+        for (int b = 0; b < bands.count; ++b) {
+          GDALRasterBandH band = GDALGetRasterBand(ds, b + 1);
+          if (b < static_cast<int>(bands.descriptions.size()))
+            GDALSetDescription(band, bands.descriptions[b].c_str());
+          if (type == SampleType::kFloat32) GDALSetRasterNoDataValue(band, std::numeric_limits<double>::quiet_NaN());
+          if (bands.colour && b < 3) GDALSetRasterColorInterpretation(band, static_cast<GDALColorInterp>(GCI_RedBand + b));
+          if (bands.last_is_alpha && b == bands.count - 1) GDALSetRasterColorInterpretation(band, GCI_AlphaBand);
+        }
       },
-      {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO"});
+      {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", "GEOTIFF_VERSION=1.1"});
+}
+
+void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
+                   const NorthUpGrid& grid) {
+  WriteCog(path, width_px, height_px, SampleType::kFloat32, pixels, grid, CogBands{});
 }
 
 void WriteFloatTiff(const std::string& path, int width_px, int height_px, const float* pixels,

@@ -3,8 +3,11 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "core/dsm_grid.h"
 
 namespace skyfall {
 
@@ -81,9 +84,27 @@ struct NorthUpGrid {
   double upper_left_y = 0;
   double pixel_size = 1;
   int epsg = 0;
+  // Heights: what they are measured from, stated by the CRS (3D or
+  // compound) and the HEIGHT_REFERENCE metadata item. Unset: not heights.
+  std::optional<HeightReference> heights;
 };
 void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,
                    const NorthUpGrid& grid);
+
+// A multi-band COG: pixels interleaved by pixel, row-major, of one sample
+// type. Float bands have NaN nodata; with `last_is_alpha` the last band is
+// an alpha band (0 = nothing there), as GIS viewers expect of an RGBA or
+// grey-alpha image.
+enum class SampleType { kByte, kUInt16, kFloat32 };
+struct CogBands {
+  int count = 1;
+  std::vector<std::string> descriptions;         // one per band (GDAL band description), or none
+  bool last_is_alpha = false;
+  bool colour = false;                            // the first three bands are red, green, blue
+  std::map<std::string, std::string> metadata;   // default-domain items
+};
+void WriteCog(const std::string& path, int width_px, int height_px, SampleType type, const void* pixels,
+              const NorthUpGrid& grid, const CogBands& bands);
 // PNG compression: zlib's default level, or its fastest (level 1: about
 // 3x faster to write, files slightly larger) for working images written by
 // the hundred, such as the synthesis stage's renders.

@@ -17,6 +17,8 @@
 #include "core/error.h"
 #include "products/dsm.h"
 #include "products/dsm_report.h"
+#include "pipeline/aoi_products.h"
+#include "pipeline/city_entries.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/inputs_stamp.h"
 #include "pipeline/merge_tiles.h"
@@ -39,30 +41,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-
-void Emit(Progress& progress, const std::string& level, const std::string& stage, const std::string& aoi,
-          const std::string& tile, const std::string& message, std::map<std::string, double> figures = {}) {
-  progress.Record({level, stage, aoi, tile, message, std::move(figures)});
-}
-
-struct UtmBox {
-  Eigen::Vector2d lo, hi;
-};
-
-UtmBox FootprintUtm(const AoiCatalog& c) {
-  const UtmZone zone = UtmZoneFromEpsg(c.epsg);
-  UtmBox b{Eigen::Vector2d(1e18, 1e18), Eigen::Vector2d(-1e18, -1e18)};
-  for (const auto& p : c.footprint_lonlat) {
-    const Eigen::Vector2d u = UtmFromGeodetic(zone, p.x(), p.y());
-    b.lo = b.lo.cwiseMin(u);
-    b.hi = b.hi.cwiseMax(u);
-  }
-  return b;
-}
-
-json StageEntry(const std::string& stage, const std::string& status, double seconds, const std::string& message = "") {
-  return {{"stage", stage}, {"status", status}, {"seconds", seconds}, {"message", message}};
-}
 
 json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
@@ -90,132 +68,10 @@ json TileEntry(const TileOutcome& o) {
   return entry;
 }
 
-// The dense heights of every finished tile as opaque Gaussians (one per cell:
-// half a cell wide, flat), so they go through the same DSM export as the
-// trained scene and the two can be compared side by side: all cells, and the
-// matched ones alone (the filled ones left out). Tiles share the city frame;
-// each cell is taken from the tile whose core owns it, as the merge does with
-// Gaussians: with both copies in an overlap, the export took the higher of
-// two estimates, one of them from a tile's outer margin, which the views
-// constrain least.
-struct DenseClouds {
-  GaussianCloud all, measured;
-  std::size_t cells = 0, filled = 0;
-};
-
-DenseClouds DenseCellsAsGaussians(const std::vector<std::string>& tile_dirs) {
-  DenseClouds out;
-  for (const std::string& dir : tile_dirs) {
-    const fs::path ply = fs::path(dir) / "sfm" / "dense.ply";
-    if (!fs::exists(ply)) continue;
-    const DenseCells cells = ReadDenseCells(ply.string());
-    const float half_cell = static_cast<float>(std::log(0.5 * cells.cell_m));
-    const fs::path spec_path = fs::path(dir) / "tile.json";
-    const std::optional<TileSpec> spec =
-        fs::exists(spec_path) ? std::optional<TileSpec>(ReadTileSpec(spec_path.string())) : std::nullopt;
-    // The cells of the margin beyond the city render too (they cover the
-    // AOI's border cells) but are not counted: the figures are the city's.
-    const std::optional<GroundBox> city_part =
-        spec ? std::optional<GroundBox>(spec->ReconstructedCore()) : std::nullopt;
-    for (std::size_t k = 0; k < cells.points.size(); ++k) {
-      if (spec && spec->grid.Owner(cells.points[k].x(), cells.points[k].y()) != Eigen::Vector2i(spec->col, spec->row))
-        continue;
-      if (!city_part || city_part->Contains(cells.points[k].x(), cells.points[k].y())) {
-        ++out.cells;
-        out.filled += cells.filled[k];
-      }
-      std::array<float, 3 * kShCoeffsPerChannel> sh{};
-      for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(cells.colours[k][c]));
-      for (GaussianCloud* cloud : {&out.all, &out.measured}) {
-        if (cloud == &out.measured && cells.filled[k]) continue;
-        cloud->means.push_back(cells.points[k]);
-        cloud->log_scales.emplace_back(half_cell, half_cell, std::log(0.05f));
-        cloud->rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
-        cloud->opacity_logits.push_back(4.6f);  // opacity 0.99: opaque
-        cloud->sh.push_back(sh);
-      }
-    }
-  }
-  return out;
-}
-
-json ComparisonJson(const DsmComparison& c) {
-  json j = {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
-            {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
-  if (c.has_breakdown) j.update(DsmBreakdownJson(c.breakdown));
-  return j;
-}
-
-// Exports and compares the DSM of every AOI with truth; returns their entries.
-// Beside the trained scene's figures: those of the dense heights alone, and of
-// their matched cells alone (the filled ones left out).
-json CompareAois(const RunOptions& options, const std::vector<AoiCatalog>& aois, const MergeSummary& merged,
-                 const std::vector<std::string>& tile_dirs, const std::string& out_dir, json* stages,
-                 CityOutcome* outcome, Progress& progress) {
-  json dsm = json::array();
-  const GaussianCloud scene = ReadGaussiansPly(merged.surface_path);
-  const DenseClouds dense_clouds = DenseCellsAsGaussians(tile_dirs);
-  const GaussianCloud& dense = dense_clouds.all;
-  const GaussianCloud& measured = dense_clouds.measured;
-  const std::size_t filled = dense_clouds.filled, cells = dense_clouds.cells;
-  for (const AoiCatalog& a : aois) {
-    if (!a.truth) continue;
-    Stopwatch clock;
-    const fs::path aoi_dir = fs::path(out_dir) / a.aoi;
-    const TruthDsm truth = ReadTruthDsm(*a.truth);
-    DsmGrid pred;
-    const DsmComparison c = CompareSceneWithTruth(scene, merged.enu_origin, *a.truth, truth, options.dsm.compare, &pred,
-                                                  options.dsm.export_options);
-    WriteDsm((aoi_dir / "dsm.tif").string(), pred);
-    CrashPoint("dsm_written");
-    WriteDsmComparison(c, truth.dsm, options.dsm.compare,
-                       {(aoi_dir / "dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
-                       (aoi_dir / "dsm_compare").string());
-    progress.Info(fmt::format("[{}] DSM vs truth: MAE {:.2f} m, RMSE {:.2f} m, completeness {:.1f}%", a.aoi, c.mae_m,
-                              c.rmse_m, 100 * c.completeness));
-    json entry = ComparisonJson(c);
-    entry["aoi"] = a.aoi;
-    entry["dsm"] = (aoi_dir / "dsm.tif").string();
-    entry["report"] = (aoi_dir / "dsm_compare/report.json").string();
-    if (dense.size() > 0) {
-      // The dense heights' own DSM and error map sit beside the trained
-      // scene's, so an analyst sees where training changed the surface.
-      DsmGrid dense_pred, measured_pred;
-      const DsmComparison d = CompareSceneWithTruth(dense, merged.enu_origin, *a.truth, truth, options.dsm.compare,
-                                                    &dense_pred, options.dsm.export_options);
-      WriteDsm((aoi_dir / "dense_dsm.tif").string(), dense_pred);
-      WriteDsmComparison(d, truth.dsm, options.dsm.compare,
-                         {(aoi_dir / "dense_dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
-                         (aoi_dir / "dense_dsm_compare").string());
-      const DsmComparison m = CompareSceneWithTruth(measured, merged.enu_origin, *a.truth, truth,
-                                                    options.dsm.compare, &measured_pred, options.dsm.export_options);
-      // The matched cells alone (nodata where a cell was filled): which
-      // heights a pair of views measured, and which were filled in.
-      WriteDsm((aoi_dir / "dense_measured_dsm.tif").string(), measured_pred);
-      entry["dense"] = ComparisonJson(d);
-      entry["dense"]["filled_cell_fraction"] = cells ? static_cast<double>(filled) / cells : 0.0;
-      entry["dense"]["cells"] = static_cast<double>(cells);
-      entry["dense_measured_only"] = ComparisonJson(m);
-      progress.Info(fmt::format("[{}] dense heights alone: MAE {:.2f} m, completeness {:.1f}% ({:.1f}% of cells "
-                                "filled; matched cells alone: MAE {:.2f} m, completeness {:.1f}%)",
-                                a.aoi, d.mae_m, 100 * d.completeness, cells ? 100.0 * filled / cells : 0.0, m.mae_m,
-                                100 * m.completeness));
-    }
-    dsm.push_back(entry);
-    outcome->dsm_mae_m.push_back(c.mae_m);
-    Emit(progress, "info", "dsm", a.aoi, "", "DSM compared with the truth",
-         {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
-          {"completeness", c.completeness}, {"within_1m", c.within_fraction}, {"seconds", clock.Seconds()}});
-    stages->push_back(StageEntry("dsm " + a.aoi, "ok", clock.Seconds()));
-  }
-  return dsm;
-}
-
-
 // True when the city's last run finished with these very inputs and
 // options and its products are all there; then `outcome` gets its figures.
-bool UnchangedSinceLastRun(const json& inputs, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
-                           CityOutcome* outcome) {
+bool UnchangedSinceLastRun(const ProductOptions& options, const json& inputs, const std::vector<AoiCatalog>& aois,
+                           const std::string& out_dir, CityOutcome* outcome) {
   try {
     if (!fs::exists(outcome->report_path)) return false;
     const json report = json::parse(ReadTextFile(outcome->report_path));
@@ -226,8 +82,9 @@ bool UnchangedSinceLastRun(const json& inputs, const std::vector<AoiCatalog>& ao
     }
     std::vector<double> mae;
     for (const AoiCatalog& a : aois) {
+      for (const std::string& file : AoiProductFiles(options, a, out_dir))
+        if (!fs::exists(file)) return false;
       if (!a.truth) continue;
-      if (!fs::exists(fs::path(out_dir) / a.aoi / "dsm.tif")) return false;
       bool found = false;
       for (const json& entry : report.at("dsm")) {
         if (entry.at("aoi") == a.aoi) {
@@ -417,7 +274,11 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   }
   outcome.scene = true;
   CrashPoint("dsm");
-  report["dsm"] = CompareAois(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
+  const AoiProducts products =
+      WriteAoiProducts(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
+  report["dsm"] = products.comparisons;
+  report["products"] = products.products;
+  report["city_products"] = products.city;
   if (options.exports.tiles3d) ExportCityTiles3d(options, work, &stages, &report, progress);
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
@@ -565,7 +426,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   CityOutcome unchanged;
   unchanged.city = plan.city;
   unchanged.report_path = (work.city_dir / "run_report.json").string();
-  if (UnchangedSinceLastRun(work.inputs, aois, out_dir, &unchanged)) {
+  if (UnchangedSinceLastRun(options.products, work.inputs, aois, out_dir, &unchanged)) {
     unchanged.scene = true;
     unchanged.unchanged = true;
     progress.Info("[" + plan.city + "] inputs and options unchanged since its last run: nothing to recompute");

@@ -607,6 +607,27 @@ template <class IO> void Visit(IO& io, DsmOptions& o) {
   io("export", o.export_options);
   io("compare", o.compare);
 }
+template <class IO> void Visit(IO& io, ProductOptions& o) {
+  io("vertical_datum", o.vertical_datum,
+     "Heights of dsm.tif, dtm.tif and points.las: 'ellipsoid' (WGS84, as the RPCs and the DFC2019 LiDAR) or "
+     "'egm96' (above the EGM96 geoid); comparisons run on ellipsoidal heights either way");
+  io("gsd_m", o.gsd_m,
+     "Pixel size of the products of an AOI without truth (an AOI with truth uses the truth's grid)");
+  io("terrain", o.terrain,
+     "Write dtm.tif (the dense stage's terrain model) and ndsm.tif (DSM above it)");
+  io("quality", o.quality,
+     "Write quality.tif: views that see each cell, how it got its height, matching cost, Gaussian height spread");
+  io("ortho", o.ortho,
+     "Write ortho.tif, the true orthophoto: the scene's nadir render (grey for a panchromatic scene)");
+  io("ortho_bits", o.ortho_bits,
+     "Bits per sample of ortho.tif: 8 or 16");
+  io("points", o.points,
+     "Write points.las: the scene's Gaussians as a LAS 1.4 point cloud with colour and ground class");
+  io("min_opacity", o.min_opacity,
+     "Gaussians more transparent than this are left out of points.las and of quality.tif's height spread");
+  io("ground_tolerance_m", o.ground_tolerance_m,
+     "A point at most this far above the DTM is ground (LAS class 2)");
+}
 template <class IO> void Visit(IO& io, SlurmOptions& o) {
   io("partition", o.partition,
      "Slurm partition (empty = the cluster's default)");
@@ -640,6 +661,7 @@ template <class IO> void Visit(IO& io, RunOptions& o) {
   io("idu", o.idu);
   io("merge", o.merge);
   io("dsm", o.dsm);
+  io("products", o.products);
   io("exports", o.exports);
   io("executor", o.executor);
 }

@@ -307,6 +307,18 @@ void ExecutorOptions::Check() const {
   }
 }
 
+void ProductOptions::Check() const {
+  if (vertical_datum == HeightReference::kAboveTerrain)
+    throw Error("products", "vertical_datum", "must be 'ellipsoid' or 'egm96' (above_terrain is the nDSM's, not a datum)");
+  if (!(gsd_m > 0)) throw Error("products", "gsd_m", FormatDouble(gsd_m) + " must be > 0");
+  if (ortho_bits != 8 && ortho_bits != 16)
+    throw Error("products", "ortho_bits", std::to_string(ortho_bits) + " must be 8 or 16");
+  if (!(min_opacity >= 0 && min_opacity <= 1))
+    throw Error("products", "min_opacity", FormatDouble(min_opacity) + " must be in [0, 1]");
+  if (!(ground_tolerance_m >= 0))
+    throw Error("products", "ground_tolerance_m", FormatDouble(ground_tolerance_m) + " must be >= 0");
+}
+
 void RunOptions::Check() const {
   CheckSection("ingest", [&] { ingest.Check(); });
   CheckSection("tiling", [&] { tiling.Check(); });
@@ -316,6 +328,7 @@ void RunOptions::Check() const {
   CheckSection("idu", [&] { idu.Check(); });
   CheckSection("merge", [&] { merge.Check(); });
   CheckSection("dsm", [&] { dsm.Check(); });
+  CheckSection("products", [&] { products.Check(); });
   CheckSection("exports", [&] { exports.Check(); });
   CheckSection("executor", [&] { executor.Check(); });
 }

@@ -134,6 +134,25 @@ struct DsmOptions {
   void Check() const;                // throws Error("dsm", field, ...)
 };
 
+// The GIS products of each AOI beside its DSM (OUT/<AOI>/: dtm.tif,
+// ndsm.tif, quality.tif, ortho.tif, points.las) and the datum of every
+// height the run hands out.
+struct ProductOptions {
+  // Heights of dsm.tif, dtm.tif and points.las: above the WGS84 ellipsoid
+  // (the frame of the RPCs and of the DFC2019 LiDAR) or above the EGM96
+  // geoid (orthometric). Comparisons always run on ellipsoidal heights.
+  HeightReference vertical_datum = HeightReference::kEllipsoid;
+  double gsd_m = 0.5;                // grid of an AOI without truth (one with truth uses the truth's)
+  bool terrain = true;               // dtm.tif and ndsm.tif
+  bool quality = true;               // quality.tif
+  bool ortho = true;                 // ortho.tif
+  int ortho_bits = 8;                // 8 or 16
+  bool points = true;                // points.las
+  double min_opacity = 0.1;          // Gaussians more transparent are left out of points.las and the height spread
+  double ground_tolerance_m = 1.0;   // a point this close above the DTM is ground (class 2)
+  void Check() const;                // throws Error("products", field, ...)
+};
+
 // Resources of the Slurm jobs (executor kind "slurm").
 struct SlurmOptions {
   std::string partition;   // empty = the cluster's default partition
@@ -175,6 +194,7 @@ struct RunOptions {
   IduStageOptions idu;
   MergeOptions merge;
   DsmOptions dsm;
+  ProductOptions products;
   ExportOptions exports;
   ExecutorOptions executor;
   // Validates every stage's options; throws Error("run options", "<section>.<field>", ...).

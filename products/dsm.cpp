@@ -17,6 +17,7 @@
 #include "ingest/dfc2019.h"
 #include "ingest/geo.h"
 #include "ingest/raster.h"
+#include "ingest/vertical_datum.h"
 
 namespace skyfall {
 namespace {
@@ -134,21 +135,23 @@ DsmGrid ReadDsm(const std::string& path, const std::string& grid_txt, int epsg) 
       throw Error("dsm", path, "is not a north-up grid with square pixels");
     }
     OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
-    const char* code = srs ? OSRGetAuthorityCode(srs, nullptr) : nullptr;
+    // A compound CRS (UTM + EGM96 height) has its zone's code on the PROJCS node.
+    const char* code = srs ? OSRGetAuthorityCode(srs, OSRIsCompound(srs) ? "PROJCS" : nullptr) : nullptr;
     g.epsg = code ? std::atoi(code) : epsg;
   }
   if (ds) GDALClose(ds);
   if (!georeferenced) throw Error("dsm", path, "has no georeferencing; give its _DSM.txt grid file");
+  g.reference = HeightReferenceOfRaster(path).value_or(HeightReference::kEllipsoid);
   return g;
 }
 
 void WriteDsm(const std::string& path, const DsmGrid& g) {
   WriteFloatCog(path, g.width_px, g.height_px, g.height_m.data(),
-                {g.upper_left_easting_m, g.upper_left_northing_m, g.gsd_m, g.epsg});
+                {g.upper_left_easting_m, g.upper_left_northing_m, g.gsd_m, g.epsg, g.reference});
 }
 
 void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,
-                  DsmGrid* grid) {
+                  DsmGrid* grid, std::vector<float>* rgb) {
   const EnuFrame frame(enu_origin);
   const UtmZone zone = UtmZoneFromEpsg(grid->epsg);
   const int W = grid->width_px, H = grid->height_px;
@@ -187,6 +190,7 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   ro.median_depth = o.median_depth;
   const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
   grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
+  if (rgb) rgb->assign(3 * static_cast<size_t>(W) * H, kNoData);
   for (int row = 0; row < H; ++row)
     for (int col = 0; col < W; ++col) {
       const size_t p = static_cast<size_t>(row) * W + col;
@@ -200,6 +204,8 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
                                   Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
       const Eigen::Vector3d hit = eye + z_cam * dir;
       grid->height_m[p] = static_cast<float>(frame.GeodeticFromEnu(hit).height_m);
+      if (rgb)
+        for (int c = 0; c < 3; ++c) (*rgb)[3 * p + c] = std::clamp(r.rgb[3 * p + c] / r.alpha[p], 0.0f, 1.0f);
     }
 }
 
@@ -304,6 +310,12 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
 TruthDsm ReadTruthDsm(const TruthGrid& truth) {
   TruthDsm t;
   t.dsm = ReadDsm(truth.dsm_path, truth.dsm_txt_path, truth.epsg);
+  // A raster with a grid file is DFC2019's LiDAR, ellipsoidal by its
+  // README; any other states its reference or is taken as ellipsoidal.
+  t.stated_reference = truth.dsm_txt_path.empty() ? HeightReferenceOfRaster(truth.dsm_path)
+                                                  : std::optional<HeightReference>(HeightReference::kEllipsoid);
+  // Compared in the frame of the geometry: heights above the ellipsoid.
+  ConvertHeightReference(&t.dsm, HeightReference::kEllipsoid, truth.dsm_path);
   if (!truth.cls_path.empty()) t.cls = ReadClassRaster(truth.cls_path, t.dsm);
   return t;
 }

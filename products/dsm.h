@@ -3,6 +3,7 @@
 // Sat-NeRF / EO-NeRF / EOGS / Skyfall-GS.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,8 +55,11 @@ struct DsmExportOptions {
 // camera whose pixels are the grid's pixels, then converting each hit back
 // to an ellipsoidal height. Rendered at 1e6 m the parallax of a 100 m tower
 // 200 m off-centre is 2 cm.
+// `rgb`, when given, receives the same render's colour (3 per pixel, in
+// [0, 1], divided by the accumulated opacity: the surface's own colour),
+// NaN where the DSM has no height: the true orthophoto of the scene.
 void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& options,
-                  DsmGrid* grid);
+                  DsmGrid* grid, std::vector<float>* rgb = nullptr);
 
 struct DsmCompareOptions {
   int max_shift_px = 5;        // search radius per pyramid level
@@ -86,9 +90,13 @@ DsmComparison CompareDsm(const DsmGrid& prediction, const DsmGrid& truth, const 
                          const DsmCompareOptions& options);
 
 // A catalog's truth DSM (read through its _DSM.txt grid) and classes.
+// Its heights are converted to the ellipsoid, the frame the comparison runs
+// in; `stated_reference` is what the raster stated (nullopt: nothing, taken
+// as ellipsoidal). A vertical CRS that cannot be converted is refused.
 struct TruthDsm {
   DsmGrid dsm;
   std::vector<float> cls;  // empty when the AOI has no CLS raster
+  std::optional<HeightReference> stated_reference;
 };
 TruthDsm ReadTruthDsm(const TruthGrid& truth);
 

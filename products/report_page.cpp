@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -192,6 +193,48 @@ std::string TileTable(const json& report, const fs::path& city_dir, const fs::pa
   return html + "</table>";
 }
 
+// Per AOI: the GIS products, their previews side by side (the orthophoto
+// beside the DSM and the quality layers), and their figures against the
+// truth (DTM on ground, nDSM on buildings, ortho against the nadir image).
+std::string ProductsSection(const json& report, const fs::path& out_dir) {
+  std::map<std::string, json> truth;
+  for (const json& d : report.value("dsm", json::array())) truth[d.value("aoi", "")] = d;
+  std::string html;
+  for (const json& p : report.value("products", json::array())) {
+    const std::string aoi = p.value("aoi", "?");
+    const fs::path dir = out_dir / aoi, previews = dir / "previews";
+    html += "<h4>" + HtmlEscape(aoi) + ": GIS products</h4><p>Heights above the " +
+            HtmlEscape(p.value("vertical_datum_description", "?")) + ". " +
+            Link(dir / "dsm.tif", out_dir, "DSM") + Link(dir / "dtm.tif", out_dir, "DTM") +
+            Link(dir / "ndsm.tif", out_dir, "nDSM") + Link(dir / "quality.tif", out_dir, "quality layers") +
+            Link(dir / "ortho.tif", out_dir, "orthophoto") + Link(dir / "points.las", out_dir, "point cloud (LAS)") +
+            "</p>";
+    for (const json& why : p.value("left_out", json::array()))
+      html += "<p class=muted>Left out: " + HtmlEscape(why.get<std::string>()) + "</p>";
+    if (truth.count(aoi)) {
+      const json terrain = truth[aoi].value("terrain", json::object()), ortho = truth[aoi].value("ortho", json::object());
+      html += "<table><tr><th>DTM on ground: MAE [m]</th><th>bias [m]</th><th>nDSM on buildings: MAE [m]</th>"
+              "<th>bias [m]</th><th>ortho vs " + HtmlEscape(ortho.value("image", "nadir image")) +
+              ": PSNR [dB]</th><th>SSIM</th><th>ground cells</th></tr><tr>" +
+              Cell(Number(terrain, "dtm_mae_ground_m", 2), true) + Cell(Number(terrain, "dtm_bias_ground_m", 2), true) +
+              Cell(Number(terrain, "ndsm_mae_building_m", 2), true) +
+              Cell(Number(terrain, "ndsm_bias_building_m", 2), true) + Cell(Number(ortho, "psnr_db", 2), true) +
+              Cell(Number(ortho, "ssim", 3), true) + Cell(Number(ortho, "ground_cells", 0), true) + "</tr></table>";
+    }
+    html += "<div class=pair>";
+    const char* figures[][2] = {{"ortho.png", "Orthophoto (nadir render, no lean)"},
+                                {"dsm.png", "DSM (dark low, light high)"},
+                                {"views.png", "Views that see each cell (dark few)"},
+                                {"fill_rule.png", "How each cell got its height (codes in docs/outputs.md)"}};
+    for (const auto& [file, caption] : figures)
+      if (fs::exists(previews / file))
+        html += "<figure>" + EmbeddedPng(previews / file, aoi + " " + caption) + "<figcaption>" + caption +
+                "</figcaption></figure>";
+    html += "</div>";
+  }
+  return html;
+}
+
 std::string StageTable(const json& report) {
   std::string html = "<table><tr><th>stage</th><th>status</th><th>time [s]</th></tr>";
   for (const json& s : report.value("stages", json::array())) {
@@ -235,6 +278,7 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
     points->push_back({aoi, report.value("seconds", NAN), d.value("mae_m", NAN),
                        dense.is_object() ? dense.value("mae_m", NAN) : NAN, false});
   }
+  html += "<h3>GIS products</h3>" + ProductsSection(report, out_dir);
   html += "<h3>Automatic decisions of the city</h3><p>" + Decisions(report.value("decisions", json::object())) + "</p>";
   html += "<h3>Stages</h3>" + StageTable(report);
   html += "<h3>Tiles</h3>" + TileTable(report, city_dir, out_dir);

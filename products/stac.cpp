@@ -17,6 +17,7 @@
 #include "catalogs/tile_catalog.h"
 #include "ingest/gdal_util.h"
 #include "ingest/geo.h"
+#include "ingest/vertical_datum.h"
 
 namespace skyfall {
 namespace {
@@ -25,6 +26,8 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 constexpr const char* kGeoTiff = "image/tiff; application=geotiff";
+constexpr const char* kCog = "image/tiff; application=geotiff; profile=cloud-optimized";
+constexpr const char* kLas = "application/vnd.las";
 constexpr const char* kPng = "image/png";
 constexpr const char* kJson = "application/json";
 constexpr const char* kGeoJson = "application/geo+json";
@@ -51,6 +54,11 @@ json FileAsset(const fs::path& path, const fs::path& doc_dir, const std::string&
           {"file:checksum", Sha256Multihash(Sha256FileHex(path.string()))}};
 }
 
+// STAC's name of a GDAL sample type: GDAL's, lower case, but "uint8" for Byte.
+std::string StacDataType(GDALDataType type) {
+  return type == GDT_Byte ? "uint8" : ToLower(GDALGetDataTypeName(type));
+}
+
 // Projection and band fields of a single-band GeoTIFF, read from the file so
 // that the catalog says what the file holds.
 void AddRasterFields(const fs::path& path, const std::string& unit, json* asset) {
@@ -59,11 +67,37 @@ void AddRasterFields(const fs::path& path, const std::string& unit, json* asset)
   GDALGetGeoTransform(ds, gt);
   const int width = GDALGetRasterXSize(ds), height = GDALGetRasterYSize(ds);
   OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
-  const char* code = srs ? OSRGetAuthorityCode(srs, nullptr) : nullptr;
-  const char* authority = srs ? OSRGetAuthorityName(srs, nullptr) : nullptr;
+  // A compound CRS (UTM + EGM96 height) names its zone on the PROJCS node.
+  const char* node = srs && OSRIsCompound(srs) ? "PROJCS" : nullptr;
+  const char* code = srs ? OSRGetAuthorityCode(srs, node) : nullptr;
+  const char* authority = srs ? OSRGetAuthorityName(srs, node) : nullptr;
   (*asset)["proj:code"] = code && authority ? json(std::string(authority) + ":" + code) : json(nullptr);
+  // Heights state their frame in full: the 3D (ellipsoidal) or compound
+  // (EGM96) CRS, which the GeoTIFF keys can only partly hold.
+  if (const char* item = GDALGetMetadataItem(ds, kHeightReferenceItem, nullptr)) {
+    const std::optional<HeightReference> reference = EnumFromName<HeightReference>(item);
+    if (reference && *reference != HeightReference::kAboveTerrain && code)
+      (*asset)["proj:wkt2"] = HeightCrsWkt(std::atoi(code), reference);
+  }
   (*asset)["proj:shape"] = {height, width};
   (*asset)["proj:transform"] = {gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]};
+  if (GDALGetRasterCount(ds) > 1) {  // named bands, no statistics
+    json bands = json::array();
+    for (int b = 1; b <= GDALGetRasterCount(ds); ++b) {
+      GDALRasterBandH band = GDALGetRasterBand(ds, b);
+      json entry = {{"name", GDALGetDescription(band)},
+                    {"data_type", StacDataType(GDALGetRasterDataType(band))}};
+      int has_nodata = 0;
+      const double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+      if (has_nodata) entry["nodata"] = std::isnan(nodata) ? json("nan") : json(nodata);
+      bands.push_back(entry);
+    }
+    GDALClose(ds);
+    (*asset)["bands"] = bands;
+    (*asset)["raster:sampling"] = "area";
+    (*asset)["raster:spatial_resolution"] = std::abs(gt[1]);
+    return;
+  }
   GDALRasterBandH band = GDALGetRasterBand(ds, 1);
   int has_nodata = 0;
   const double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
@@ -86,7 +120,7 @@ void AddRasterFields(const fs::path& path, const std::string& unit, json* asset)
       hi = std::max(hi, v);
     }
   }
-  (*asset)["data_type"] = ToLower(GDALGetDataTypeName(GDALGetRasterDataType(band)));
+  (*asset)["data_type"] = StacDataType(GDALGetRasterDataType(band));
   GDALClose(ds);
   if (has_nodata) (*asset)["nodata"] = std::isnan(nodata) ? json("nan") : json(nodata);
   (*asset)["unit"] = unit;
@@ -203,16 +237,36 @@ json Item(const std::string& id, const std::string& city, const LonLatRing& ring
             Link("collection", Relative(collection_path, dir), kJson)}}};
 }
 
+// A COG product as an asset with its projection and bands, when it exists;
+// a height raster's title names the reference its heights are measured from.
+void AddRaster(json* assets, const std::string& key, const fs::path& path, const fs::path& doc_dir,
+               const std::vector<std::string>& roles, const std::string& title, const std::string& unit) {
+  if (!fs::exists(path)) return;
+  std::string full_title = title;
+  if (const std::optional<HeightReference> reference = HeightReferenceOfRaster(path.string()))
+    full_title += " (heights above the " + HeightReferenceDescription(*reference) + ")";
+  json asset = FileAsset(path, doc_dir, kCog, roles, full_title);
+  AddRasterFields(path, unit, &asset);
+  if (unit.empty()) asset.erase("unit");
+  (*assets)[key] = asset;
+}
+
 // The products of one AOI and of its city's scene.
 json AoiAssets(const AoiCatalog& a, const StacCity& city, const fs::path& doc_dir) {
   json assets = json::object();
   const fs::path aoi_dir = fs::path(city.out_dir) / a.aoi;
   const fs::path compare = aoi_dir / "dsm_compare";
-  if (fs::exists(aoi_dir / "dsm.tif")) {
-    json dsm = FileAsset(aoi_dir / "dsm.tif", doc_dir, kGeoTiff, {"data"}, "DSM (heights above the WGS84 ellipsoid)");
-    AddRasterFields(aoi_dir / "dsm.tif", "m", &dsm);
-    assets["dsm"] = dsm;
-  }
+  AddRaster(&assets, "dsm", aoi_dir / "dsm.tif", doc_dir, {"data"}, "DSM", "m");
+  AddRaster(&assets, "dtm", aoi_dir / "dtm.tif", doc_dir, {"data"}, "DTM: bare earth (the dense stage's terrain model)",
+            "m");
+  AddRaster(&assets, "ndsm", aoi_dir / "ndsm.tif", doc_dir, {"data"}, "nDSM: heights above the DTM", "m");
+  AddRaster(&assets, "quality", aoi_dir / "quality.tif", doc_dir, {"data", "metadata"},
+            "Quality layers: views, fill rule (codes in the file's FILL_RULE_CODES), matching cost, Gaussian "
+            "height spread [m]", "");
+  AddRaster(&assets, "ortho", aoi_dir / "ortho.tif", doc_dir, {"data", "visual"},
+            "True orthophoto: nadir render of the scene, alpha where empty", "");
+  AddIfExists(&assets, "points", aoi_dir / "points.las", doc_dir, kLas, {"data"},
+              "Point cloud: the scene's Gaussians, LAS 1.4 format 7, ground class 2, CRS in its WKT record");
   if (fs::exists(compare / "error_map.tif")) {
     json error = FileAsset(compare / "error_map.tif", doc_dir, kGeoTiff, {"data"}, "DSM minus truth");
     AddRasterFields(compare / "error_map.tif", "m", &error);

@@ -191,6 +191,12 @@ for name in sorted(os.listdir(out)):
         # where they are fattened.
         "edge_bias_m": edge_bias(d),
         "dense_edge_bias_m": edge_bias(d.get("dense") or {}),
+        # The GIS products against the truth: the DTM on ground cells, the
+        # nDSM on buildings, the orthophoto against the image closest to nadir.
+        "dtm_mae_ground_m": (d.get("terrain") or {}).get("dtm_mae_ground_m"),
+        "ndsm_mae_building_m": (d.get("terrain") or {}).get("ndsm_mae_building_m"),
+        "ortho_psnr_db": (d.get("ortho") or {}).get("psnr_db"),
+        "ortho_ssim": (d.get("ortho") or {}).get("ssim"),
         "tuned_on": name in tuned,
         "synthetic_size_m": (synth_options(name) or {}).get("size_m"),
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
@@ -240,6 +246,13 @@ for s in scenes:
     cells = [f"{fmt(band(edge, side, k), 1, 1, ' m')} ({fmt(band(dense, side, k), 1)})"
              for side in ("roof", "beside") for k in range(bands)]
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
+lines += ["", "The GIS products against the truth: the DTM on ground cells, the nDSM on buildings (the",
+          "truth less the terrain model through its ground cells), the orthophoto against the input closest",
+          "to nadir on the ground it sees.", "",
+          "| scene | DTM MAE (ground) | nDSM MAE (buildings) | ortho PSNR | ortho SSIM |", "|---|---|---|---|---|"]
+for s in scenes:
+    lines.append(f"| {s['scene']} | {fmt(s['dtm_mae_ground_m'], suffix=' m')} | {fmt(s['ndsm_mae_building_m'], suffix=' m')} | "
+                 f"{fmt(s['ortho_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_ssim'], 3)} |")
 described = [s for s in scenes if s["synth_options"]]
 if described:
     lines += ["", "The synthetic scenes' options (`skyfall synth`; drawn scenes: `--draw K`):", "",

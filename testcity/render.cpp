@@ -378,6 +378,33 @@ Eigen::Vector3f PixelAlbedo(const City& city, const Hit& hit, const Eigen::Vecto
   return sum / static_cast<float>(sub * sub);
 }
 
+// The colour (before the sensor's tint, gain and noise) and hit of the ray
+// through pixel (col, row): the surface's albedo over the pixel's footprint,
+// lit by the sun unless in shadow, plus the sky's ambient share.
+template <typename RayFn>
+Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int col, int row,
+               Eigen::Vector3f* colour) {
+  const Eigen::Vector3d sun = lighting.sun_scene.normalized();
+  const auto [o_scene, d_scene] = ray(col, row);
+  const Hit hit = CastDown(city, o_scene, d_scene);
+  *colour = Eigen::Vector3f(0.5f, 0.5f, 0.5f);
+  if (!hit.found) return hit;
+  const Eigen::Vector3d& normal = hit.normal;
+  const double lambert = std::max(0.0, normal.dot(sun));
+  const bool lit = lambert > 0 && !(lighting.cast_shadows && InShadow(city, hit.point + 1e-3 * normal, sun));
+  const float light = lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f;
+  *colour = PixelAlbedo(city, hit, normal, std::max(1, lighting.subpixels), ray, col, row) * light;
+  return hit;
+}
+
+// A sensor's 8-bit value of a colour channel: tint, gain, and +-1 DN of
+// noise unless `noise` is off.
+std::uint8_t SensorValue(const Lighting& lighting, float colour, int channel, std::size_t pixel, bool noise) {
+  const float dn = noise ? (Hash01(lighting.noise_seed + channel, pixel) - 0.5f) * 2.0f : 0.0f;
+  const float v = colour * lighting.tint[channel] * lighting.gain * 255.0f + dn;
+  return static_cast<std::uint8_t>(std::min(255.0f, std::max(0.0f, v) + 0.5f));
+}
+
 }  // namespace
 
 Eigen::Vector2d SatelliteCamera::Project(const Eigen::Vector3d& enu_m) const {
@@ -399,7 +426,6 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
   view.rgb.assign(3 * n, 0);
   view.hit_scene.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
   view.hit_object.assign(n, -1);
-  const Eigen::Vector3d sun = lighting.sun_scene.normalized();
   // Rays start above the tallest column: the traversal sees only columns
   // below its start. The scene's z is the ellipsoidal height, ENU's up is
   // measured from the frame's origin (the city's base height, the scene
@@ -416,33 +442,44 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
     return std::make_pair(scene_from_enu.Apply(camera.centre_enu_m + t_start * d_enu),
                           Eigen::Vector3d((scene_from_enu.linear * d_enu).normalized()));
   };
-  const int sub = std::max(1, lighting.subpixels);
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height_px), [&](const tbb::blocked_range<int>& rows) {
     for (int r = rows.begin(); r < rows.end(); ++r) {
       for (int c = 0; c < camera.width_px; ++c) {
         const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
-        const auto [o_scene, d_scene] = ray(c, r);
-        const Hit hit = CastDown(city, o_scene, d_scene);
-        Eigen::Vector3f colour(0.5f, 0.5f, 0.5f);
+        Eigen::Vector3f colour;
+        const Hit hit = ShadePixel(city, lighting, ray, c, r, &colour);
         if (hit.found) {
-          const Eigen::Vector3d& normal = hit.normal;
-          const double lambert = std::max(0.0, normal.dot(sun));
-          const bool lit = lambert > 0 && !(lighting.cast_shadows && InShadow(city, hit.point + 1e-3 * normal, sun));
-          const float light = lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f;
-          colour = PixelAlbedo(city, hit, normal, sub, ray, c, r) * light;
           view.hit_scene[p] = hit.point.cast<float>();
           const std::int32_t obj = city.object[city.Index(hit.i, hit.j)];
           view.hit_object[p] = obj >= 0 ? obj : -1;
         }
-        for (int ch = 0; ch < 3; ++ch) {
-          const float noise = (Hash01(lighting.noise_seed + ch, p) - 0.5f) * 2.0f;  // +-1 DN
-          const float v = colour[ch] * lighting.tint[ch] * lighting.gain * 255.0f + noise;
-          view.rgb[3 * p + ch] = static_cast<std::uint8_t>(std::min(255.0f, std::max(0.0f, v) + 0.5f));
-        }
+        for (int ch = 0; ch < 3; ++ch) view.rgb[3 * p + ch] = SensorValue(lighting, colour[ch], ch, p, true);
       }
     }
   });
   return view;
+}
+
+std::vector<std::uint8_t> RenderOrtho(const City& city, const Lighting& lighting, double x0_m, double y_top_m,
+                                      double gsd_m, int width_px, int height_px) {
+  std::vector<std::uint8_t> rgb(3 * static_cast<std::size_t>(width_px) * height_px, 0);
+  const double start_z = city.max_height_m + 2.0;
+  // Vertical rays through the grid's pixels: (col, row) = (0, 0) is the
+  // centre of the north-west pixel.
+  auto ray = [&](double col, double row) {
+    return std::make_pair(Eigen::Vector3d(x0_m + (col + 0.5) * gsd_m, y_top_m - (row + 0.5) * gsd_m, start_z),
+                          Eigen::Vector3d(0, 0, -1));
+  };
+  tbb::parallel_for(tbb::blocked_range<int>(0, height_px), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r < rows.end(); ++r)
+      for (int c = 0; c < width_px; ++c) {
+        const std::size_t p = static_cast<std::size_t>(r) * width_px + c;
+        Eigen::Vector3f colour;
+        ShadePixel(city, lighting, ray, c, r, &colour);
+        for (int ch = 0; ch < 3; ++ch) rgb[3 * p + ch] = SensorValue(lighting, colour[ch], ch, p, false);
+      }
+  });
+  return rgb;
 }
 
 }  // namespace skyfall::synth

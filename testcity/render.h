@@ -62,4 +62,11 @@ struct RenderedView {
 RenderedView RenderView(const City& city, const SatelliteCamera& camera,
                         const SceneFromEnu& scene_from_enu, const Lighting& lighting);
 
+// The city's true orthophoto on a north-up grid of the scene frame (the
+// north-west corner at (x0_m, y_top_m), `gsd_m` pixels): what a vertical ray
+// through each pixel sees, lit and coloured like a view under `lighting`,
+// without the sensor's noise. RGB, interleaved, row 0 the north edge.
+std::vector<std::uint8_t> RenderOrtho(const City& city, const Lighting& lighting, double x0_m, double y_top_m,
+                                      double gsd_m, int width_px, int height_px);
+
 }  // namespace skyfall::synth

@@ -1,0 +1,381 @@
+#include "pipeline/aoi_products.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <optional>
+
+#include "catalogs/tile_catalog.h"
+#include "core/crash_point.h"
+#include "core/error.h"
+#include "ingest/geo.h"
+#include "ingest/radiometry.h"
+#include "ingest/vertical_datum.h"
+#include "pipeline/city_entries.h"
+#include "products/dsm.h"
+#include "products/dsm_report.h"
+#include "products/gis_layers.h"
+#include "products/point_cloud.h"
+#include "splat/ply.h"
+
+namespace skyfall {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+UtmBox FootprintUtm(const AoiCatalog& c) {
+  const UtmZone zone = UtmZoneFromEpsg(c.epsg);
+  UtmBox b{Eigen::Vector2d(1e18, 1e18), Eigen::Vector2d(-1e18, -1e18)};
+  for (const auto& p : c.footprint_lonlat) {
+    const Eigen::Vector2d u = UtmFromGeodetic(zone, p.x(), p.y());
+    b.lo = b.lo.cwiseMin(u);
+    b.hi = b.hi.cwiseMax(u);
+  }
+  return b;
+}
+
+std::vector<std::string> AoiProductFiles(const ProductOptions& o, const AoiCatalog& aoi, const std::string& out_dir) {
+  const fs::path dir = fs::path(out_dir) / aoi.aoi;
+  std::vector<std::string> files = {(dir / "dsm.tif").string()};
+  if (o.terrain) files.push_back((dir / "dtm.tif").string()), files.push_back((dir / "ndsm.tif").string());
+  if (o.quality) files.push_back((dir / "quality.tif").string());
+  if (o.ortho) files.push_back((dir / "ortho.tif").string());
+  if (o.points) files.push_back((dir / "points.las").string());
+  return files;
+}
+
+namespace {
+
+// Every finished tile's dense cells with the spec that says which it owns.
+std::vector<DenseTileCells> ReadDenseTiles(const std::vector<std::string>& tile_dirs) {
+  std::vector<DenseTileCells> tiles;
+  for (const std::string& dir : tile_dirs) {
+    const fs::path ply = fs::path(dir) / "sfm" / "dense.ply";
+    if (!fs::exists(ply)) continue;
+    const fs::path spec_path = fs::path(dir) / "tile.json";
+    tiles.push_back({ReadDenseCells(ply.string()), fs::exists(spec_path)
+                                                       ? std::optional<TileSpec>(ReadTileSpec(spec_path.string()))
+                                                       : std::nullopt});
+  }
+  return tiles;
+}
+
+// The dense heights of every finished tile as opaque Gaussians (one per cell:
+// half a cell wide, flat), so they go through the same DSM export as the
+// trained scene and the two can be compared side by side: all cells, and the
+// matched ones alone (the filled ones left out). Tiles share the city frame;
+// each cell is taken from the tile whose core owns it, as the merge does with
+// Gaussians: with both copies in an overlap, the export took the higher of
+// two estimates, one of them from a tile's outer margin, which the views
+// constrain least.
+struct DenseClouds {
+  GaussianCloud all, measured;
+  std::size_t cells = 0, filled = 0;
+};
+
+DenseClouds DenseCellsAsGaussians(const std::vector<DenseTileCells>& tiles) {
+  DenseClouds out;
+  for (const DenseTileCells& tile : tiles) {
+    const DenseCells& cells = tile.cells;
+    const std::optional<TileSpec>& spec = tile.spec;
+    const float half_cell = static_cast<float>(std::log(0.5 * cells.cell_m));
+    // The cells of the margin beyond the city render too (they cover the
+    // AOI's border cells) but are not counted: the figures are the city's.
+    const std::optional<GroundBox> city_part =
+        spec ? std::optional<GroundBox>(spec->ReconstructedCore()) : std::nullopt;
+    for (std::size_t k = 0; k < cells.points.size(); ++k) {
+      if (spec && spec->grid.Owner(cells.points[k].x(), cells.points[k].y()) != Eigen::Vector2i(spec->col, spec->row))
+        continue;
+      if (!city_part || city_part->Contains(cells.points[k].x(), cells.points[k].y())) {
+        ++out.cells;
+        out.filled += cells.filled[k];
+      }
+      std::array<float, 3 * kShCoeffsPerChannel> sh{};
+      for (int c = 0; c < 3; ++c) sh[c * kShCoeffsPerChannel] = static_cast<float>(ShDcFromColour(cells.colours[k][c]));
+      for (GaussianCloud* cloud : {&out.all, &out.measured}) {
+        if (cloud == &out.measured && cells.filled[k]) continue;
+        cloud->means.push_back(cells.points[k]);
+        cloud->log_scales.emplace_back(half_cell, half_cell, std::log(0.05f));
+        cloud->rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
+        cloud->opacity_logits.push_back(4.6f);  // opacity 0.99: opaque
+        cloud->sh.push_back(sh);
+      }
+    }
+  }
+  return out;
+}
+
+json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json ComparisonJson(const DsmComparison& c) {
+  json j = {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
+            {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
+  if (c.has_breakdown) j.update(DsmBreakdownJson(c.breakdown));
+  return j;
+}
+
+// The products' grid of an AOI: its truth's, else its footprint.
+DsmGrid ProductGrid(const AoiCatalog& a, double gsd_m) {
+  if (a.truth) return GridOfTruth(*a.truth);
+  const UtmBox box = FootprintUtm(a);
+  return GridOfBounds(box.lo.x(), box.lo.y(), box.hi.x(), box.hi.y(), gsd_m, a.epsg, a.aoi + " footprint");
+}
+
+// A height raster in the datum the user asked for.
+void WriteHeights(const std::string& path, DsmGrid grid, HeightReference datum) {
+  ConvertHeightReference(&grid, datum, path);
+  WriteDsm(path, grid);
+}
+
+// The image closest to nadir: the orthophoto's reference on the ground.
+const ImageRecord* NadirMostImage(const AoiCatalog& a) {
+  const ImageRecord* best = nullptr;
+  for (const ImageRecord& image : a.images)
+    if (!best || image.view_zenith_deg < best->view_zenith_deg) best = &image;
+  return best;
+}
+
+bool Panchromatic(const AoiCatalog& a) {
+  return !a.images.empty() && std::all_of(a.images.begin(), a.images.end(), [](const ImageRecord& i) {
+           return i.bands == 1 || (i.radiometry.bands[0] == i.radiometry.bands[1] &&
+                                   i.radiometry.bands[1] == i.radiometry.bands[2]);
+         });
+}
+
+// What one AOI's products share while they are written.
+struct AoiScene {
+  const GaussianCloud& scene;
+  const GeodeticPoint& enu_origin;
+  const std::vector<DenseTileCells>& dense_tiles;
+};
+
+// The comparison of the DSM (and the dense heights' DSMs) with the truth.
+json CompareWithTruth(const RunOptions& options, const AoiCatalog& a, const TruthDsm& truth, const DsmGrid& pred,
+                      const DenseClouds& dense, const AoiScene& s, const fs::path& aoi_dir, DsmComparison* c,
+                      Progress& progress) {
+  *c = CompareDsm(pred, truth.dsm, truth.cls.empty() ? nullptr : &truth.cls, options.dsm.compare);
+  WriteDsmComparison(*c, truth.dsm, options.dsm.compare,
+                     {(aoi_dir / "dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
+                     (aoi_dir / "dsm_compare").string());
+  progress.Info(fmt::format("[{}] DSM vs truth: MAE {:.2f} m, RMSE {:.2f} m, completeness {:.1f}%", a.aoi, c->mae_m,
+                            c->rmse_m, 100 * c->completeness));
+  json entry = ComparisonJson(*c);
+  entry["aoi"] = a.aoi;
+  entry["dsm"] = (aoi_dir / "dsm.tif").string();
+  entry["report"] = (aoi_dir / "dsm_compare/report.json").string();
+  entry["truth_vertical_datum"] =
+      truth.stated_reference ? EnumName(*truth.stated_reference) : "ellipsoid (assumed: the truth states none)";
+  if (dense.all.size() == 0) return entry;
+  // The dense heights' own DSM and error map sit beside the trained
+  // scene's, so an analyst sees where training changed the surface.
+  DsmGrid dense_pred, measured_pred;
+  const DsmComparison d = CompareSceneWithTruth(dense.all, s.enu_origin, *a.truth, truth, options.dsm.compare,
+                                                &dense_pred, options.dsm.export_options);
+  WriteHeights((aoi_dir / "dense_dsm.tif").string(), dense_pred, options.products.vertical_datum);
+  WriteDsmComparison(d, truth.dsm, options.dsm.compare,
+                     {(aoi_dir / "dense_dsm.tif").string(), a.truth->dsm_path, a.truth->cls_path},
+                     (aoi_dir / "dense_dsm_compare").string());
+  const DsmComparison m = CompareSceneWithTruth(dense.measured, s.enu_origin, *a.truth, truth, options.dsm.compare,
+                                                &measured_pred, options.dsm.export_options);
+  // The matched cells alone (nodata where a cell was filled): which
+  // heights a pair of views measured, and which were filled in.
+  WriteHeights((aoi_dir / "dense_measured_dsm.tif").string(), measured_pred, options.products.vertical_datum);
+  const double filled_fraction = dense.cells ? static_cast<double>(dense.filled) / dense.cells : 0.0;
+  entry["dense"] = ComparisonJson(d);
+  entry["dense"]["filled_cell_fraction"] = filled_fraction;
+  entry["dense"]["cells"] = static_cast<double>(dense.cells);
+  entry["dense_measured_only"] = ComparisonJson(m);
+  progress.Info(fmt::format("[{}] dense heights alone: MAE {:.2f} m, completeness {:.1f}% ({:.1f}% of cells "
+                            "filled; matched cells alone: MAE {:.2f} m, completeness {:.1f}%)",
+                            a.aoi, d.mae_m, 100 * d.completeness, 100.0 * filled_fraction, m.mae_m,
+                            100 * m.completeness));
+  return entry;
+}
+
+json TerrainJson(const TerrainComparison& t) {
+  return {{"dtm_mae_ground_m", Finite(t.dtm_mae_ground_m)},     {"dtm_bias_ground_m", Finite(t.dtm_bias_ground_m)},
+          {"ground_cells", t.ground_cells},                       {"ndsm_mae_building_m", Finite(t.ndsm_mae_building_m)},
+          {"ndsm_bias_building_m", Finite(t.ndsm_bias_building_m)}, {"building_cells", t.building_cells}};
+}
+
+// ortho.tif, and its agreement with the image closest to nadir on the
+// truth's ground cells.
+json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& grid, const std::vector<float>& rgb,
+                const TruthDsm* truth, const fs::path& aoi_dir, Progress& progress) {
+  const ImageRecord* nadir = NadirMostImage(a);
+  std::map<std::string, std::string> metadata = {
+      {"ORTHO_SOURCE", "nadir render of the trained scene (dsm.source " + std::string(EnumName(options.dsm.source)) +
+                           "): a true orthophoto, no building lean"},
+      {"APPEARANCE", "the colours of the tiles' scenes (train.appearance_image, or each tile's typical image)"}};
+  if (nadir) {
+    metadata["NADIR_IMAGE"] = nadir->name;
+    metadata["NADIR_IMAGE_DATE"] = nadir->acquisition_time;
+  }
+  const std::string path = (aoi_dir / "ortho.tif").string();
+  WriteOrthoCog(path, grid, rgb, {Panchromatic(a), options.products.ortho_bits}, metadata);
+  json entry = {{"path", path}, {"grey", Panchromatic(a)}, {"bits", options.products.ortho_bits}};
+  if (!truth || truth->cls.empty() || !nadir) return entry;
+  const OrthoAgreement agree =
+      CompareOrthoWithImage(rgb, truth->dsm, truth->cls, ReadNormalizedImage(nadir->path, nadir->radiometry),
+                            nadir->rpc, nadir->view_zenith_deg, nadir->view_azimuth_deg);
+  progress.Info(fmt::format("[{}] ortho vs {} on {} ground cells: PSNR {:.2f} dB, SSIM {:.3f}", a.aoi, nadir->name,
+                            agree.cells, agree.psnr_db, agree.ssim));
+  entry["versus_nadir_image"] = {{"image", nadir->name},
+                                 {"view_zenith_deg", nadir->view_zenith_deg},
+                                 {"ground_cells", agree.cells},
+                                 {"psnr_db", Finite(agree.psnr_db)},
+                                 {"ssim", Finite(agree.ssim)},
+                                 {"shift_col_px", agree.shift_col_px},
+                                 {"shift_row_px", agree.shift_row_px}};
+  return entry;
+}
+
+// One AOI: the products on its grid, compared with its truth when it has
+// one. Returns its products entry; `comparison` receives the truth entry.
+json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene& s, const DenseClouds& dense,
+                 const std::string& out_dir, json* comparison, CityOutcome* outcome, Progress& progress) {
+  const ProductOptions& po = options.products;
+  const fs::path aoi_dir = fs::path(out_dir) / a.aoi;
+  const std::optional<TruthDsm> truth = a.truth ? std::optional<TruthDsm>(ReadTruthDsm(*a.truth)) : std::nullopt;
+  DsmGrid pred = ProductGrid(a, po.gsd_m);
+  std::vector<float> rgb;
+  RasterizeDsm(s.scene, s.enu_origin, options.dsm.export_options, &pred, po.ortho ? &rgb : nullptr);
+  WriteHeights((aoi_dir / "dsm.tif").string(), pred, po.vertical_datum);
+  CrashPoint("dsm_written");
+  json entry = {{"aoi", a.aoi}, {"dsm", (aoi_dir / "dsm.tif").string()},
+                {"vertical_datum", EnumName(po.vertical_datum)},
+                {"vertical_datum_description", HeightReferenceDescription(po.vertical_datum)}};
+  DsmComparison c;
+  if (truth) *comparison = CompareWithTruth(options, a, *truth, pred, dense, s, aoi_dir, &c, progress);
+  json left_out = json::array();
+  const DenseLayers layers = SampleDenseLayers(s.dense_tiles, s.enu_origin, pred);
+  const DsmGrid& dtm = layers.dtm;
+  if (po.terrain) {
+    const DsmGrid ndsm = HeightAboveTerrain(pred, dtm);
+    WriteHeights((aoi_dir / "dtm.tif").string(), dtm, po.vertical_datum);
+    WriteDsm((aoi_dir / "ndsm.tif").string(), ndsm);
+    entry["dtm"] = (aoi_dir / "dtm.tif").string();
+    entry["ndsm"] = (aoi_dir / "ndsm.tif").string();
+    if (truth && !truth->cls.empty()) {
+      const TerrainComparison t =
+          CompareTerrain(dtm, ndsm, truth->dsm, truth->cls, c.shift_col_px, c.shift_row_px, c.z_offset_m);
+      (*comparison)["terrain"] = TerrainJson(t);
+      progress.Info(fmt::format("[{}] DTM on ground cells: MAE {:.2f} m; nDSM on buildings: MAE {:.2f} m", a.aoi,
+                                t.dtm_mae_ground_m, t.ndsm_mae_building_m));
+    }
+  } else {
+    left_out.push_back("dtm.tif and ndsm.tif (products.terrain off)");
+  }
+  if (po.quality) {
+    WriteQualityCog((aoi_dir / "quality.tif").string(), pred, layers,
+                    GaussianHeightSpreadM(s.scene, s.enu_origin, pred, po.min_opacity));
+    entry["quality"] = (aoi_dir / "quality.tif").string();
+  } else {
+    left_out.push_back("quality.tif (products.quality off)");
+  }
+  if (po.ortho) {
+    entry["ortho"] = WriteOrtho(options, a, pred, rgb, truth ? &*truth : nullptr, aoi_dir, progress);
+    if (truth && entry["ortho"].contains("versus_nadir_image"))
+      (*comparison)["ortho"] = entry["ortho"]["versus_nadir_image"];
+  } else {
+    left_out.push_back("ortho.tif (products.ortho off)");
+  }
+  if (po.points) {
+    const std::vector<LasPoint> points =
+        ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m);
+    WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum));
+    entry["points"] = {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
+  } else {
+    left_out.push_back("points.las (products.points off)");
+  }
+  entry["left_out"] = left_out;
+  // Previews for the report page (not products: PNGs without georeferencing).
+  fs::create_directories(aoi_dir / "previews");
+  WriteProductPreviews((aoi_dir / "previews").string(), pred, rgb, po.quality ? layers.views : std::vector<float>(),
+                       po.quality ? layers.fill_rule : std::vector<float>());
+  entry["previews"] = (aoi_dir / "previews").string();
+  if (truth) outcome->dsm_mae_m.push_back(c.mae_m);
+  return entry;
+}
+
+// The city's grid: the union of its AOIs' grids, at the finest of their
+// pixel sizes.
+DsmGrid CityGrid(const std::vector<AoiCatalog>& aois, double gsd_m) {
+  double min_e = 1e300, min_n = 1e300, max_e = -1e300, max_n = -1e300, gsd = 1e300;
+  for (const AoiCatalog& a : aois) {
+    const DsmGrid g = ProductGrid(a, gsd_m);
+    min_e = std::min(min_e, g.upper_left_easting_m);
+    max_n = std::max(max_n, g.upper_left_northing_m);
+    max_e = std::max(max_e, g.upper_left_easting_m + g.width_px * g.gsd_m);
+    min_n = std::min(min_n, g.upper_left_northing_m - g.height_px * g.gsd_m);
+    gsd = std::min(gsd, g.gsd_m);
+  }
+  return GridOfBounds(min_e, min_n, max_e, max_n, gsd, aois.front().epsg, "city");
+}
+
+// ortho_city.tif, dtm_city.tif and quality_city.tif over all of a city's
+// AOIs, like scene/dsm_city.tif; a city of one AOI has its AOI's.
+json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& aois, const AoiScene& s,
+                      const fs::path& city_dir) {
+  if (aois.size() < 2) return {{"left_out", "one AOI: its own products are the city's"}};
+  const ProductOptions& po = options.products;
+  DsmGrid dsm = CityGrid(aois, po.gsd_m);
+  std::vector<float> rgb;
+  RasterizeDsm(s.scene, s.enu_origin, options.dsm.export_options, &dsm, po.ortho ? &rgb : nullptr);
+  const DenseLayers layers = SampleDenseLayers(s.dense_tiles, s.enu_origin, dsm);
+  json files = json::object();
+  if (po.ortho) {
+    const std::string path = (city_dir / "ortho_city.tif").string();
+    WriteOrthoCog(path, dsm, rgb, {Panchromatic(aois.front()), po.ortho_bits},
+                  {{"ORTHO_SOURCE", "nadir render of the city's trained scene"}});
+    files["ortho"] = path;
+  }
+  if (po.terrain) {
+    const std::string path = (city_dir / "dtm_city.tif").string();
+    WriteHeights(path, layers.dtm, po.vertical_datum);
+    files["dtm"] = path;
+  }
+  if (po.quality) {
+    const std::string path = (city_dir / "quality_city.tif").string();
+    WriteQualityCog(path, dsm, layers, GaussianHeightSpreadM(s.scene, s.enu_origin, dsm, po.min_opacity));
+    files["quality"] = path;
+  }
+  return files;
+}
+
+}  // namespace
+
+AoiProducts WriteAoiProducts(const RunOptions& options, const std::vector<AoiCatalog>& aois,
+                             const MergeSummary& merged, const std::vector<std::string>& tile_dirs,
+                             const std::string& out_dir, json* stages, CityOutcome* outcome, Progress& progress) {
+  AoiProducts out;
+  const GaussianCloud scene = ReadGaussiansPly(merged.surface_path);
+  const std::vector<DenseTileCells> dense_tiles = ReadDenseTiles(tile_dirs);
+  const DenseClouds dense = DenseCellsAsGaussians(dense_tiles);
+  const AoiScene s{scene, merged.enu_origin, dense_tiles};
+  for (const AoiCatalog& a : aois) {
+    Stopwatch clock;
+    json comparison;
+    out.products.push_back(WriteOneAoi(options, a, s, dense, out_dir, &comparison, outcome, progress));
+    if (!comparison.is_null()) {
+      out.comparisons.push_back(comparison);
+      Emit(progress, "info", "dsm", a.aoi, "", "DSM compared with the truth",
+           {{"mae_m", comparison.at("mae_m")},
+            {"rmse_m", comparison.at("rmse_m")},
+            {"median_abs_m", comparison.at("median_abs_m")},
+            {"nmad_m", comparison.at("nmad_m")},
+            {"completeness", comparison.at("completeness")},
+            {"within_1m", comparison.at("within_1m")},
+            {"seconds", clock.Seconds()}});
+    }
+    stages->push_back(StageEntry("products " + a.aoi, "ok", clock.Seconds()));
+  }
+  Stopwatch clock;
+  out.city = WriteCityMosaics(options, aois, s, fs::path(out_dir) / outcome->city);
+  stages->push_back(StageEntry("products city", "ok", clock.Seconds()));
+  return out;
+}
+
+}  // namespace skyfall
