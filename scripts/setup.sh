@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libtbb-dev
-  libgdal-dev gdal-bin
+  libgdal-dev gdal-bin python3-gdal libproj-dev proj-data
   libgeographiclib-dev
   libopencv-dev libceres-dev
   libopenvdb-dev libboost-iostreams-dev
