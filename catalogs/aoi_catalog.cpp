@@ -157,7 +157,7 @@ ImageRecord ImageFromJson(const json& j) {
 }
 
 json TruthToJson(const TruthGrid& t) {
-  return {{"dsm_path", t.dsm_path},
+  json j = {{"dsm_path", t.dsm_path},
           {"dsm_txt_path", t.dsm_txt_path},
           {"cls_path", t.cls_path.empty() ? json(nullptr) : json(t.cls_path)},
           {"epsg", t.epsg},
@@ -169,6 +169,8 @@ json TruthToJson(const TruthGrid& t) {
           {"gsd_m", t.gsd_m},
           {"min_height_m", t.min_height_m},
           {"max_height_m", t.max_height_m}};
+  if (!t.ortho_path.empty()) j["ortho_path"] = t.ortho_path;
+  return j;
 }
 
 TruthGrid TruthFromJson(const json& j) {
@@ -176,6 +178,7 @@ TruthGrid TruthFromJson(const json& j) {
   t.dsm_path = j.at("dsm_path").get<std::string>();
   t.dsm_txt_path = j.at("dsm_txt_path").get<std::string>();
   t.cls_path = j.at("cls_path").is_null() ? "" : j.at("cls_path").get<std::string>();
+  t.ortho_path = j.value("ortho_path", std::string());
   t.epsg = catalogs::JsonInt(j.at("epsg"), "truth", "epsg");
   t.lower_left_easting_m = j.at("lower_left_easting_m").get<double>();
   t.lower_left_northing_m = j.at("lower_left_northing_m").get<double>();

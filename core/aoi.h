@@ -60,6 +60,7 @@ struct TruthGrid {
   std::string dsm_path;
   std::string dsm_txt_path;
   std::string cls_path;              // empty when there is no CLS raster
+  std::string ortho_path;            // true orthophoto on the DSM's grid (the synthetic city's); empty: none
   int epsg = 0;                      // UTM EPSG code, e.g. 32617
   double lower_left_easting_m = 0;   // from _DSM.txt, lower-left corner convention
   double lower_left_northing_m = 0;

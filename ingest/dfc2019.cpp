@@ -238,6 +238,8 @@ TruthGrid ReadTruth(const std::string& aoi, const AoiFiles& files) {
   t.dsm_txt_path = (dir / (aoi + "_DSM.txt")).string();
   const fs::path cls = dir / (aoi + "_CLS.tif");
   if (fs::exists(cls)) t.cls_path = cls.string();
+  const fs::path ortho = dir / (aoi + "_ORTHO.tif");
+  if (fs::exists(ortho)) t.ortho_path = ortho.string();
   if (!fs::exists(t.dsm_txt_path)) {
     throw Error("ingest", t.dsm_txt_path, "is missing (the DSM grid cannot be georeferenced)");
   }

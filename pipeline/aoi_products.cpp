@@ -216,6 +216,17 @@ json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& g
   const std::string path = (aoi_dir / "ortho.tif").string();
   WriteOrthoCog(path, grid, rgb, {Panchromatic(a), options.products.ortho_bits}, metadata);
   json entry = {{"path", path}, {"grey", Panchromatic(a)}, {"bits", options.products.ortho_bits}};
+  if (nadir && a.truth && !a.truth->ortho_path.empty()) {
+    const OrthoAgreement exact = CompareOrthoWithTruth(rgb, ReadNormalizedImage(a.truth->ortho_path, nadir->radiometry));
+    progress.Info(fmt::format("[{}] ortho vs the exact orthophoto on {} cells: PSNR {:.2f} dB, SSIM {:.3f}", a.aoi,
+                              exact.cells, exact.psnr_db, exact.ssim));
+    entry["versus_ortho_truth"] = {{"truth", a.truth->ortho_path},
+                                   {"cells", exact.cells},
+                                   {"psnr_db", Finite(exact.psnr_db)},
+                                   {"ssim", Finite(exact.ssim)},
+                                   {"shift_col_px", exact.shift_col_px},
+                                   {"shift_row_px", exact.shift_row_px}};
+  }
   if (!truth || truth->cls.empty() || !nadir) return entry;
   const OrthoAgreement agree =
       CompareOrthoWithImage(rgb, truth->dsm, truth->cls, ReadNormalizedImage(nadir->path, nadir->radiometry),
@@ -279,6 +290,8 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
     entry["ortho"] = WriteOrtho(options, a, pred, rgb, truth ? &*truth : nullptr, aoi_dir, progress);
     if (truth && entry["ortho"].contains("versus_nadir_image"))
       (*comparison)["ortho"] = entry["ortho"]["versus_nadir_image"];
+    if (truth && entry["ortho"].contains("versus_ortho_truth"))
+      (*comparison)["ortho_truth"] = entry["ortho"]["versus_ortho_truth"];
   } else {
     left_out.push_back("ortho.tif (products.ortho off)");
   }

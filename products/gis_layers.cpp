@@ -408,24 +408,25 @@ double MaskedSsim(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
 
 }  // namespace
 
-OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const DsmGrid& truth,
-                                     const std::vector<float>& cls, const NormalizedImage& image, const RpcModel& rpc,
-                                     double view_zenith_deg, double view_azimuth_deg, int max_shift_px) {
-  OrthoAgreement out;
-  const int nx = truth.width_px, ny = truth.height_px;
-  if (cls.size() != Pixels(truth) || ortho_rgb.size() != 3 * Pixels(truth)) return out;
-  cv::Mat seen = ImageOnTruthGrid(truth, image, rpc);
-  const std::vector<std::uint8_t> hidden = HiddenFromView(truth, view_zenith_deg, view_azimuth_deg);
-  for (int r = 0; r < ny; ++r)
-    for (int c = 0; c < nx; ++c)
-      if (hidden[static_cast<std::size_t>(r) * nx + c]) seen.at<float>(r, c) = kNan;
-  cv::Mat ortho(ny, nx, CV_32F);
+namespace {
+
+// Grey levels of an interleaved RGB raster (NaN stays NaN).
+cv::Mat GreyOf(const std::vector<float>& rgb, int nx, int ny) {
+  cv::Mat grey(ny, nx, CV_32F);
   for (int r = 0; r < ny; ++r)
     for (int c = 0; c < nx; ++c) {
       const std::size_t p = static_cast<std::size_t>(r) * nx + c;
-      ortho.at<float>(r, c) = (ortho_rgb[3 * p] + ortho_rgb[3 * p + 1] + ortho_rgb[3 * p + 2]) / 3.0f;
+      grey.at<float>(r, c) = (rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]) / 3.0f;
     }
-  // The ortho shifted by (dx, dy) against the image, on ground cells both hold.
+  return grey;
+}
+
+// The ortho at (col + dx, row + dy) against the reference at (col, row), on
+// the cells `usable` marks where both hold a value: the shift within
+// `max_shift_px` of least squared error, its PSNR and SSIM.
+OrthoAgreement Agreement(const cv::Mat& ortho, const cv::Mat& reference, const cv::Mat& usable, int max_shift_px) {
+  OrthoAgreement out;
+  const int nx = ortho.cols, ny = ortho.rows;
   auto shifted = [&](int dx, int dy, cv::Mat* moved, cv::Mat* mask) {
     *moved = cv::Mat(ny, nx, CV_32F, cv::Scalar(kNan));
     *mask = cv::Mat::zeros(ny, nx, CV_8U);
@@ -433,10 +434,9 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
       for (int c = 0; c < nx; ++c) {
         const int sc = c + dx, sr = r + dy;
         if (sc < 0 || sr < 0 || sc >= nx || sr >= ny) continue;
-        const float v = ortho.at<float>(sr, sc), w = seen.at<float>(r, c);
+        const float v = ortho.at<float>(sr, sc), w = reference.at<float>(r, c);
         moved->at<float>(r, c) = v;
-        if (std::isfinite(v) && std::isfinite(w) && ClassCodeOf(cls[static_cast<std::size_t>(r) * nx + c]) == kGroundClass)
-          mask->at<std::uint8_t>(r, c) = 255;
+        if (std::isfinite(v) && std::isfinite(w) && usable.at<std::uint8_t>(r, c)) mask->at<std::uint8_t>(r, c) = 255;
       }
   };
   double best_mse = std::numeric_limits<double>::infinity();
@@ -449,7 +449,7 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
       for (int r = 0; r < ny; ++r)
         for (int c = 0; c < nx; ++c)
           if (mask.at<std::uint8_t>(r, c)) {
-            const double d = moved.at<float>(r, c) - seen.at<float>(r, c);
+            const double d = moved.at<float>(r, c) - reference.at<float>(r, c);
             sum += d * d;
             ++n;
           }
@@ -464,11 +464,42 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
   out.psnr_db = 10.0 * std::log10(1.0 / std::max(best_mse, 1e-12));
   cv::Mat moved, mask;
   shifted(out.shift_col_px, out.shift_row_px, &moved, &mask);
-  cv::Mat a = moved.clone(), b = seen.clone();
+  cv::Mat a = moved.clone(), b = reference.clone();
   a.setTo(0, ~mask);
   b.setTo(0, ~mask);
   out.ssim = MaskedSsim(a, b, mask);
   return out;
+}
+
+}  // namespace
+
+OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const DsmGrid& truth,
+                                     const std::vector<float>& cls, const NormalizedImage& image, const RpcModel& rpc,
+                                     double view_zenith_deg, double view_azimuth_deg, int max_shift_px) {
+  const int nx = truth.width_px, ny = truth.height_px;
+  if (cls.size() != Pixels(truth) || ortho_rgb.size() != 3 * Pixels(truth)) return {};
+  const cv::Mat seen = ImageOnTruthGrid(truth, image, rpc);
+  const std::vector<std::uint8_t> hidden = HiddenFromView(truth, view_zenith_deg, view_azimuth_deg);
+  cv::Mat ground = cv::Mat::zeros(ny, nx, CV_8U);
+  for (int r = 0; r < ny; ++r)
+    for (int c = 0; c < nx; ++c) {
+      const std::size_t p = static_cast<std::size_t>(r) * nx + c;
+      if (!hidden[p] && ClassCodeOf(cls[p]) == kGroundClass) ground.at<std::uint8_t>(r, c) = 255;
+    }
+  return Agreement(GreyOf(ortho_rgb, nx, ny), seen, ground, max_shift_px);
+}
+
+OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const NormalizedImage& truth, int max_shift_px) {
+  const int nx = truth.width_px, ny = truth.height_px;
+  if (ortho_rgb.size() != 3 * static_cast<std::size_t>(nx) * ny) return {};
+  cv::Mat reference(ny, nx, CV_32F), valid(ny, nx, CV_8U);
+  for (int r = 0; r < ny; ++r)
+    for (int c = 0; c < nx; ++c) {
+      const std::size_t p = static_cast<std::size_t>(r) * nx + c;
+      reference.at<float>(r, c) = (truth.rgb[3 * p] + truth.rgb[3 * p + 1] + truth.rgb[3 * p + 2]) / 3.0f;
+      valid.at<std::uint8_t>(r, c) = truth.valid[p] ? 255 : 0;
+    }
+  return Agreement(GreyOf(ortho_rgb, nx, ny), reference, valid, max_shift_px);
 }
 
 std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmGrid& dtm,

@@ -102,6 +102,12 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
                                      const std::vector<float>& cls, const NormalizedImage& image, const RpcModel& rpc,
                                      double view_zenith_deg, double view_azimuth_deg, int max_shift_px = 3);
 
+// The orthophoto against an exact orthophoto on its grid (the synthetic
+// city's <AOI>_ORTHO.tif, read with the nadir image's radiometry): every cell
+// the truth holds, buildings included.
+OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const NormalizedImage& truth,
+                                     int max_shift_px = 3);
+
 // The scene's Gaussians of at least `min_opacity` on the DTM's grid (the
 // AOI) as points in its UTM zone, heights in `reference` (kEllipsoid or
 // kEgm96); ground (class 2)

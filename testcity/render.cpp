@@ -188,7 +188,10 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     const std::size_t k = city.Index(tr.i, tr.j);
     const double h = city.height_m[k];
     const double z_enter = o.z() + t_enter * d.z();
-    const double t_exit = tr.NextBoundary();
+    // A vertical ray (an orthophoto's) never crosses a cell boundary: it
+    // leaves its column at the city's floor instead.
+    double t_exit = tr.NextBoundary();
+    if (!std::isfinite(t_exit)) t_exit = (city.min_height_m - 1.0 - o.z()) / d.z();
     const double z_exit = o.z() + t_exit * d.z();
     const bool terrain = OnTerrain(city, k);
     const SmoothTop smooth = SmoothTopOf(city, k);

@@ -391,6 +391,24 @@ void WriteSensorImage(const std::string& path, const RenderedView& img, const Sy
   WriteUInt16Tiff(path, img.width_px, img.height_px, o.bands, dn.data(), write);
 }
 
+// <AOI>_ORTHO.tif beside the truth DSM, on its grid: the city's exact true
+// orthophoto (RenderOrtho), lit as the AOI's view closest to nadir and
+// written with the sensor's bands and bit depth, so that it reads with that
+// view's radiometry.
+void WriteOrthoTruth(const SynthResult& r, const SynthAoi& aoi, const SynthOptions& o, const fs::path& root) {
+  if (aoi.views.empty()) return;
+  const SynthView& nadir = *std::min_element(aoi.views.begin(), aoi.views.end(), [](const SynthView& a, const SynthView& b) {
+    return a.view_zenith_deg < b.view_zenith_deg;
+  });
+  const int n = static_cast<int>(std::lround(o.size_m / o.gsd_m));
+  RenderedView ortho;
+  ortho.width_px = ortho.height_px = n;
+  ortho.rgb = RenderOrtho(r.city, nadir.lighting, aoi.x0_m, aoi.y0_m + o.size_m, o.gsd_m, n, n);
+  RasterWriteOptions write;
+  write.metadata["LIT_AS"] = nadir.name;
+  WriteSensorImage((root / "Track3-Truth" / (aoi.name + "_ORTHO.tif")).string(), ortho, o, write);
+}
+
 // Uniform in [0, 1) from the generator's top 53 bits.
 double Unit(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 double Uniform(std::mt19937_64& rng, double lo, double hi) { return lo + (hi - lo) * Unit(rng); }
@@ -624,6 +642,7 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
       WriteFileAtomic((json_dir / "train.txt").string(), train);
       WriteFileAtomic((json_dir / "test.txt").string(), test);
       WriteTruth(r, aoi, o, root);
+      WriteOrthoTruth(r, aoi, o, root);
       r.aois.push_back(aoi);
     }
   }
