@@ -14,25 +14,12 @@
 namespace skyfall {
 namespace {
 
-using testing::LookingDown;
-using testing::TwoBuildingsView;
+constexpr double kStreetHalfM = testing::StreetScene::kStreetHalfM;
 
-constexpr double kStreetHalfM = 2.0, kBuildingM = 20.0;
-
-// Two 20 m buildings either side of a 4 m north-south street, seen by six
-// views: nadir, two along the street and three across it.
 DenseResult StreetScene() {
   NullProgress progress;
-  std::vector<DenseView> views;
-  const double zenith_deg[] = {0, 12, 18, 22, 15, 10}, azimuth_deg[] = {0, 90, 270, 0, 180, 180};
-  for (int v = 0; v < 6; ++v)
-    views.push_back(TwoBuildingsView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
-                                     kStreetHalfM, kBuildingM));
-  std::vector<DensePair> pairs;
-  for (int a = 0; a < 6; ++a)
-    for (int b = a + 1; b < 6; ++b) pairs.push_back({a, b, 100});
-  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
-  return RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  const testing::StreetScene scene = testing::StreetBetweenTwoBuildings();
+  return RunDenseHeights(DenseOptions{}, scene.views, scene.pairs, scene.points, progress);
 }
 
 bool OnRoof(double x, double y) { return std::abs(y) < 11 && std::abs(x) > kStreetHalfM + 1 && std::abs(x) < kStreetHalfM + 11; }

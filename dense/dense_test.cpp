@@ -17,7 +17,6 @@ namespace {
 
 using testing::LookingDown;
 using testing::TexturedView;
-using testing::TwoBuildingsView;
 
 int ArgMin(const std::vector<float>& volume, std::size_t cell, int heights) {
   const float* s = volume.data() + cell * heights;
@@ -477,17 +476,9 @@ StepBand BrightRoofBand(const HeightGrid& g, double roof_m, double from_m, doubl
 // pass, no view sees the street's floor there and it stays a roof.
 TEST(Dense, AStreetBetweenRoofsIsNotHiddenByItsOwnFilling) {
   NullProgress progress;
-  constexpr double kStreetHalfM = 2.0, kBuildingM = 20.0;
-  std::vector<DenseView> views;
-  const double zenith_deg[] = {0, 12, 18, 22, 15, 10}, azimuth_deg[] = {0, 90, 270, 0, 180, 180};
-  for (int v = 0; v < 6; ++v)
-    views.push_back(TwoBuildingsView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
-                                     kStreetHalfM, kBuildingM));
-  std::vector<DensePair> pairs;
-  for (int a = 0; a < 6; ++a)
-    for (int b = a + 1; b < 6; ++b) pairs.push_back({a, b, 100});
-  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
-  const DenseResult r = RunDenseHeights(DenseOptions{}, views, pairs, points, progress);
+  constexpr double kStreetHalfM = testing::StreetScene::kStreetHalfM, kBuildingM = testing::StreetScene::kBuildingM;
+  const testing::StreetScene scene = testing::StreetBetweenTwoBuildings();
+  const DenseResult r = RunDenseHeights(DenseOptions{}, scene.views, scene.pairs, scene.points, progress);
   ASSERT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
   const HeightGrid& g = r.grid;
   int n = 0, ground = 0, roof = 0;

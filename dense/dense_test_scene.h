@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "core/pinhole.h"
 #include "dense/dense.h"
@@ -131,6 +132,26 @@ inline DenseView TwoBuildingsView(const std::string& name, const PinholeCamera& 
       v.pixels[static_cast<std::size_t>(row) * v.width_px + col] = grey;
     }
   return v;
+}
+
+// Two 20 m buildings either side of a 4 m north-south street, seen by six
+// views (nadir, along the street and across it), every pair matched, and
+// tie points at the ground's corners and on a roof.
+struct StreetScene {
+  static constexpr double kStreetHalfM = 2.0, kBuildingM = 20.0;
+  std::vector<DenseView> views;
+  std::vector<DensePair> pairs;
+  std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {-8, 0, kBuildingM}};
+};
+inline StreetScene StreetBetweenTwoBuildings() {
+  StreetScene s;
+  const double zenith_deg[] = {0, 12, 18, 22, 15, 10}, azimuth_deg[] = {0, 90, 270, 0, 180, 180};
+  for (int v = 0; v < 6; ++v)
+    s.views.push_back(TwoBuildingsView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128),
+                                       StreetScene::kStreetHalfM, StreetScene::kBuildingM));
+  for (int a = 0; a < 6; ++a)
+    for (int b = a + 1; b < 6; ++b) s.pairs.push_back({a, b, 100});
+  return s;
 }
 
 }  // namespace skyfall::testing

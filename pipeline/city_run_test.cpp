@@ -171,6 +171,28 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));
   EXPECT_EQ(ReadJson(city_dir / "run_config.json"), report["options"]);
   ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 2u);
+  // The city's mosaics span both AOIs and agree with each AOI's own layer
+  // where they overlap: both are sampled from the same cells on grids that
+  // share their pixel edges.
+  for (const char* name : {"ortho_city.tif", "dtm_city.tif", "quality_city.tif"})
+    EXPECT_TRUE(fs::exists(city_dir / name)) << name;
+  const DsmGrid city_dtm = ReadDsm((city_dir / "dtm_city.tif").string());
+  EXPECT_EQ(city_dtm.width_px, 2 * 96 * 2);  // 192 m at 0.5 m
+  for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
+    const DsmGrid own = ReadDsm((dir / "out" / aoi / "dtm.tif").string());
+    const double col0 = (own.upper_left_easting_m - city_dtm.upper_left_easting_m) / own.gsd_m;
+    const double row0 = (city_dtm.upper_left_northing_m - own.upper_left_northing_m) / own.gsd_m;
+    ASSERT_NEAR(col0, std::round(col0), 1e-6);
+    ASSERT_NEAR(row0, std::round(row0), 1e-6);
+    int same = 0, compared = 0;
+    for (int r = 0; r < own.height_px; ++r)
+      for (int c = 0; c < own.width_px; ++c) {
+        const float a = own.At(c, r), b = city_dtm.At(c + static_cast<int>(std::lround(col0)), r + static_cast<int>(std::lround(row0)));
+        ++compared;
+        same += (std::isnan(a) && std::isnan(b)) || std::abs(a - b) < 1e-4f;
+      }
+    EXPECT_EQ(same, compared) << aoi;
+  }
   // Dense heights alone and trained scene, side by side, per AOI.
   for (const auto& d : report["dsm"]) {
     EXPECT_TRUE(std::isfinite(d["dense"]["mae_m"].get<double>())) << d.dump();

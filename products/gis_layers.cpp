@@ -92,6 +92,24 @@ int OwnerTile(const std::vector<DenseTileCells>& tiles, const std::vector<CellLa
 
 float LayerAt(const std::vector<float>& layer, int k) { return layer.empty() ? kNan : layer[k]; }
 
+// Calls visit(i, opacity, geodetic, utm, pixel) for each Gaussian of at least
+// `min_opacity` whose centre lies on `grid`.
+template <typename Visit>
+void ForGaussiansOnGrid(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmGrid& grid,
+                        double min_opacity, const Visit& visit) {
+  const EnuFrame frame(enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(grid.epsg);
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const double opacity = 1.0 / (1.0 + std::exp(-static_cast<double>(scene.opacity_logits[i])));
+    if (opacity < min_opacity) continue;
+    const GeodeticPoint g = frame.GeodeticFromEnu(scene.means[i].cast<double>());
+    const Eigen::Vector2d utm = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
+    const Eigen::Vector2i px = PixelOfUtm(grid, utm.x(), utm.y());
+    if (px.x() < 0) continue;  // another AOI's, or the tiles' margin beyond the city
+    visit(i, opacity, g, utm, px);
+  }
+}
+
 }  // namespace
 
 DenseLayers SampleDenseLayers(const std::vector<DenseTileCells>& tiles, const GeodeticPoint& enu_origin,
@@ -129,26 +147,21 @@ DenseLayers SampleDenseLayers(const std::vector<DenseTileCells>& tiles, const Ge
 
 std::vector<float> GaussianHeightSpreadM(const GaussianCloud& scene, const GeodeticPoint& enu_origin,
                                          const DsmGrid& grid, double min_opacity) {
-  const EnuFrame frame(enu_origin);
-  const UtmZone zone = UtmZoneFromEpsg(grid.epsg);
   std::vector<double> weight(Pixels(grid), 0.0), mean(Pixels(grid), 0.0), second(Pixels(grid), 0.0);
-  for (std::size_t i = 0; i < scene.size(); ++i) {
-    const double opacity = 1.0 / (1.0 + std::exp(-static_cast<double>(scene.opacity_logits[i])));
-    if (opacity < min_opacity) continue;
-    const GeodeticPoint g = frame.GeodeticFromEnu(scene.means[i].cast<double>());
-    const Eigen::Vector2d utm = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
-    const Eigen::Vector2i px = PixelOfUtm(grid, utm.x(), utm.y());
-    if (px.x() < 0) continue;
-    // The Gaussian's own vertical variance: (R S^2 R^T)_zz.
-    const Eigen::Vector4d q = scene.rotations[i].cast<double>();  // (w, x, y, z)
-    const Eigen::Matrix3d r = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
-    const Eigen::Vector3d s2 = (2.0 * scene.log_scales[i].cast<double>()).array().exp();
-    const double var_z = (r.row(2).array().square() * s2.transpose().array()).sum();
-    const std::size_t p = static_cast<std::size_t>(px.y()) * grid.width_px + px.x();
-    weight[p] += opacity;
-    mean[p] += opacity * g.height_m;
-    second[p] += opacity * (g.height_m * g.height_m + var_z);
-  }
+  ForGaussiansOnGrid(scene, enu_origin, grid, min_opacity,
+                     [&](std::size_t i, double opacity, const GeodeticPoint& g, const Eigen::Vector2d&,
+                         const Eigen::Vector2i& px) {
+                       // The Gaussian's own vertical variance: (R S^2 R^T)_zz.
+                       const Eigen::Vector4d q = scene.rotations[i].cast<double>();  // (w, x, y, z)
+                       const Eigen::Matrix3d r =
+                           Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+                       const Eigen::Vector3d s2 = (2.0 * scene.log_scales[i].cast<double>()).array().exp();
+                       const double var_z = (r.row(2).array().square() * s2.transpose().array()).sum();
+                       const std::size_t p = static_cast<std::size_t>(px.y()) * grid.width_px + px.x();
+                       weight[p] += opacity;
+                       mean[p] += opacity * g.height_m;
+                       second[p] += opacity * (g.height_m * g.height_m + var_z);
+                     });
   std::vector<float> spread(Pixels(grid), kNan);
   for (std::size_t p = 0; p < spread.size(); ++p) {
     if (weight[p] <= 0) continue;
@@ -506,33 +519,27 @@ std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoin
                                   HeightReference reference, double min_opacity, double ground_tolerance_m) {
   if (reference == HeightReference::kAboveTerrain)
     throw Error("products", "points", "a point cloud's heights need a datum (ellipsoid or egm96)");
-  const EnuFrame frame(enu_origin);
-  const UtmZone zone = UtmZoneFromEpsg(dtm.epsg);
   std::vector<LasPoint> points;
   std::vector<Eigen::Vector2d> lon_lat;
-  for (std::size_t i = 0; i < scene.size(); ++i) {
-    const double opacity = 1.0 / (1.0 + std::exp(-static_cast<double>(scene.opacity_logits[i])));
-    if (opacity < min_opacity) continue;
-    const GeodeticPoint g = frame.GeodeticFromEnu(scene.means[i].cast<double>());
-    const Eigen::Vector2d utm = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
-    const Eigen::Vector2i px = PixelOfUtm(dtm, utm.x(), utm.y());
-    if (px.x() < 0) continue;  // another AOI's, or the tiles' margin beyond the city
-    LasPoint p;
-    p.easting_m = utm.x();
-    p.northing_m = utm.y();
-    p.height_m = g.height_m;
-    auto level = [&](int c) {
-      const double colour = kShC0 * scene.sh[i][c * kShCoeffsPerChannel] + 0.5;
-      return static_cast<std::uint16_t>(std::lround(std::clamp(colour, 0.0, 1.0) * 65535.0));
-    };
-    p.red = level(0);
-    p.green = level(1);
-    p.blue = level(2);
-    const float ground = dtm.At(px.x(), px.y());
-    p.classification = std::isfinite(ground) && g.height_m - ground <= ground_tolerance_m ? 2 : 1;
-    points.push_back(p);
-    lon_lat.emplace_back(g.lon_deg, g.lat_deg);
-  }
+  ForGaussiansOnGrid(scene, enu_origin, dtm, min_opacity,
+                     [&](std::size_t i, double, const GeodeticPoint& g, const Eigen::Vector2d& utm,
+                         const Eigen::Vector2i& px) {
+                       LasPoint p;
+                       p.easting_m = utm.x();
+                       p.northing_m = utm.y();
+                       p.height_m = g.height_m;
+                       auto level = [&](int c) {
+                         const double colour = kShC0 * scene.sh[i][c * kShCoeffsPerChannel] + 0.5;
+                         return static_cast<std::uint16_t>(std::lround(std::clamp(colour, 0.0, 1.0) * 65535.0));
+                       };
+                       p.red = level(0);
+                       p.green = level(1);
+                       p.blue = level(2);
+                       const float ground = dtm.At(px.x(), px.y());
+                       p.classification = std::isfinite(ground) && g.height_m - ground <= ground_tolerance_m ? 2 : 1;
+                       points.push_back(p);
+                       lon_lat.emplace_back(g.lon_deg, g.lat_deg);
+                     });
   if (reference == HeightReference::kEgm96) {
     const std::vector<double> n = Egm96UndulationsM(lon_lat);
     for (std::size_t k = 0; k < points.size(); ++k) points[k].height_m -= n[k];
