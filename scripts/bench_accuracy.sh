@@ -118,8 +118,20 @@ for e in "${FIXED[@]}"; do
   if [ "$t" = true ]; then TUNED="$TUNED$n,"; fi
 done
 python3 - "$OUT" "$SIZE" "$TUNED" <<'PY'
-import json, os, sys
+import json, os, subprocess, sys
 out, size = sys.argv[1], int(sys.argv[2])
+COG_CHECK = "/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_cloud_optimized_geotiff.py"
+def cogs_valid(products):
+    # How many of the AOI's rasters GDAL's own COG validator accepts, of how many.
+    paths = [products.get(k) for k in ("dsm", "dtm", "ndsm", "quality")] + [(products.get("ortho") or {}).get("path")]
+    paths = [p for p in paths if p and os.path.isfile(p)]
+    ok = sum(subprocess.run(["/usr/bin/python3", COG_CHECK, "-q", p]).returncode == 0 for p in paths)
+    return [ok, len(paths)]
+def stac_valid(run_dir):
+    # The catalog against the official schemas, with every checksum and link (tests/stac_validate.py).
+    result = subprocess.run(["/usr/bin/python3", "tests/stac_validate.py", os.path.join(run_dir, "catalog.json"),
+                             "../shared/schemas"], capture_output=True, text=True)
+    return result.returncode == 0
 tuned = set(filter(None, sys.argv[3].split(",")))
 scenes = []
 def synth_options(name):
@@ -200,6 +212,8 @@ for name in sorted(os.listdir(out)):
         # The synthetic city's exact orthophoto (skyfall synth's _ORTHO.tif), every cell.
         "ortho_truth_psnr_db": (d.get("ortho_truth") or {}).get("psnr_db"),
         "ortho_truth_ssim": (d.get("ortho_truth") or {}).get("ssim"),
+        "products_cogs_valid": cogs_valid((report.get("products") or [{}])[0]),
+        "stac_valid": stac_valid(os.path.join(out, name, "run")),
         "tuned_on": name in tuned,
         "synthetic_size_m": (synth_options(name) or {}).get("size_m"),
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
@@ -252,12 +266,14 @@ for s in scenes:
 lines += ["", "The GIS products against the truth: the DTM on ground cells, the nDSM on buildings (the",
           "truth less the terrain model through its ground cells), the orthophoto against the input closest",
           "to nadir on the ground it sees, and (synthetic scenes) against the exact orthophoto everywhere.", "",
-          "| scene | DTM MAE (ground) | nDSM MAE (buildings) | ortho PSNR | ortho SSIM | vs exact ortho: PSNR | SSIM |",
-          "|---|---|---|---|---|---|---|"]
+          "| scene | DTM MAE (ground) | nDSM MAE (buildings) | ortho PSNR | ortho SSIM | vs exact ortho: PSNR | SSIM | valid COGs | STAC valid |",
+          "|---|---|---|---|---|---|---|---|---|"]
 for s in scenes:
+    cogs = s["products_cogs_valid"]
     lines.append(f"| {s['scene']} | {fmt(s['dtm_mae_ground_m'], suffix=' m')} | {fmt(s['ndsm_mae_building_m'], suffix=' m')} | "
                  f"{fmt(s['ortho_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_ssim'], 3)} | "
-                 f"{fmt(s['ortho_truth_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_truth_ssim'], 3)} |")
+                 f"{fmt(s['ortho_truth_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_truth_ssim'], 3)} | "
+                 f"{cogs[0]}/{cogs[1]} | {'yes' if s['stac_valid'] else 'no'} |")
 described = [s for s in scenes if s["synth_options"]]
 if described:
     lines += ["", "The synthetic scenes' options (`skyfall synth`; drawn scenes: `--draw K`):", "",
