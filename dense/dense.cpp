@@ -281,7 +281,7 @@ void CountSeeingViews(const Sweep& sweep, const ViewSlots& v, const std::vector<
       for (int i = 0; i < g->nx; ++i) {
         const std::size_t k = g->Index(i, j);
         const float h = g->height_m[k];
-        if (!std::isfinite(h) || h + o.visibility_tolerance_m < seen_above[s][k]) continue;
+        if (!std::isfinite(h) || h < seen_above[s][k]) continue;  // SeenAbove has the tolerance in it
         const Eigen::Vector2d px = view.camera.Project({g->x0_m + i * g->cell_m, g->y0_m + j * g->cell_m, h});
         if (px.x() < -0.5 || px.y() < -0.5 || px.x() > view.width_px - 0.5 || px.y() > view.height_px - 0.5) continue;
         g->views[k] = static_cast<std::uint8_t>(std::min(255, g->views[k] + 1));

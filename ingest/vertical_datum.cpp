@@ -33,8 +33,8 @@ Srs SrsFromUser(const std::string& definition) {
   return Srs(srs);
 }
 
-std::string Wkt2(OGRSpatialReferenceH srs) {
-  const char* options[] = {"FORMAT=WKT2_2019", nullptr};
+std::string Wkt(OGRSpatialReferenceH srs, bool wkt1) {
+  const char* options[] = {wkt1 ? "FORMAT=WKT1_GDAL" : "FORMAT=WKT2_2019", nullptr};
   char* wkt = nullptr;
   OSRExportToWktEx(srs, &wkt, options);
   std::string out = wkt ? wkt : "";
@@ -44,14 +44,25 @@ std::string Wkt2(OGRSpatialReferenceH srs) {
 
 }  // namespace
 
-std::string HeightCrsWkt(int epsg, std::optional<HeightReference> reference) {
+std::string HeightCrsWkt(int epsg, std::optional<HeightReference> reference, bool wkt1) {
   gdal::EnsureRegistered();
   if (reference == HeightReference::kEgm96)
-    return Wkt2(static_cast<OGRSpatialReferenceH>(
-        SrsFromUser("EPSG:" + std::to_string(epsg) + "+" + std::to_string(kEgm96HeightEpsg)).get()));
+    return Wkt(static_cast<OGRSpatialReferenceH>(
+                   SrsFromUser("EPSG:" + std::to_string(epsg) + "+" + std::to_string(kEgm96HeightEpsg)).get()),
+               wkt1);
   Srs srs = SrsFromUser("EPSG:" + std::to_string(epsg));
+  if (reference == HeightReference::kEllipsoid && wkt1) {
+    // WKT1 has no 3D projected CRS (PROJ refuses to write one): the zone
+    // with a vertical CRS whose datum is the ellipsoid (OGC 01-009's
+    // vertical datum type 2002, ellipsoidal), as LAS readers expect.
+    const std::string zone = Wkt(static_cast<OGRSpatialReferenceH>(srs.get()), true);
+    return "COMPD_CS[\"" + std::string(OSRGetName(static_cast<OGRSpatialReferenceH>(srs.get()))) +
+           " + WGS 84 ellipsoidal height\"," + zone +
+           ",VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[\"WGS_1984\",2002],UNIT[\"metre\",1,"
+           "AUTHORITY[\"EPSG\",\"9001\"]],AXIS[\"Ellipsoidal height\",UP]]]";
+  }
   if (reference == HeightReference::kEllipsoid) OSRPromoteTo3D(static_cast<OGRSpatialReferenceH>(srs.get()), nullptr);
-  return Wkt2(static_cast<OGRSpatialReferenceH>(srs.get()));
+  return Wkt(static_cast<OGRSpatialReferenceH>(srs.get()), wkt1);
 }
 
 std::string GeoTiffCrsWkt(int epsg, std::optional<HeightReference> reference) {
@@ -133,24 +144,22 @@ void ConvertHeightReference(DsmGrid* grid, HeightReference to, const std::string
 
 std::optional<HeightReference> HeightReferenceOfRaster(const std::string& path) {
   gdal::Dataset ds(gdal::OpenOrThrow(path));
-  if (const char* item = GDALGetMetadataItem(ds.handle, kHeightReferenceItem, nullptr)) {
-    if (const std::optional<HeightReference> stated = EnumFromName<HeightReference>(item)) return stated;
-    throw Error("datum", path,
-                std::string(kHeightReferenceItem) + " '" + item + "' is not " + EnumChoices<HeightReference>());
-  }
   OGRSpatialReferenceH srs = GDALGetSpatialRef(ds.handle);
-  if (!srs) return std::nullopt;
-  if (OSRIsCompound(srs)) {
-    const char* name = OSRGetAttrValue(srs, "VERT_CRS", 0);
-    if (!name) name = OSRGetAttrValue(srs, "VERT_CS", 0);
-    const char* code = OSRGetAuthorityCode(srs, "VERT_CRS");
-    if (!code) code = OSRGetAuthorityCode(srs, "VERT_CS");
+  if (srs && OSRIsCompound(srs)) {
+    const char* name = OSRGetAttrValue(srs, "VERT_CS", 0);
+    const char* code = OSRGetAuthorityCode(srs, "VERT_CS");
     if ((code && std::atoi(code) == kEgm96HeightEpsg) || (name && std::strcmp(name, "EGM96 height") == 0))
       return HeightReference::kEgm96;
     throw Error("datum", path,
                 std::string("states heights in ") + (name ? name : "an unnamed vertical CRS") +
                     ", which the run cannot convert to the WGS84 ellipsoid or EGM96 (convert it with gdalwarp first)");
   }
+  if (const char* item = GDALGetMetadataItem(ds.handle, kHeightReferenceItem, nullptr)) {
+    if (const std::optional<HeightReference> stated = EnumFromName<HeightReference>(item)) return stated;
+    throw Error("datum", path,
+                std::string(kHeightReferenceItem) + " '" + item + "' is not " + EnumChoices<HeightReference>());
+  }
+  if (!srs) return std::nullopt;
   if (OSRGetAxesCount(srs) == 3) return HeightReference::kEllipsoid;
   return std::nullopt;
 }

@@ -18,7 +18,9 @@ namespace skyfall {
 // EPSG:<epsg>+5773 (EGM96 heights), or the plain zone (no vertical CRS:
 // heights above the terrain, or values that are not heights). For STAC's
 // proj:wkt2 and the point cloud.
-std::string HeightCrsWkt(int epsg, std::optional<HeightReference> reference);
+// `wkt1` gives OGC WKT1 (GDAL's dialect: a COMPD_CS with a VERT_CS), which
+// the LAS 1.4 specification asks of a point cloud's CRS record.
+std::string HeightCrsWkt(int epsg, std::optional<HeightReference> reference, bool wkt1 = false);
 
 // The CRS a GeoTIFF gets: the compound CRS for EGM96 heights, else the
 // plain zone. GDAL 3.6 cannot put a 3D projected CRS into GeoTIFF keys (it
@@ -45,9 +47,11 @@ std::vector<double> Egm96UndulationsM(const std::vector<Eigen::Vector2d>& lon_la
 // `subject` for a conversion from or to kAboveTerrain.
 void ConvertHeightReference(DsmGrid* grid, HeightReference to, const std::string& subject);
 
-// The vertical reference a raster states: its HEIGHT_REFERENCE item (the
-// run's own rasters), else its CRS: kEllipsoid for a 3D CRS, kEgm96 for a
-// compound CRS with EGM96 height (EPSG:5773); nullopt when it states none. Throws Error naming `path` and
+// The vertical reference a raster states: a compound CRS decides (kEgm96
+// for EGM96 height, EPSG:5773; a tool that converted the heights changed
+// the CRS, not always the metadata); else its HEIGHT_REFERENCE item (the
+// run's own rasters); else kEllipsoid for a 3D CRS; nullopt when it states
+// none. Throws Error naming `path` and
 // the vertical CRS for any other (NAVD88, EGM2008...): the run cannot
 // convert it.
 std::optional<HeightReference> HeightReferenceOfRaster(const std::string& path);

@@ -1,6 +1,7 @@
 #include "ingest/vertical_datum.h"
 
 #include <gdal.h>
+#include <cpl_conv.h>
 #include <ogr_srs_api.h>
 #include <gtest/gtest.h>
 
@@ -71,7 +72,8 @@ TEST(VerticalDatum, ConversionShiftsByTheUndulationAndRoundTrips) {
   EXPECT_TRUE(std::isnan(g.height_m[7]));  // nodata stays nodata
   ConvertHeightReference(&g, HeightReference::kEllipsoid, "test");
   for (std::size_t k = 0; k < g.height_m.size(); ++k) {
-    if (k != 7) ASSERT_NEAR(g.height_m[k], 10.0f, 1e-4) << k;
+    if (k == 7) continue;
+    ASSERT_NEAR(g.height_m[k], 10.0f, 1e-4) << k;
   }
 }
 
@@ -93,9 +95,23 @@ TEST(VerticalDatum, RastersStateTheirReference) {
     const fs::path path = dir / (std::string(EnumName(r)) + ".tif");
     WriteFloatCog(path.string(), g.width_px, g.height_px, g.height_m.data(), grid);
     EXPECT_EQ(HeightReferenceOfRaster(path.string()), r);
-    // The CRS is in the GeoTIFF keys, not in a side file a copy would lose.
-    EXPECT_FALSE(fs::exists(path.string() + ".aux.xml"));
     EXPECT_EQ(ReadGeoGrid(path.string()).epsg, kUtm17N);
+    // The CRS is in the GeoTIFF keys, not in a side file a copy would lose:
+    // read with side files off, EGM96 heights are a compound CRS with
+    // EPSG:5773, ellipsoidal ones the plain zone.
+    CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");
+    GDALDatasetH ds = GDALOpen(path.c_str(), GA_ReadOnly);
+    CPLSetConfigOption("GDAL_PAM_ENABLED", nullptr);
+    ASSERT_NE(ds, nullptr);
+    OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+    ASSERT_NE(srs, nullptr) << path;
+    EXPECT_EQ(OSRIsCompound(srs) != 0, r == HeightReference::kEgm96);
+    if (r == HeightReference::kEgm96) {
+      ASSERT_NE(OSRGetAuthorityCode(srs, "VERT_CS"), nullptr);
+      EXPECT_STREQ(OSRGetAuthorityCode(srs, "VERT_CS"), "5773");
+    }
+    EXPECT_STREQ(GDALGetMetadataItem(ds, kHeightReferenceItem, nullptr), EnumName(r));
+    GDALClose(ds);
   }
   grid.heights.reset();
   WriteFloatCog((dir / "plain.tif").string(), g.width_px, g.height_px, g.height_m.data(), grid);
@@ -116,6 +132,15 @@ TEST(VerticalDatum, RastersStateTheirReference) {
   const std::string message = ErrorText([&] { HeightReferenceOfRaster(navd.string()); });
   EXPECT_NE(message.find(navd.string()), std::string::npos) << message;
   EXPECT_NE(message.find("NAVD88"), std::string::npos) << message;
+  // A tool that converted the heights changed the CRS and copied the old
+  // metadata item: the CRS decides.
+  {
+    GDALDatasetH ds = GDALOpen(navd.c_str(), GA_Update);
+    ASSERT_NE(ds, nullptr);
+    GDALSetMetadataItem(ds, kHeightReferenceItem, "egm96", nullptr);
+    GDALClose(ds);
+  }
+  EXPECT_NE(ErrorText([&] { HeightReferenceOfRaster(navd.string()); }).find("NAVD88"), std::string::npos);
 }
 
 }  // namespace

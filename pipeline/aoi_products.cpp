@@ -36,6 +36,17 @@ UtmBox FootprintUtm(const AoiCatalog& c) {
   return b;
 }
 
+void CheckOrthoImage(const ProductOptions& o, const std::vector<AoiCatalog>& aois) {
+  if (o.ortho_image.empty()) return;
+  std::string names;
+  for (const AoiCatalog& a : aois) {
+    names += (names.empty() ? "" : ", ") + a.aoi;
+    for (const ImageRecord& image : a.images)
+      if (image.name == o.ortho_image) return;
+  }
+  throw Error("products", "ortho_image", o.ortho_image + " is not an image of " + names);
+}
+
 std::vector<std::string> AoiProductFiles(const ProductOptions& o, const AoiCatalog& aoi, const std::string& out_dir) {
   const fs::path dir = fs::path(out_dir) / aoi.aoi;
   std::vector<std::string> files = {(dir / "dsm.tif").string()};
@@ -200,47 +211,84 @@ json TerrainJson(const TerrainComparison& t) {
           {"ndsm_bias_building_m", Finite(t.ndsm_bias_building_m)}, {"building_cells", t.building_cells}};
 }
 
-// ortho.tif, and its agreement with the image closest to nadir on the
-// truth's ground cells.
-json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& grid, const std::vector<float>& rgb,
+// The image whose date the orthophoto's colours take: products.ortho_image
+// when the AOI has it, else its image closest to nadir.
+const ImageRecord* OrthoImage(const ProductOptions& o, const AoiCatalog& a) {
+  for (const ImageRecord& image : a.images)
+    if (!o.ortho_image.empty() && image.name == o.ortho_image) return &image;
+  return NadirMostImage(a);
+}
+
+// `cells_key` names what the cells are: "ground_cells" against an image,
+// "cells" against the exact orthophoto.
+json AgreementJson(const OrthoAgreement& agree, const char* cells_key) {
+  return {{cells_key, agree.cells}, {"psnr_db", Finite(agree.psnr_db)}, {"ssim", Finite(agree.ssim)},
+          {"shift_col_px", agree.shift_col_px}, {"shift_row_px", agree.shift_row_px}};
+}
+
+// ortho.tif in the appearance of the chosen image's date, and its agreement
+// with the exact orthophoto (synthetic scenes) and with the image closest to
+// nadir on the truth's ground cells that image sees (the product, and the
+// scene's own colours before the match).
+json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& dsm, std::vector<float>* colours,
                 const TruthDsm* truth, const fs::path& aoi_dir, Progress& progress) {
+  const ProductOptions& po = options.products;
+  std::vector<float>& rgb = *colours;  // matched in place: the previews show the product
   const ImageRecord* nadir = NadirMostImage(a);
+  const ImageRecord* styled = OrthoImage(po, a);
+  const std::vector<float> scene_colours = rgb;
   std::map<std::string, std::string> metadata = {
       {"ORTHO_SOURCE", "nadir render of the trained scene (dsm.source " + std::string(EnumName(options.dsm.source)) +
-                           "): a true orthophoto, no building lean"},
-      {"APPEARANCE", "the colours of the tiles' scenes (train.appearance_image, or each tile's typical image)"}};
+                           "): a true orthophoto, no building lean"}};
+  json entry = {{"path", (aoi_dir / "ortho.tif").string()}, {"grey", Panchromatic(a)}, {"bits", po.ortho_bits}};
+  if (styled) {
+    const ColourMatch match = MatchColoursToImage(rgb, dsm, ReadNormalizedImage(styled->path, styled->radiometry),
+                                                  styled->rpc, styled->view_zenith_deg, styled->view_azimuth_deg);
+    ApplyColourMatch(match, &rgb);
+    metadata["APPEARANCE_IMAGE"] = styled->name;
+    metadata["APPEARANCE_DATE"] = styled->acquisition_time;
+    metadata["APPEARANCE"] = fmt::format(
+        "colours matched to {} ({}): per band gain and offset fitted on {} cells it sees; gains {:.3f} {:.3f} "
+        "{:.3f}, offsets {:.3f} {:.3f} {:.3f}", styled->name, styled->acquisition_time, match.cells, match.gain[0],
+        match.gain[1], match.gain[2], match.offset[0], match.offset[1], match.offset[2]);
+    entry["appearance"] = {{"image", styled->name}, {"date", styled->acquisition_time}, {"cells", match.cells},
+                           {"gain", match.gain}, {"offset", match.offset}};
+  }
   if (nadir) {
     metadata["NADIR_IMAGE"] = nadir->name;
     metadata["NADIR_IMAGE_DATE"] = nadir->acquisition_time;
   }
-  const std::string path = (aoi_dir / "ortho.tif").string();
-  WriteOrthoCog(path, grid, rgb, {Panchromatic(a), options.products.ortho_bits}, metadata);
-  json entry = {{"path", path}, {"grey", Panchromatic(a)}, {"bits", options.products.ortho_bits}};
+  WriteOrthoCog(entry["path"].get<std::string>(), dsm, rgb, {Panchromatic(a), po.ortho_bits}, metadata);
   if (nadir && a.truth && !a.truth->ortho_path.empty()) {
     const OrthoAgreement exact = CompareOrthoWithTruth(rgb, ReadNormalizedImage(a.truth->ortho_path, nadir->radiometry));
     progress.Info(fmt::format("[{}] ortho vs the exact orthophoto on {} cells: PSNR {:.2f} dB, SSIM {:.3f}", a.aoi,
                               exact.cells, exact.psnr_db, exact.ssim));
-    entry["versus_ortho_truth"] = {{"truth", a.truth->ortho_path},
-                                   {"cells", exact.cells},
-                                   {"psnr_db", Finite(exact.psnr_db)},
-                                   {"ssim", Finite(exact.ssim)},
-                                   {"shift_col_px", exact.shift_col_px},
-                                   {"shift_row_px", exact.shift_row_px}};
+    entry["versus_ortho_truth"] = AgreementJson(exact, "cells");
+    entry["versus_ortho_truth"]["truth"] = a.truth->ortho_path;
   }
   if (!truth || truth->cls.empty() || !nadir) return entry;
-  const OrthoAgreement agree =
-      CompareOrthoWithImage(rgb, truth->dsm, truth->cls, ReadNormalizedImage(nadir->path, nadir->radiometry),
-                            nadir->rpc, nadir->view_zenith_deg, nadir->view_azimuth_deg);
-  progress.Info(fmt::format("[{}] ortho vs {} on {} ground cells: PSNR {:.2f} dB, SSIM {:.3f}", a.aoi, nadir->name,
-                            agree.cells, agree.psnr_db, agree.ssim));
-  entry["versus_nadir_image"] = {{"image", nadir->name},
-                                 {"view_zenith_deg", nadir->view_zenith_deg},
-                                 {"ground_cells", agree.cells},
-                                 {"psnr_db", Finite(agree.psnr_db)},
-                                 {"ssim", Finite(agree.ssim)},
-                                 {"shift_col_px", agree.shift_col_px},
-                                 {"shift_row_px", agree.shift_row_px}};
+  const NormalizedImage nadir_image = ReadNormalizedImage(nadir->path, nadir->radiometry);
+  auto versus_nadir = [&](const std::vector<float>& colours) {
+    return CompareOrthoWithImage(colours, truth->dsm, truth->cls, nadir_image, nadir->rpc, nadir->view_zenith_deg,
+                                 nadir->view_azimuth_deg);
+  };
+  const OrthoAgreement agree = versus_nadir(rgb), own = versus_nadir(scene_colours);
+  progress.Info(fmt::format("[{}] ortho vs {} on {} ground cells: PSNR {:.2f} dB, SSIM {:.3f} (scene's own colours: "
+                            "{:.2f} dB, {:.3f})", a.aoi, nadir->name, agree.cells, agree.psnr_db, agree.ssim,
+                            own.psnr_db, own.ssim));
+  entry["versus_nadir_image"] = AgreementJson(agree, "ground_cells");
+  entry["versus_nadir_image"]["image"] = nadir->name;
+  entry["versus_nadir_image"]["view_zenith_deg"] = nadir->view_zenith_deg;
+  entry["versus_nadir_image"]["scene_colours_psnr_db"] = Finite(own.psnr_db);
+  entry["versus_nadir_image"]["scene_colours_ssim"] = Finite(own.ssim);
   return entry;
+}
+
+// A product the options now leave out goes, so that the catalog and the
+// report page, which list what exists, do not offer a previous run's file.
+void RemoveStale(const std::vector<fs::path>& files) {
+  std::error_code ignored;
+  for (const fs::path& f : files) fs::remove(f, ignored);
 }
 
 // One AOI: the products on its grid, compared with its truth when it has
@@ -278,6 +326,7 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
     }
   } else {
     left_out.push_back("dtm.tif and ndsm.tif (products.terrain off)");
+    RemoveStale({aoi_dir / "dtm.tif", aoi_dir / "ndsm.tif"});
   }
   if (po.quality) {
     WriteQualityCog((aoi_dir / "quality.tif").string(), pred, layers,
@@ -285,23 +334,26 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
     entry["quality"] = (aoi_dir / "quality.tif").string();
   } else {
     left_out.push_back("quality.tif (products.quality off)");
+    RemoveStale({aoi_dir / "quality.tif"});
   }
   if (po.ortho) {
-    entry["ortho"] = WriteOrtho(options, a, pred, rgb, truth ? &*truth : nullptr, aoi_dir, progress);
+    entry["ortho"] = WriteOrtho(options, a, pred, &rgb, truth ? &*truth : nullptr, aoi_dir, progress);
     if (truth && entry["ortho"].contains("versus_nadir_image"))
       (*comparison)["ortho"] = entry["ortho"]["versus_nadir_image"];
     if (truth && entry["ortho"].contains("versus_ortho_truth"))
       (*comparison)["ortho_truth"] = entry["ortho"]["versus_ortho_truth"];
   } else {
     left_out.push_back("ortho.tif (products.ortho off)");
+    RemoveStale({aoi_dir / "ortho.tif"});
   }
   if (po.points) {
     const std::vector<LasPoint> points =
         ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m);
-    WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum));
+    WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true));
     entry["points"] = {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
   } else {
     left_out.push_back("points.las (products.points off)");
+    RemoveStale({aoi_dir / "points.las"});
   }
   entry["left_out"] = left_out;
   // Previews for the report page (not products: PNGs without georeferencing).
@@ -342,7 +394,8 @@ json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& 
   if (po.ortho) {
     const std::string path = (city_dir / "ortho_city.tif").string();
     WriteOrthoCog(path, dsm, rgb, {Panchromatic(aois.front()), po.ortho_bits},
-                  {{"ORTHO_SOURCE", "nadir render of the city's trained scene"}});
+                  {{"ORTHO_SOURCE", "nadir render of the city's trained scene"},
+                   {"APPEARANCE", "the scene's own colours (each AOI's ortho.tif takes one image's date)"}});
     files["ortho"] = path;
   }
   if (po.terrain) {

@@ -40,6 +40,11 @@ AoiProducts WriteAoiProducts(const RunOptions& options, const std::vector<AoiCat
                              const std::string& out_dir, nlohmann::json* stages, CityOutcome* outcome,
                              Progress& progress);
 
+// products.ortho_image, when set, must name an image of one of the city's
+// AOIs (an AOI without it takes its own image closest to nadir); throws
+// Error naming the option otherwise.
+void CheckOrthoImage(const ProductOptions& options, const std::vector<AoiCatalog>& aois);
+
 // The files WriteAoiProducts writes for `aoi` under the options (those a
 // rerun must find to skip an unchanged city).
 std::vector<std::string> AoiProductFiles(const ProductOptions& options, const AoiCatalog& aoi,

@@ -415,6 +415,7 @@ std::unique_ptr<CityExecutor> MakeCityExecutor(ExecutorKind kind) {
 CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& out_dir,
                     Progress& progress) {
   options.Check();
+  CheckOrthoImage(options.products, aois);  // before hours of tiles, not after
   Stopwatch total, clock;
   const TilePlan plan = PlanTiles(options.tiling, aois);
   CityWork work;

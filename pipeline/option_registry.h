@@ -224,6 +224,9 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Measured cells at most this far above the ground surface are ground and shape the terrain model");
   io("fill_terrain_block_cells", o.fill.terrain_block_cells,
      "Block side of the terrain model that spans hidden ground, in grid cells");
+  io("fill_terrain_floor_radius_m", o.fill.terrain_floor_radius_m,
+     "The terrain model stands at most fill_ground_tolerance_m below the lowest measured height within this radius "
+     "(0 = off)");
   io("fill_roof_rim_min_m", o.fill.roof_rim_min_m,
      "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules");
   io("visibility_pass", o.visibility_pass,
@@ -621,6 +624,9 @@ template <class IO> void Visit(IO& io, ProductOptions& o) {
      "Write ortho.tif, the true orthophoto: the scene's nadir render (grey for a panchromatic scene)");
   io("ortho_bits", o.ortho_bits,
      "Bits per sample of ortho.tif: 8 or 16");
+  io("ortho_image", o.ortho_image,
+     "The image whose date ortho.tif's colours take (a per-band gain and offset fitted on the cells it sees); empty "
+     "= the image closest to nadir");
   io("points", o.points,
      "Write points.las: the scene's Gaussians as a LAS 1.4 point cloud with colour and ground class");
   io("min_opacity", o.min_opacity,

@@ -147,6 +147,7 @@ struct ProductOptions {
   bool quality = true;               // quality.tif
   bool ortho = true;                 // ortho.tif
   int ortho_bits = 8;                // 8 or 16
+  std::string ortho_image;           // the image whose date ortho.tif's colours take (empty: closest to nadir)
   bool points = true;                // points.las
   double min_opacity = 0.1;          // Gaussians more transparent are left out of points.las and the height spread
   double ground_tolerance_m = 1.0;   // a point this close above the DTM is ground (class 2)

@@ -190,6 +190,7 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   ro.median_depth = o.median_depth;
   const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
   grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
+  grid->reference = HeightReference::kEllipsoid;  // what GeodeticFromEnu gives
   if (rgb) rgb->assign(3 * static_cast<size_t>(W) * H, kNoData);
   for (int row = 0; row < H; ++row)
     for (int col = 0; col < W; ++col) {

@@ -203,9 +203,11 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
                 r.mae_m, r.rmse_m, r.median_abs_m, r.nmad_m, r.completeness, r.within_fraction, r.bias_m,
                 r.shift_col_px, r.shift_row_px, r.valid_pixels, r.z_offset_m);
   WriteFileAtomic((dir / "report.csv").string(), csv);
-  DsmGrid error = truth;
-  error.height_m = r.error_m;
-  WriteDsm((dir / "error_map.tif").string(), error);
+  // A difference in metres, not heights: no vertical reference.
+  CogBands band;
+  band.descriptions = {"DSM minus truth [m]"};
+  WriteCog((dir / "error_map.tif").string(), truth.width_px, truth.height_px, SampleType::kFloat32, r.error_m.data(),
+           {truth.upper_left_easting_m, truth.upper_left_northing_m, truth.gsd_m, truth.epsg, std::nullopt}, band);
   ErrorMapPng(r, truth, (dir / "error_map.png").string());
   HistogramPng(r, (dir / "error_histogram.png").string());
 }

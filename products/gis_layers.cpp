@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <functional>
@@ -38,6 +39,7 @@ Eigen::Vector2d PixelCentreUtm(const DsmGrid& g, int col, int row) {
 
 // A pixel's column and row holding a UTM position, or (-1, -1) outside.
 Eigen::Vector2i PixelOfUtm(const DsmGrid& g, double easting_m, double northing_m) {
+  if (!std::isfinite(easting_m) || !std::isfinite(northing_m)) return {-1, -1};
   const int col = static_cast<int>(std::floor((easting_m - g.upper_left_easting_m) / g.gsd_m));
   const int row = static_cast<int>(std::floor((g.upper_left_northing_m - northing_m) / g.gsd_m));
   if (col < 0 || row < 0 || col >= g.width_px || row >= g.height_px) return {-1, -1};
@@ -172,7 +174,9 @@ std::vector<float> GaussianHeightSpreadM(const GaussianCloud& scene, const Geode
 }
 
 DsmGrid HeightAboveTerrain(const DsmGrid& dsm, const DsmGrid& dtm) {
-  if (dsm.width_px != dtm.width_px || dsm.height_px != dtm.height_px || dsm.reference != dtm.reference)
+  if (dsm.width_px != dtm.width_px || dsm.height_px != dtm.height_px || dsm.reference != dtm.reference ||
+      dsm.epsg != dtm.epsg || dsm.gsd_m != dtm.gsd_m || dsm.upper_left_easting_m != dtm.upper_left_easting_m ||
+      dsm.upper_left_northing_m != dtm.upper_left_northing_m)
     throw Error("products", "ndsm", "the DSM and the DTM are not on one grid in one height reference");
   DsmGrid out = EmptyLike(dsm);
   out.reference = HeightReference::kAboveTerrain;
@@ -332,28 +336,42 @@ TerrainComparison CompareTerrain(const DsmGrid& dtm, const DsmGrid& ndsm, const 
 
 namespace {
 
-// Grey levels of the image sampled (bilinearly) where the RPC projects each
-// truth cell at its height; NaN outside the image or where it has no data.
-cv::Mat ImageOnTruthGrid(const DsmGrid& truth, const NormalizedImage& image, const RpcModel& rpc) {
-  cv::Mat out(truth.height_px, truth.width_px, CV_32F, cv::Scalar(kNan));
-  const UtmZone zone = UtmZoneFromEpsg(truth.epsg);
-  auto grey = [&](int c, int r) {
+// The image's colours sampled (bilinearly) where the RPC projects each cell
+// of `heights` at its height, 3 per cell; NaN outside the image, where it
+// has no data or where the grid has no height.
+std::vector<float> ImageOnGrid(const DsmGrid& heights, const NormalizedImage& image, const RpcModel& rpc) {
+  std::vector<float> out(3 * Pixels(heights), kNan);
+  const UtmZone zone = UtmZoneFromEpsg(heights.epsg);
+  auto at = [&](int c, int r, int b) {
     const std::size_t p = static_cast<std::size_t>(r) * image.width_px + c;
-    if (!image.valid[p]) return kNan;
-    return (image.rgb[3 * p] + image.rgb[3 * p + 1] + image.rgb[3 * p + 2]) / 3.0f;
+    return image.valid[p] ? image.rgb[3 * p + b] : kNan;
   };
-  for (int row = 0; row < truth.height_px; ++row)
-    for (int col = 0; col < truth.width_px; ++col) {
-      const float h = truth.At(col, row);
+  for (int row = 0; row < heights.height_px; ++row)
+    for (int col = 0; col < heights.width_px; ++col) {
+      const float h = heights.At(col, row);
       if (!std::isfinite(h)) continue;
-      const Eigen::Vector2d utm = PixelCentreUtm(truth, col, row);
+      const Eigen::Vector2d utm = PixelCentreUtm(heights, col, row);
       const Eigen::Vector2d ll = GeodeticFromUtm(zone, utm.x(), utm.y());
       const Eigen::Vector2d px = rpc.Project(ll.x(), ll.y(), h);  // pixel centres at integers
       const int c = static_cast<int>(std::floor(px.x())), r = static_cast<int>(std::floor(px.y()));
       if (c < 0 || r < 0 || c + 1 >= image.width_px || r + 1 >= image.height_px) continue;
       const float fc = static_cast<float>(px.x() - c), fr = static_cast<float>(px.y() - r);
-      out.at<float>(row, col) = (1 - fr) * ((1 - fc) * grey(c, r) + fc * grey(c + 1, r)) +
-                                fr * ((1 - fc) * grey(c, r + 1) + fc * grey(c + 1, r + 1));
+      const std::size_t p = static_cast<std::size_t>(row) * heights.width_px + col;
+      for (int b = 0; b < 3; ++b)
+        out[3 * p + b] = (1 - fr) * ((1 - fc) * at(c, r, b) + fc * at(c + 1, r, b)) +
+                         fr * ((1 - fc) * at(c, r + 1, b) + fc * at(c + 1, r + 1, b));
+    }
+  return out;
+}
+
+// Grey levels of the image on the truth's grid (ImageOnGrid).
+cv::Mat ImageOnTruthGrid(const DsmGrid& truth, const NormalizedImage& image, const RpcModel& rpc) {
+  const std::vector<float> rgb = ImageOnGrid(truth, image, rpc);
+  cv::Mat out(truth.height_px, truth.width_px, CV_32F);
+  for (int row = 0; row < truth.height_px; ++row)
+    for (int col = 0; col < truth.width_px; ++col) {
+      const std::size_t p = static_cast<std::size_t>(row) * truth.width_px + col;
+      out.at<float>(row, col) = (rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]) / 3.0f;
     }
   return out;
 }
@@ -404,7 +422,9 @@ double MaskedSsim(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
   cv::boxFilter(b0.mul(b0), bb, CV_64F, window);
   cv::boxFilter(a0.mul(b0), ab, CV_64F, window);
   cv::Mat inside;
-  cv::erode(mask, inside, cv::getStructuringElement(cv::MORPH_RECT, window));
+  // Beyond the grid is outside the mask: a window crossing the edge does not count.
+  cv::erode(mask, inside, cv::getStructuringElement(cv::MORPH_RECT, window), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(0));
   double sum = 0;
   int n = 0;
   for (int r = 0; r < a.rows; ++r)
@@ -500,6 +520,44 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
       if (!hidden[p] && ClassCodeOf(cls[p]) == kGroundClass) ground.at<std::uint8_t>(r, c) = 255;
     }
   return Agreement(GreyOf(ortho_rgb, nx, ny), seen, ground, max_shift_px);
+}
+
+ColourMatch MatchColoursToImage(const std::vector<float>& ortho_rgb, const DsmGrid& dsm, const NormalizedImage& image,
+                                const RpcModel& rpc, double view_zenith_deg, double view_azimuth_deg) {
+  ColourMatch match;
+  if (ortho_rgb.size() != 3 * Pixels(dsm)) return match;
+  const std::vector<float> seen = ImageOnGrid(dsm, image, rpc);
+  const std::vector<std::uint8_t> hidden = HiddenFromView(dsm, view_zenith_deg, view_azimuth_deg);
+  // Least squares per band: image = gain * ortho + offset.
+  std::array<double, 3> sx{}, sy{}, sxx{}, sxy{};
+  for (std::size_t p = 0; p < Pixels(dsm); ++p) {
+    if (hidden[p] || !std::isfinite(ortho_rgb[3 * p]) || !std::isfinite(seen[3 * p]) ||
+        !std::isfinite(seen[3 * p + 1]) || !std::isfinite(seen[3 * p + 2]))
+      continue;
+    ++match.cells;
+    for (int b = 0; b < 3; ++b) {
+      const double x = ortho_rgb[3 * p + b], y = seen[3 * p + b];
+      sx[b] += x, sy[b] += y, sxx[b] += x * x, sxy[b] += x * y;
+    }
+  }
+  if (match.cells < kMinColourMatchCells) {
+    match.cells = 0;
+    return match;
+  }
+  for (int b = 0; b < 3; ++b) {
+    const double n = match.cells, var = sxx[b] - sx[b] * sx[b] / n;
+    if (var <= 1e-9 * n) continue;  // a flat band: keep it
+    match.gain[b] = (sxy[b] - sx[b] * sy[b] / n) / var;
+    match.offset[b] = (sy[b] - match.gain[b] * sx[b]) / n;
+  }
+  return match;
+}
+
+void ApplyColourMatch(const ColourMatch& match, std::vector<float>* rgb) {
+  for (std::size_t k = 0; k < rgb->size(); ++k) {
+    float& v = (*rgb)[k];
+    if (std::isfinite(v)) v = static_cast<float>(std::clamp(match.gain[k % 3] * v + match.offset[k % 3], 0.0, 1.0));
+  }
 }
 
 OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const NormalizedImage& truth, int max_shift_px) {

@@ -5,6 +5,8 @@
 // buildings, the orthophoto against the input image closest to nadir).
 #pragma once
 
+#include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -101,6 +103,22 @@ struct OrthoAgreement {
 OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const DsmGrid& truth,
                                      const std::vector<float>& cls, const NormalizedImage& image, const RpcModel& rpc,
                                      double view_zenith_deg, double view_azimuth_deg, int max_shift_px = 3);
+
+// The orthophoto in the appearance of one image's date: per band, the gain
+// and offset that best map its colours to the image's (least squares) on
+// the cells that image sees, placed in it through its RPC at the DSM's
+// heights. The scene's colours are those of its tiles' fused appearance;
+// this gives them the light and atmosphere of the chosen date. Identity
+// (cells 0) with fewer than kMinColourMatchCells usable cells.
+constexpr int kMinColourMatchCells = 100;
+struct ColourMatch {
+  std::array<double, 3> gain{1, 1, 1}, offset{0, 0, 0};
+  int cells = 0;
+};
+ColourMatch MatchColoursToImage(const std::vector<float>& ortho_rgb, const DsmGrid& dsm, const NormalizedImage& image,
+                                const RpcModel& rpc, double view_zenith_deg, double view_azimuth_deg);
+// rgb := gain * rgb + offset per band, clamped to [0, 1] (NaN stays NaN).
+void ApplyColourMatch(const ColourMatch& match, std::vector<float>* rgb);
 
 // The orthophoto against an exact orthophoto on its grid (the synthetic
 // city's <AOI>_ORTHO.tif, read with the nadir image's radiometry): every cell

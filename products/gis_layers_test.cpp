@@ -247,6 +247,48 @@ TEST(GisLayers, TheOrthoIsComparedWithTheImageOnGroundCells) {
   EXPECT_NEAR(same.cells - oblique.cells, 20 * 23, 20 * 2) << same.cells << " " << oblique.cells;
 }
 
+// An orthophoto at half the contrast and a tint of the image it is matched
+// to gets that image's colours back: gain 2 and offset -0.2 per band.
+TEST(GisLayers, ColoursAreMatchedToTheChosenImage) {
+  constexpr int kN = 80;
+  const RpcImage shot = AffineRpcImage(300);
+  DsmGrid dsm = GridAroundOrigin(kN);
+  std::fill(dsm.height_m.begin(), dsm.height_m.end(), 0.0f);
+  const UtmZone zone = UtmZoneFromEpsg(kUtm17N);
+  std::vector<float> rgb(3 * static_cast<std::size_t>(kN) * kN), exact(rgb.size());
+  for (int r = 0; r < kN; ++r)
+    for (int c = 0; c < kN; ++c) {
+      const Eigen::Vector2d ll = GeodeticFromUtm(zone, dsm.upper_left_easting_m + (c + 0.5) * 0.5,
+                                                 dsm.upper_left_northing_m - (r + 0.5) * 0.5);
+      for (int b = 0; b < 3; ++b) {
+        const std::size_t k = 3 * (static_cast<std::size_t>(r) * kN + c) + b;
+        exact[k] = static_cast<float>(Texture(ll.x(), ll.y()));
+        rgb[k] = 0.5f * exact[k] + 0.1f;
+      }
+    }
+  rgb[0] = rgb[1] = rgb[2] = NAN;  // an empty pixel stays empty
+  const ColourMatch match = MatchColoursToImage(rgb, dsm, shot.image, shot.rpc, 0, 0);
+  EXPECT_GT(match.cells, kN * kN / 2);
+  // The image resamples the texture bilinearly at 10 pixels per wavelength,
+  // which lowers its contrast by 4%: the fitted gain comes out 1.92.
+  constexpr double kResamplingGainTol = 0.1, kResamplingOffsetTol = 0.05;
+  for (int b = 0; b < 3; ++b) {
+    EXPECT_NEAR(match.gain[b], 2.0, kResamplingGainTol);
+    EXPECT_NEAR(match.offset[b], -0.2, kResamplingOffsetTol);
+  }
+  ApplyColourMatch(match, &rgb);
+  EXPECT_TRUE(std::isnan(rgb[0]));
+  double worst = 0;
+  for (std::size_t k = 3; k < rgb.size(); ++k) worst = std::max(worst, std::abs(static_cast<double>(rgb[k] - exact[k])));
+  EXPECT_LT(worst, 0.05);
+  // Too few cells to fit: the colours stay.
+  DsmGrid outside = dsm;
+  std::fill(outside.height_m.begin(), outside.height_m.end(), NAN);
+  const ColourMatch none = MatchColoursToImage(rgb, outside, shot.image, shot.rpc, 0, 0);
+  EXPECT_EQ(none.cells, 0);
+  EXPECT_EQ(none.gain[0], 1.0);
+}
+
 // Each written layer is a valid COG with named bands; the orthophoto has an
 // alpha band where the scene is empty.
 TEST(GisLayers, QualityAndOrthoAreNamedCogs) {

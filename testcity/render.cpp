@@ -191,7 +191,8 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     // A vertical ray (an orthophoto's) never crosses a cell boundary: it
     // leaves its column at the city's floor instead.
     double t_exit = tr.NextBoundary();
-    if (!std::isfinite(t_exit)) t_exit = (city.min_height_m - 1.0 - o.z()) / d.z();
+    const bool vertical = !std::isfinite(t_exit);
+    if (vertical) t_exit = (city.min_height_m - 1.0 - o.z()) / d.z();
     const double z_exit = o.z() + t_exit * d.z();
     const bool terrain = OnTerrain(city, k);
     const SmoothTop smooth = SmoothTopOf(city, k);
@@ -231,7 +232,7 @@ Hit CastDown(const City& city, const Eigen::Vector3d& o, const Eigen::Vector3d& 
       }
       if (!terrain && z_exit <= h) return found(o + ((h - o.z()) / d.z()) * d, Face::kTop);  // down on the top
     }
-    if (z_exit < city.min_height_m - 1.0) return hit;
+    if (vertical || z_exit < city.min_height_m - 1.0) return hit;  // a vertical ray has no next column
     came_from_terrain = terrain;
     came_from_smooth = smooth;
     t_enter = tr.Step(&crossed_x);

@@ -134,6 +134,15 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
   const nlohmann::json again = ReadJson(fs::path(out) / "SYN_001" / "run_report.json");
   EXPECT_NEAR(again.at("dsm").at(0).at("mae_m").get<double>(), dsm.at("mae_m").get<double>(), 1e-9);
   EXPECT_EQ(again.at("products").at(0).at("vertical_datum"), "egm96");
+
+  // A product turned off is said to be left out, and its file from the
+  // previous run goes: the catalog and the page list only what the run made.
+  const CommandResult without = RunCommand(run + " --set products.points=false", dir);
+  ASSERT_EQ(without.exit_code, 0) << without.err;
+  EXPECT_FALSE(fs::exists(aoi / "points.las"));
+  const nlohmann::json last = ReadJson(fs::path(out) / "SYN_001" / "run_report.json");
+  EXPECT_EQ(last.at("products").at(0).at("left_out").at(0), "points.las (products.points off)");
+  EXPECT_FALSE(ReadJson(aoi / "SYN_001.json").at("assets").contains("points"));
 }
 
 }  // namespace
