@@ -387,12 +387,6 @@ GroundModel GroundModelOf(const std::vector<float>& h, int nx, int ny, const Hol
   GroundModel model;
   model.ground_m = GroundSurface(h, nx, ny, o.ground_radius_cells, o.ground_max_rise_m);
   model.terrain_m = TerrainModel(h, model.ground_m, nx, ny, o, &model.terrain_trend_terms);
-  if (o.terrain_floor_cells > 0) {
-    const std::vector<float> lowest = MinFilter(h, nx, ny, o.terrain_floor_cells, WindowEdge::kClip);
-    for (std::size_t k = 0; k < h.size(); ++k)
-      if (std::isfinite(lowest[k]) && std::isfinite(model.terrain_m[k]))
-        model.terrain_m[k] = std::max(model.terrain_m[k], lowest[k] - o.ground_tolerance_m);
-  }
   model.seen_hole_base_m = Opening(h, nx, ny, o.ground_radius_cells, WindowEdge::kClip);
   return model;
 }
@@ -630,7 +624,6 @@ HoleFillGrid HoleFillOptions::OnGrid(double cell_m) const {
   g.ground_tolerance_m = static_cast<float>(ground_tolerance_m);
   g.ground_max_rise_m = static_cast<float>(ground_max_rise_m);
   g.terrain_block_cells = terrain_block_cells;
-  g.terrain_floor_cells = terrain_floor_radius_m > 0 ? cells_of(terrain_floor_radius_m) : 0;
   g.roof_rim_fraction = static_cast<float>(roof_rim_fraction);
   g.roof_rim_min_m = static_cast<float>(roof_rim_min_m);
   g.roof_rim_occluded = roof_rim_occluded;
@@ -645,13 +638,6 @@ void HoleFillOptions::Check() const {
     if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
   };
   positive(radius_m, "fill_radius_m");
-  // Below the opening's radius the floor could rise above the ground
-  // surface inside a wide roof: the lowest height of a smaller square is a roof.
-  if (!std::isfinite(terrain_floor_radius_m) ||
-      !(terrain_floor_radius_m == 0 || terrain_floor_radius_m >= ground_radius_m))
-    throw Error("dense", "fill_terrain_floor_radius_m",
-                "must be 0 (off) or at least fill_ground_radius_m (" + std::to_string(ground_radius_m) + "), got " +
-                    std::to_string(terrain_floor_radius_m));
   if (!(roof_rim_fraction >= 0 && roof_rim_fraction <= 1))
     throw Error("dense", "fill_roof_rim_fraction", "must be in [0, 1] (0 = off), got " + std::to_string(roof_rim_fraction));
   if (!(max_reach_m >= radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");

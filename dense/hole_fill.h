@@ -30,7 +30,6 @@ struct HoleFillGrid {
   float ground_tolerance_m = 0.0f;  // measured cells this close above the ground surface are ground
   float ground_max_rise_m = 0.0f;   // GroundSurface's max_rise_m: 0 = off
   int terrain_block_cells = 0;      // block side of the terrain model (TerrainModel)
-  int terrain_floor_cells = 0;      // the terrain's floor: the lowest measured height within this radius (0 = off)
   // A seen hole (one piece of connected hole cells) whose rim of measured
   // cells lies at least this share higher than roof_rim_min_m above the
   // ground is a roof's hole: it is filled from the raised cells in reach
@@ -86,12 +85,6 @@ struct HoleFillOptions {
   // it from the ground measured further away. 0 = off.
   double ground_max_rise_m = 10.0;
   int terrain_block_cells = 8;  // block side of the terrain model (TerrainModel), in grid cells
-  // The terrain model stands at most ground_tolerance_m below the lowest
-  // measured height within this radius: some ground is seen around every
-  // place, and where the ground cells are few (between tall buildings) the
-  // model's trend, fitted elsewhere, sank metres below every measured height
-  // (decision D-115). 0 = off.
-  double terrain_floor_radius_m = 0.0;
   // A seen hole whose rim of measured cells is at least this share roof
   // (more than roof_rim_min_m above the ground) takes the roof, though
   // ground is within radius_m. 0 = off.

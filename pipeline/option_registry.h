@@ -224,9 +224,6 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Measured cells at most this far above the ground surface are ground and shape the terrain model");
   io("fill_terrain_block_cells", o.fill.terrain_block_cells,
      "Block side of the terrain model that spans hidden ground, in grid cells");
-  io("fill_terrain_floor_radius_m", o.fill.terrain_floor_radius_m,
-     "The terrain model stands at most fill_ground_tolerance_m below the lowest measured height within this radius "
-     "(0 = off)");
   io("fill_roof_rim_min_m", o.fill.roof_rim_min_m,
      "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules");
   io("visibility_pass", o.visibility_pass,
