@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <vector>
 
@@ -51,5 +52,8 @@ using GaussianCloud = GaussianCloudT<float>;
 // Colour <-> SH degree-0 coefficient, so that a plain colour c in [0, 1]
 // renders as c.
 inline double ShDcFromColour(double c) { return (c - 0.5) / kShC0; }
+
+// A Gaussian's opacity from its stored logit (the sigmoid), in double.
+inline double OpacityOfLogit(double logit) { return 1.0 / (1.0 + std::exp(-logit)); }
 
 }  // namespace skyfall

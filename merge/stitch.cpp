@@ -12,8 +12,6 @@
 namespace skyfall {
 namespace {
 
-double Sigmoid(double logit) { return 1.0 / (1.0 + std::exp(-logit)); }
-
 void InitOpenVdb() {
   static std::once_flag once;
   std::call_once(once, [] { openvdb::initialize(); });
@@ -130,7 +128,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
         split[k].core.push_back(i);
       } else if (!spec.extent.Contains(p.x(), p.y())) {
         ++result.outside_extent;
-      } else if (Sigmoid(tiles[k].cloud.opacity_logits[i]) < options.min_opacity) {
+      } else if (OpacityOfLogit(tiles[k].cloud.opacity_logits[i]) < options.min_opacity) {
         ++result.transparent_dropped;
       } else {
         split[k].overlap.push_back(i);
@@ -144,7 +142,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
     auto acc = mine->getAccessor();
     for (std::size_t i : split[k].core) {
-      if (Sigmoid(split[k].cloud.opacity_logits[i]) >= options.min_opacity) {
+      if (OpacityOfLogit(split[k].cloud.opacity_logits[i]) >= options.min_opacity) {
         acc.setValueOn(VoxelOf(*mine, split[k].cloud.means[i], options.occupancy_columns));
       }
       result.cloud.Append(split[k].cloud, i);

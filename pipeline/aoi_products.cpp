@@ -36,13 +36,23 @@ UtmBox FootprintUtm(const AoiCatalog& c) {
   return b;
 }
 
+namespace {
+
+// The AOI's image of that name, or null.
+const ImageRecord* ImageNamed(const AoiCatalog& a, const std::string& name) {
+  for (const ImageRecord& image : a.images)
+    if (image.name == name) return &image;
+  return nullptr;
+}
+
+}  // namespace
+
 void CheckOrthoImage(const ProductOptions& o, const std::vector<AoiCatalog>& aois) {
   if (o.ortho_image.empty()) return;
   std::string names;
   for (const AoiCatalog& a : aois) {
+    if (ImageNamed(a, o.ortho_image)) return;
     names += (names.empty() ? "" : ", ") + a.aoi;
-    for (const ImageRecord& image : a.images)
-      if (image.name == o.ortho_image) return;
   }
   throw Error("products", "ortho_image", o.ortho_image + " is not an image of " + names);
 }
@@ -117,8 +127,6 @@ DenseClouds DenseCellsAsGaussians(const std::vector<DenseTileCells>& tiles) {
   }
   return out;
 }
-
-json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 json ComparisonJson(const DsmComparison& c) {
   json j = {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
@@ -206,23 +214,22 @@ json CompareWithTruth(const RunOptions& options, const AoiCatalog& a, const Trut
 }
 
 json TerrainJson(const TerrainComparison& t) {
-  return {{"dtm_mae_ground_m", Finite(t.dtm_mae_ground_m)},     {"dtm_bias_ground_m", Finite(t.dtm_bias_ground_m)},
-          {"ground_cells", t.ground_cells},                       {"ndsm_mae_building_m", Finite(t.ndsm_mae_building_m)},
-          {"ndsm_bias_building_m", Finite(t.ndsm_bias_building_m)}, {"building_cells", t.building_cells}};
+  return {{"dtm_mae_ground_m", FiniteOrNull(t.dtm_mae_ground_m)},     {"dtm_bias_ground_m", FiniteOrNull(t.dtm_bias_ground_m)},
+          {"ground_cells", t.ground_cells},                       {"ndsm_mae_building_m", FiniteOrNull(t.ndsm_mae_building_m)},
+          {"ndsm_bias_building_m", FiniteOrNull(t.ndsm_bias_building_m)}, {"building_cells", t.building_cells}};
 }
 
 // The image whose date the orthophoto's colours take: products.ortho_image
 // when the AOI has it, else its image closest to nadir.
 const ImageRecord* OrthoImage(const ProductOptions& o, const AoiCatalog& a) {
-  for (const ImageRecord& image : a.images)
-    if (!o.ortho_image.empty() && image.name == o.ortho_image) return &image;
-  return NadirMostImage(a);
+  const ImageRecord* named = o.ortho_image.empty() ? nullptr : ImageNamed(a, o.ortho_image);
+  return named ? named : NadirMostImage(a);
 }
 
 // `cells_key` names what the cells are: "ground_cells" against an image,
 // "cells" against the exact orthophoto.
 json AgreementJson(const OrthoAgreement& agree, const char* cells_key) {
-  return {{cells_key, agree.cells}, {"psnr_db", Finite(agree.psnr_db)}, {"ssim", Finite(agree.ssim)},
+  return {{cells_key, agree.cells}, {"psnr_db", FiniteOrNull(agree.psnr_db)}, {"ssim", FiniteOrNull(agree.ssim)},
           {"shift_col_px", agree.shift_col_px}, {"shift_row_px", agree.shift_row_px}};
 }
 
@@ -241,9 +248,13 @@ json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& d
       {"ORTHO_SOURCE", "nadir render of the trained scene (dsm.source " + std::string(EnumName(options.dsm.source)) +
                            "): a true orthophoto, no building lean"}};
   json entry = {{"path", (aoi_dir / "ortho.tif").string()}, {"grey", Panchromatic(a)}, {"bits", po.ortho_bits}};
+  // The nadir image is read once: by default it is also the one matched to.
+  const std::optional<NormalizedImage> nadir_image =
+      nadir ? std::optional<NormalizedImage>(ReadNormalizedImage(nadir->path, nadir->radiometry)) : std::nullopt;
   if (styled) {
-    const ColourMatch match = MatchColoursToImage(rgb, dsm, ReadNormalizedImage(styled->path, styled->radiometry),
-                                                  styled->rpc, styled->view_zenith_deg, styled->view_azimuth_deg);
+    const ColourMatch match = MatchColoursToImage(
+        rgb, dsm, styled == nadir ? *nadir_image : ReadNormalizedImage(styled->path, styled->radiometry), styled->rpc,
+        styled->view_zenith_deg, styled->view_azimuth_deg);
     ApplyColourMatch(match, &rgb);
     metadata["APPEARANCE_IMAGE"] = styled->name;
     metadata["APPEARANCE_DATE"] = styled->acquisition_time;
@@ -267,9 +278,8 @@ json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& d
     entry["versus_ortho_truth"]["truth"] = a.truth->ortho_path;
   }
   if (!truth || truth->cls.empty() || !nadir) return entry;
-  const NormalizedImage nadir_image = ReadNormalizedImage(nadir->path, nadir->radiometry);
   auto versus_nadir = [&](const std::vector<float>& colours) {
-    return CompareOrthoWithImage(colours, truth->dsm, truth->cls, nadir_image, nadir->rpc, nadir->view_zenith_deg,
+    return CompareOrthoWithImage(colours, truth->dsm, truth->cls, *nadir_image, nadir->rpc, nadir->view_zenith_deg,
                                  nadir->view_azimuth_deg);
   };
   const OrthoAgreement agree = versus_nadir(rgb), own = versus_nadir(scene_colours);
@@ -279,8 +289,8 @@ json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& d
   entry["versus_nadir_image"] = AgreementJson(agree, "ground_cells");
   entry["versus_nadir_image"]["image"] = nadir->name;
   entry["versus_nadir_image"]["view_zenith_deg"] = nadir->view_zenith_deg;
-  entry["versus_nadir_image"]["scene_colours_psnr_db"] = Finite(own.psnr_db);
-  entry["versus_nadir_image"]["scene_colours_ssim"] = Finite(own.ssim);
+  entry["versus_nadir_image"]["scene_colours_psnr_db"] = FiniteOrNull(own.psnr_db);
+  entry["versus_nadir_image"]["scene_colours_ssim"] = FiniteOrNull(own.ssim);
   return entry;
 }
 

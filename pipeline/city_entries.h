@@ -1,7 +1,8 @@
-// The small pieces of a city's run report and event log that its stages
-// share: a stage's entry and an event with figures.
+// The small pieces the run's reports and event log share: a stage's entry,
+// an event with figures, and a figure that may be undefined.
 #pragma once
 
+#include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -15,6 +16,9 @@ inline nlohmann::json StageEntry(const std::string& stage, const std::string& st
                                  const std::string& message = "") {
   return {{"stage", stage}, {"status", status}, {"seconds", seconds}, {"message", message}};
 }
+
+// A figure as JSON: null where it is NaN or infinite (JSON has no NaN).
+inline nlohmann::json FiniteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 inline void Emit(Progress& progress, const std::string& level, const std::string& stage, const std::string& aoi,
                  const std::string& tile, const std::string& message, std::map<std::string, double> figures = {}) {

@@ -42,8 +42,6 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
 double PeakChildRssMb() {
   rusage usage{};
   getrusage(RUSAGE_CHILDREN, &usage);
@@ -283,9 +281,9 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   report["stages"] = stages;
   report["merge"] = merged.report.metrics;
   report["decisions"] = MergeDecisions(options, merged);
-  report["seam"] = {{"ratio", Finite(merged.seam.ratio)},
-                    {"boundary_mean_step_m", Finite(merged.seam.boundary_mean_step_m)},
-                    {"interior_mean_step_m", Finite(merged.seam.interior_mean_step_m)}};
+  report["seam"] = {{"ratio", FiniteOrNull(merged.seam.ratio)},
+                    {"boundary_mean_step_m", FiniteOrNull(merged.seam.boundary_mean_step_m)},
+                    {"interior_mean_step_m", FiniteOrNull(merged.seam.interior_mean_step_m)}};
   report["scene"] = merged.scene_path;
   report["peak_tile_rss_mb"] = PeakChildRssMb();
   report["seconds"] = total.Seconds();

@@ -1,5 +1,6 @@
 #include "pipeline/stage_jobs.h"
 
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/simd.h"
+#include "pipeline/city_entries.h"
 #include "dense/dense_cells.h"
 #include "sfm/export.h"
 #include "dense/hole_fill.h"
@@ -36,7 +38,6 @@ nlohmann::json StepMsJson(const StepProfile& p) {
   return j;
 }
 
-nlohmann::json FiniteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 // Per held-out view: its scores and the images written for it.
 nlohmann::json HeldOutJson(const std::vector<HeldOutRender>& renders) {

@@ -102,7 +102,7 @@ void ForGaussiansOnGrid(const GaussianCloud& scene, const GeodeticPoint& enu_ori
   const EnuFrame frame(enu_origin);
   const UtmZone zone = UtmZoneFromEpsg(grid.epsg);
   for (std::size_t i = 0; i < scene.size(); ++i) {
-    const double opacity = 1.0 / (1.0 + std::exp(-static_cast<double>(scene.opacity_logits[i])));
+    const double opacity = OpacityOfLogit(scene.opacity_logits[i]);
     if (opacity < min_opacity) continue;
     const GeodeticPoint g = frame.GeodeticFromEnu(scene.means[i].cast<double>());
     const Eigen::Vector2d utm = UtmFromGeodetic(zone, g.lon_deg, g.lat_deg);
@@ -364,16 +364,15 @@ std::vector<float> ImageOnGrid(const DsmGrid& heights, const NormalizedImage& im
   return out;
 }
 
-// Grey levels of the image on the truth's grid (ImageOnGrid).
-cv::Mat ImageOnTruthGrid(const DsmGrid& truth, const NormalizedImage& image, const RpcModel& rpc) {
-  const std::vector<float> rgb = ImageOnGrid(truth, image, rpc);
-  cv::Mat out(truth.height_px, truth.width_px, CV_32F);
-  for (int row = 0; row < truth.height_px; ++row)
-    for (int col = 0; col < truth.width_px; ++col) {
-      const std::size_t p = static_cast<std::size_t>(row) * truth.width_px + col;
-      out.at<float>(row, col) = (rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]) / 3.0f;
+// Grey levels of an interleaved RGB raster (NaN stays NaN).
+cv::Mat GreyOf(const std::vector<float>& rgb, int nx, int ny) {
+  cv::Mat grey(ny, nx, CV_32F);
+  for (int r = 0; r < ny; ++r)
+    for (int c = 0; c < nx; ++c) {
+      const std::size_t p = static_cast<std::size_t>(r) * nx + c;
+      grey.at<float>(r, c) = (rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]) / 3.0f;
     }
-  return out;
+  return grey;
 }
 
 // Per truth cell, 1 where a ray from it towards the satellite passes below
@@ -443,17 +442,6 @@ double MaskedSsim(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
 
 namespace {
 
-// Grey levels of an interleaved RGB raster (NaN stays NaN).
-cv::Mat GreyOf(const std::vector<float>& rgb, int nx, int ny) {
-  cv::Mat grey(ny, nx, CV_32F);
-  for (int r = 0; r < ny; ++r)
-    for (int c = 0; c < nx; ++c) {
-      const std::size_t p = static_cast<std::size_t>(r) * nx + c;
-      grey.at<float>(r, c) = (rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]) / 3.0f;
-    }
-  return grey;
-}
-
 // The ortho at (col + dx, row + dy) against the reference at (col, row), on
 // the cells `usable` marks where both hold a value: the shift within
 // `max_shift_px` of least squared error, its PSNR and SSIM.
@@ -511,7 +499,7 @@ OrthoAgreement CompareOrthoWithImage(const std::vector<float>& ortho_rgb, const 
                                      double view_zenith_deg, double view_azimuth_deg, int max_shift_px) {
   const int nx = truth.width_px, ny = truth.height_px;
   if (cls.size() != Pixels(truth) || ortho_rgb.size() != 3 * Pixels(truth)) return {};
-  const cv::Mat seen = ImageOnTruthGrid(truth, image, rpc);
+  const cv::Mat seen = GreyOf(ImageOnGrid(truth, image, rpc), nx, ny);
   const std::vector<std::uint8_t> hidden = HiddenFromView(truth, view_zenith_deg, view_azimuth_deg);
   cv::Mat ground = cv::Mat::zeros(ny, nx, CV_8U);
   for (int r = 0; r < ny; ++r)
@@ -563,14 +551,10 @@ void ApplyColourMatch(const ColourMatch& match, std::vector<float>* rgb) {
 OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const NormalizedImage& truth, int max_shift_px) {
   const int nx = truth.width_px, ny = truth.height_px;
   if (ortho_rgb.size() != 3 * static_cast<std::size_t>(nx) * ny) return {};
-  cv::Mat reference(ny, nx, CV_32F), valid(ny, nx, CV_8U);
+  cv::Mat valid(ny, nx, CV_8U);
   for (int r = 0; r < ny; ++r)
-    for (int c = 0; c < nx; ++c) {
-      const std::size_t p = static_cast<std::size_t>(r) * nx + c;
-      reference.at<float>(r, c) = (truth.rgb[3 * p] + truth.rgb[3 * p + 1] + truth.rgb[3 * p + 2]) / 3.0f;
-      valid.at<std::uint8_t>(r, c) = truth.valid[p] ? 255 : 0;
-    }
-  return Agreement(GreyOf(ortho_rgb, nx, ny), reference, valid, max_shift_px);
+    for (int c = 0; c < nx; ++c) valid.at<std::uint8_t>(r, c) = truth.valid[static_cast<std::size_t>(r) * nx + c] ? 255 : 0;
+  return Agreement(GreyOf(ortho_rgb, nx, ny), GreyOf(truth.rgb, nx, ny), valid, max_shift_px);
 }
 
 std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmGrid& dtm,
