@@ -38,7 +38,7 @@ void AddRunCommand(CLI::App& app, Runner* runner) {
                 "Print every option of the run configuration (path, type, default, unit, meaning) as the Markdown "
                 "tables of docs/cli.md and exit");
   flags->Add("--tile-m", "tiling.tile_m");
-  flags->Add("--tile-px", "tiling.tile_px");
+  flags->Add("--tile-cells", "tiling.tile_cells");
   flags->Add("--overlap-m", "tiling.overlap_m");
   flags->AddTileFlags();
   flags->Add("--jobs", "executor.jobs");

@@ -27,8 +27,8 @@ void AddTile(CLI::App& app, Runner* runner) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", *out, "Output folder (DIR/tiles)")->required();
-  cmd->add_option("--tile-m", opts->tile_m, "Tile core side [m]; 0: sized by the imagery (about --tile-px px)")->capture_default_str();
-  cmd->add_option("--tile-px", opts->tile_px, "What an automatic tile holds a side [px]")->capture_default_str();
+  cmd->add_option("--tile-m", opts->tile_m, "Tile core side [m]; 0: sized by the imagery (about --tile-cells cells)")->capture_default_str();
+  cmd->add_option("--tile-cells", opts->tile_cells, "What an automatic tile holds a side [dense cells]")->capture_default_str();
   cmd->add_option("--overlap-m", opts->overlap_m, "Overlap margin around each core [m]")->capture_default_str();
   cmd->add_option("--min-coverage", opts->min_coverage, "Fraction of a tile an image must see to be used")
       ->capture_default_str();

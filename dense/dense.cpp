@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core/error.h"
+#include "core/format.h"
 #include "core/stats.h"
 #include "dense/hole_fill.h"
 #include "dense/sweep.h"
@@ -35,6 +36,8 @@ void DenseOptions::Check() const {
     throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
+  if (!(range_probe_above_m >= 0 && range_probe_above_m <= 5000))
+    throw Error("dense", "range_probe_above_m", "must be 0..5000 m (0 = off), got " + FormatDouble(range_probe_above_m));
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
   positive(step_min_m, "step_min_m");
   positive(support_grey_sigma, "support_grey_sigma");
@@ -76,8 +79,7 @@ double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d
     const double depth_m = v.camera.Depth(centre_enu_m);
     if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(v.camera.fx * v.camera.fy));
   }
-  if (!std::isfinite(finest_m)) return kDenseCellStepM;
-  return kDenseCellStepM * std::max(1.0, std::round(finest_m / kDenseCellStepM));
+  return DenseCellForGsdM(finest_m);
 }
 
 namespace {
@@ -101,10 +103,27 @@ struct SweepPlan {
   std::size_t points_inside = 0;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // mean of the tie points inside
   double z_lo = 0, z_hi = 0;
+  double tie_points_z_hi = 0;          // z_hi before the probe raised it
+  std::optional<double> probe_top_m;   // the highest surface the probe found, if it ran and found one
   double step_m = 0;  // height_step_m, or coarser where the range needs more than max_heights
   int nh = 0;
   std::string note;   // why the step is coarser, when it is
 };
+
+// A range longer than max_heights steps (towers, hills) is swept with a
+// coarser step rather than refused: the volume's memory stays bounded and
+// the parabola fit between steps keeps sub-step heights.
+void SetHeightSteps(const DenseOptions& o, const char* what, SweepPlan* plan) {
+  plan->step_m = o.height_step_m;
+  plan->nh = static_cast<int>(std::ceil((plan->z_hi - plan->z_lo) / plan->step_m)) + 1;
+  plan->note.clear();
+  if (plan->nh > o.max_heights) {
+    plan->step_m = (plan->z_hi - plan->z_lo) / (o.max_heights - 1);
+    plan->nh = std::min(o.max_heights, static_cast<int>(std::ceil((plan->z_hi - plan->z_lo) / plan->step_m)) + 1);
+    plan->note = fmt::format("{} span {:.1f} m, more than max_heights {} steps of {:.2f} m: swept in steps of {:.3f} m",
+                             what, plan->z_hi - plan->z_lo, o.max_heights, o.height_step_m, plan->step_m);
+  }
+}
 
 SweepPlan PlanSweep(const DenseOptions& given, const std::vector<DenseView>& views,
                     const std::vector<Eigen::Vector3d>& all_points, const std::optional<GroundBox>& extent,
@@ -131,18 +150,7 @@ SweepPlan PlanSweep(const DenseOptions& given, const std::vector<DenseView>& vie
   if (given.cell_m == 0) o->cell_m = AutomaticCellM(views, plan.centre);
   plan.z_lo = Quantile(z, o->height_percentile) - o->height_margin_m;
   plan.z_hi = Quantile(z, 1.0 - o->height_percentile) + o->height_margin_m;
-  // A range longer than max_heights steps (towers, hills) is swept with a
-  // coarser step rather than refused: the volume's memory stays bounded and
-  // the parabola fit between steps keeps sub-step heights.
-  plan.step_m = o->height_step_m;
-  plan.nh = static_cast<int>(std::ceil((plan.z_hi - plan.z_lo) / plan.step_m)) + 1;
-  if (plan.nh > o->max_heights) {
-    plan.step_m = (plan.z_hi - plan.z_lo) / (o->max_heights - 1);
-    plan.nh = std::min(o->max_heights, static_cast<int>(std::ceil((plan.z_hi - plan.z_lo) / plan.step_m)) + 1);
-    plan.note = fmt::format(
-        "tie points span {:.1f} m, more than max_heights {} steps of {:.2f} m: swept in steps of {:.3f} m",
-        plan.z_hi - plan.z_lo, o->max_heights, o->height_step_m, plan.step_m);
-  }
+  SetHeightSteps(*o, "tie points", &plan);
   g->cell_m = o->cell_m;
   g->x0_m = lo.x();
   g->y0_m = lo.y();
@@ -179,6 +187,24 @@ ViewSlots SlotViews(const std::vector<DenseView>& views, const std::vector<Dense
   }
   for (const DensePair& p : pairs) v.camera_pairs.push_back({v.slot[p.a], v.slot[p.b]});
   return v;
+}
+
+// Tie points are sparse where the imagery is coarse, and a tall roof may
+// hold none: the tie points' height range then ends below it and the
+// sweep cannot find it (a 2 m sensor's towers came out as holes filled at
+// the ground). A coarse sweep up to range_probe_above_m above that range
+// looks for surfaces there, and the fine sweep's range is raised to the
+// highest it finds.
+void RaiseRangeToProbe(const DenseOptions& o, const HeightGrid& g, const ViewSlots& v,
+                       const std::vector<DensePair>& pairs, Progress& progress, SweepPlan* plan) {
+  plan->tie_points_z_hi = plan->z_hi;
+  if (o.range_probe_above_m <= 0) return;
+  const Sweep from_tie_points{o, g, plan->z_lo, plan->step_m, plan->nh, pairs, v.slot, v.grey, v.projection};
+  plan->probe_top_m = dense_detail::ProbeTopHeight(from_tie_points, plan->z_hi + o.range_probe_above_m,
+                                                   plan->centre, progress);
+  if (!plan->probe_top_m || *plan->probe_top_m + o.height_margin_m <= plan->z_hi) return;
+  plan->z_hi = *plan->probe_top_m + o.height_margin_m;
+  SetHeightSteps(o, "tie points and the probe's surfaces", plan);
 }
 
 // What the steps after the sweep count, for the report.
@@ -328,6 +354,8 @@ void ReportMetrics(const DenseOptions& o, const SweepPlan& plan, const ViewSlots
   r->metrics["height_step_m"] = plan.step_m;
   r->metrics["height_min_m"] = plan.z_lo;
   r->metrics["height_max_m"] = plan.z_hi;
+  r->metrics["tie_points_height_max_m"] = plan.tie_points_z_hi;
+  if (plan.probe_top_m) r->metrics["probe_top_m"] = *plan.probe_top_m;
   r->metrics["pairs"] = static_cast<double>(pairs);
   r->metrics["views"] = static_cast<double>(v.used.size());
   r->metrics["valid_fraction"] = static_cast<double>(n.measured) / all;
@@ -360,7 +388,7 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
     return result;
   };
   HeightGrid& g = result.grid;
-  const SweepPlan plan = PlanSweep(given, views, all_points, extent, &o, &g);
+  SweepPlan plan = PlanSweep(given, views, all_points, extent, &o, &g);
   if (plan.points_inside < 3)
     return degenerate(std::to_string(plan.points_inside) + " tie points" + (extent ? " inside the tile extent" : "") +
                       ": fewer than 3, no extent or height range to sweep");
@@ -369,6 +397,8 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   if (result.pairs_used.empty()) return degenerate("no image pair has enough tie points at a usable intersection angle");
   const ViewSlots v = SlotViews(views, result.pairs_used, plan.centre);
   const HoleFillGrid fill = o.fill.OnGrid(o.cell_m);
+  RaiseRangeToProbe(o, g, v, result.pairs_used, progress, &plan);
+  result.report.message = plan.note;
   const Sweep sweep{o, g, plan.z_lo, plan.step_m, plan.nh, result.pairs_used, v.slot, v.grey, v.projection};
   DenseCounts counts;
   CellHeights picked = SweepHeights(sweep, v, fill, progress, &counts);

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ground_cell.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "core/tile.h"
@@ -30,6 +31,10 @@ struct DenseOptions {
   double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
   double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
   double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
+  // A coarse sweep up to this far above the tie points' range looks for
+  // surfaces that hold no tie point (a tower at a coarse GSD) and raises
+  // the sweep's range to them (RaiseRangeToProbe). 0 = off.
+  double range_probe_above_m = 200.0;
   int max_heights = 600;            // longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)
   int window_cells = 5;             // NCC window side [cells], odd
   int max_pairs = 200;              // pairs kept, most verified tie points first
@@ -160,18 +165,15 @@ struct DenseResult {
   StageReport report;
 };
 
+// The automatic cell (core/ground_cell.h: DenseCellForGsdM) for the finest
+// view's GSD at `centre_enu_m` (depth / focal length).
+double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m);
+
 // The grid covers the tie points' horizontal extent, clipped to
 // `extent_enu_m` when given (a tile's core plus overlap: the views' margins
 // beyond it are another tile's work); the heights of the tie points inside
-// set the sweep range. Status "degenerate" when fewer than 3 tie points lie
-// inside or no pair qualifies.
-// The automatic cell: kDenseCellStepM for imagery finer than 0.75 m (where
-// every setting was measured), else the whole multiple of it nearest the finest
-// view's GSD at `centre_enu_m` (depth / focal length): a 2.1 m sensor gets
-// 2 m cells, not 0.5 m cells 16 times as many for the same detail.
-constexpr double kDenseCellStepM = 0.5;
-double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m);
-
+// set the sweep range (raised by the range probe). Status "degenerate" when
+// fewer than 3 tie points lie inside or no pair qualifies.
 DenseResult RunDenseHeights(const DenseOptions& options, const std::vector<DenseView>& views,
                             const std::vector<DensePair>& pairs, const std::vector<Eigen::Vector3d>& tie_points_enu_m,
                             Progress& progress, const std::optional<GroundBox>& extent_enu_m = std::nullopt);

@@ -120,7 +120,8 @@ DenseView FlatView(const std::string& name, const PinholeCamera& camera) {
 
 // The automatic cell follows the finest view: a sub-metre sensor keeps the
 // 0.5 m cells every setting was measured with (exactly 0.5, not a near
-// value that would move the grid), a 2.1 m sensor gets 2 m cells.
+// value that would move the grid), a coarser one gets the multiple of
+// 0.5 m nearest half its GSD (2.1 m: 1 m cells).
 TEST(Dense, AutomaticCellFollowsTheFinestViewInStepsOfHalfAMetre) {
   auto view_at_gsd = [](double gsd_m) {
     DenseView v;
@@ -133,8 +134,11 @@ TEST(Dense, AutomaticCellFollowsTheFinestViewInStepsOfHalfAMetre) {
   EXPECT_EQ(AutomaticCellM({view_at_gsd(0.31)}, centre), 0.5);
   EXPECT_EQ(AutomaticCellM({view_at_gsd(0.5000001)}, centre), 0.5);
   EXPECT_EQ(AutomaticCellM({view_at_gsd(0.7), view_at_gsd(3.0)}, centre), 0.5);
-  EXPECT_EQ(AutomaticCellM({view_at_gsd(2.1)}, centre), 2.0);
-  EXPECT_EQ(AutomaticCellM({view_at_gsd(1.5), view_at_gsd(2.5)}, centre), 1.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(1.4)}, centre), 0.5);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(2.1)}, centre), 1.0);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(2.4), view_at_gsd(3.0)}, centre), 1.0);
+  EXPECT_EQ(AutomaticCellM({view_at_gsd(4.2)}, centre), 2.0);
+  EXPECT_EQ(DenseCellForGsdM(std::numeric_limits<double>::infinity()), kDenseCellStepM);
   EXPECT_EQ(AutomaticCellM({}, centre), kDenseCellStepM);  // nothing to follow
 }
 
@@ -346,6 +350,49 @@ TEST(Dense, ARangeBeyondMaxHeightsIsSweptInCoarserSteps) {
   EXPECT_NEAR(height_at(-3, 4), 6.0f, step_m);
   EXPECT_NEAR(height_at(14, -12), 0.0f, step_m);
   EXPECT_NEAR(height_at(-13, 15), 0.0f, step_m);
+}
+
+// A roof that holds no tie point (coarse imagery, a tower): every tie
+// point lies on the ground, so their range ends 30 m below the roof. The
+// probe finds the roof and the sweep measures it; without the probe the
+// roof cannot be in the range.
+TEST(Dense, ARoofAboveEveryTiePointIsFoundByTheRangeProbe) {
+  NullProgress progress;
+  constexpr double kRoofM = 30.0, kRoofHalfM = 14.0;
+  const std::vector<DenseView> views = {TexturedView("v0", LookingDown(0, 0), kRoofM, kRoofHalfM),
+                                        TexturedView("v1", LookingDown(15, 90), kRoofM, kRoofHalfM),
+                                        TexturedView("v2", LookingDown(20, 200), kRoofM, kRoofHalfM)};
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> ground_only = {{-28, -28, 0}, {28, -28, 0}, {-28, 28, 0}, {28, 28, 1}, {-20, 0, 0}};
+  DenseOptions off;
+  off.range_probe_above_m = 0;
+  const DenseResult without = RunDenseHeights(off, views, pairs, ground_only, progress);
+  ASSERT_EQ(without.report.status, StageStatus::kOk) << without.report.message;
+  EXPECT_LT(without.report.metrics.at("height_max_m"), 1.0 + off.height_margin_m + 1e-9);
+  EXPECT_EQ(without.report.metrics.count("probe_top_m"), 0u);
+  const DenseResult with = RunDenseHeights(DenseOptions{}, views, pairs, ground_only, progress);
+  ASSERT_EQ(with.report.status, StageStatus::kOk) << with.report.message;
+  // The probe's step is half a coarse cell (0.75 m here): its top is the roof within a step.
+  EXPECT_NEAR(with.report.metrics.at("probe_top_m"), kRoofM, 0.75);
+  EXPECT_DOUBLE_EQ(with.report.metrics.at("tie_points_height_max_m"), without.report.metrics.at("height_max_m"));
+  EXPECT_GT(with.report.metrics.at("height_max_m"), kRoofM);
+  const HeightGrid& g = with.grid;
+  auto cell = [&](double x, double y) {
+    return g.Index(static_cast<int>(std::lround((x - g.x0_m) / g.cell_m)), static_cast<int>(std::lround((y - g.y0_m) / g.cell_m)));
+  };
+  int roof_cells = 0, measured_at_roof = 0;
+  for (double y = -10; y <= 10; y += 1.0)
+    for (double x = -10; x <= 10; x += 1.0) {
+      ++roof_cells;
+      const std::size_t k = cell(x, y);
+      // Measured, not filled, and within a sweep step of the roof.
+      if (g.fill_rule[k] == FillRule::kMatched && std::abs(g.height_m[k] - kRoofM) <= DenseOptions{}.height_step_m) ++measured_at_roof;
+      EXPECT_LT(without.grid.height_m[cell(x, y)], kRoofM - 20.0);
+    }
+  EXPECT_GE(measured_at_roof, 0.95 * roof_cells);
+  // Ground beside the roof is still measured at the ground.
+  EXPECT_NEAR(g.height_m[cell(-24, 20)], 0.0f, 0.25f);
+  EXPECT_NEAR(g.height_m[cell(22, -24)], 0.0f, 0.25f);
 }
 
 // A tiled roof: courses of dark tiles every 0.6 m, finer than the views'

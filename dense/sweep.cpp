@@ -9,6 +9,8 @@
 #include <atomic>
 #include <cmath>
 #include <cstddef>
+#include <functional>
+#include <optional>
 
 #include "core/error.h"
 #include "core/simd.h"
@@ -364,45 +366,44 @@ CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress
   return out;
 }
 
-// Heights for the cells of the fine sweep's grid from a sweep at
-// coarse_factor times its cell (DenseOptions::coarse_factor), on the views
-// blurred to that cell (a Gaussian of half a coarse cell, against
-// aliasing), interpolated bilinearly between coarse cells (the nearest
-// where a neighbour has no height); NaN where the coarse sweep has none.
-std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress) {
-  const HeightGrid& g = fine.grid;
-  const int f = fine.o.coarse_factor;
-  std::vector<float> out(fine.Cells(), kNan);
+namespace {
+
+// The grid of a sweep at `factor` times the fine cell, each coarse cell
+// centred on its factor x factor fine cells.
+HeightGrid CoarseGrid(const HeightGrid& g, int factor) {
   HeightGrid c;
-  c.cell_m = g.cell_m * f;
-  c.x0_m = g.x0_m + 0.5 * (f - 1) * g.cell_m;  // a coarse cell is centred on its f x f fine cells
-  c.y0_m = g.y0_m + 0.5 * (f - 1) * g.cell_m;
-  c.nx = g.nx / f;
-  c.ny = g.ny / f;
-  DenseOptions coarse_options = fine.o;
-  coarse_options.window_cells = fine.o.coarse_window_cells;
-  if (c.nx <= coarse_options.window_cells || c.ny <= coarse_options.window_cells) return out;
+  c.cell_m = g.cell_m * factor;
+  c.x0_m = g.x0_m + 0.5 * (factor - 1) * g.cell_m;
+  c.y0_m = g.y0_m + 0.5 * (factor - 1) * g.cell_m;
+  c.nx = g.nx / factor;
+  c.ny = g.ny / factor;
+  return c;
+}
+
+// The fine sweep's views blurred to a coarse cell (a Gaussian of half a
+// coarse cell, against aliasing).
+std::vector<GreyImage> BlurredTo(const Sweep& fine, double cell_m, const Eigen::Vector3d& centre_enu_m) {
   std::vector<GreyImage> blurred(fine.grey.size());
   tbb::parallel_for(0, static_cast<int>(fine.grey.size()), [&](int v) {
-    blurred[v] = Blurred(fine.grey[v], 0.5 * c.cell_m * PixelsPerMetre(fine.projection[v], centre_enu_m));
+    blurred[v] = Blurred(fine.grey[v], 0.5 * cell_m * PixelsPerMetre(fine.projection[v], centre_enu_m));
   });
-  const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, blurred, fine.projection};
-  const std::vector<float> cost = CostVolume(coarse, nullptr, "dense: sweeping holes at a coarser scale", progress);
-  const std::vector<float> picked = PickHeights(coarse, cost, progress).height_m;
-  // Wide windows fatten what they straddle: at a roof's edge the roof's
-  // texture wins, and a band of ground takes the roof's height. Only coarse
-  // cells whose neighbours within kSmoothReach cells are measured and lie
-  // within kSmoothSlope of them keep a height: inside a roof, gabled or
-  // flat, or on open ground, not near a step.
-  constexpr int kSmoothReach = 2;
+  return blurred;
+}
+
+// Wide windows fatten what they straddle: at a roof's edge the roof's
+// texture wins, and a band of ground takes the roof's height. Only cells
+// whose neighbours within `reach` cells are measured and lie within
+// kSmoothSlope of them keep a height: inside a roof, gabled or flat, or on
+// open ground, not near a step.
+std::vector<float> SmoothCellsOnly(const std::vector<float>& picked, const HeightGrid& c, int reach) {
   constexpr float kSmoothSlope = 1.0f;  // [m per coarse cell]; a roof of 30 deg rises 0.9 m per 1.5 m cell
   std::vector<float> h(picked.size(), kNan);
   for (int b = 0; b < c.ny; ++b)
     for (int a = 0; a < c.nx; ++a) {
       const float centre = picked[c.Index(a, b)];
       bool smooth = std::isfinite(centre);
-      for (int db = -kSmoothReach; db <= kSmoothReach && smooth; ++db)
-        for (int da = -kSmoothReach; da <= kSmoothReach && smooth; ++da) {
+      for (int db = -reach; db <= reach && smooth; ++db)
+        for (int da = -reach; da <= reach && smooth; ++da) {
           const int x = a + da, y = b + db;
           if (x < 0 || y < 0 || x >= c.nx || y >= c.ny) continue;
           const float n = picked[c.Index(x, y)];
@@ -410,6 +411,30 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
         }
       if (smooth) h[c.Index(a, b)] = centre;
     }
+  return h;
+}
+
+}  // namespace
+
+// Heights for the cells of the fine sweep's grid from a sweep at
+// coarse_factor times its cell (DenseOptions::coarse_factor), on the views
+// blurred to that cell, interpolated bilinearly between coarse cells (the
+// nearest where a neighbour has no height); NaN where the coarse sweep has
+// none.
+std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress) {
+  const HeightGrid& g = fine.grid;
+  const int f = fine.o.coarse_factor;
+  std::vector<float> out(fine.Cells(), kNan);
+  const HeightGrid c = CoarseGrid(g, f);
+  DenseOptions coarse_options = fine.o;
+  coarse_options.window_cells = fine.o.coarse_window_cells;
+  if (c.nx <= coarse_options.window_cells || c.ny <= coarse_options.window_cells) return out;
+  const std::vector<GreyImage> blurred = BlurredTo(fine, c.cell_m, centre_enu_m);
+  const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, blurred, fine.projection};
+  const std::vector<float> cost = CostVolume(coarse, nullptr, "dense: sweeping holes at a coarser scale", progress);
+  constexpr int kSmoothReach = 2;
+  const std::vector<float> h =
+      SmoothCellsOnly(PickHeights(coarse, cost, progress).height_m, c, kSmoothReach);
   auto at = [&](int a, int b) { return h[c.Index(std::clamp(a, 0, c.nx - 1), std::clamp(b, 0, c.ny - 1))]; };
   for (int j = 0; j < g.ny; ++j)
     for (int i = 0; i < g.nx; ++i) {
@@ -423,6 +448,31 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
       out[g.Index(i, j)] = value;
     }
   return out;
+}
+
+std::optional<double> ProbeTopHeight(const Sweep& fine, double z_top_m, const Eigen::Vector3d& centre_enu_m,
+                                     Progress& progress) {
+  const int f = std::max(fine.o.coarse_factor, 2);
+  const HeightGrid c = CoarseGrid(fine.grid, f);
+  DenseOptions probe_options = fine.o;
+  probe_options.window_cells = fine.o.coarse_window_cells;
+  if (c.nx <= probe_options.window_cells || c.ny <= probe_options.window_cells) return std::nullopt;
+  // Half a coarse cell per step: a pair 20 deg apart shifts a fifth of a
+  // coarse cell per step, enough to find a surface that the fine sweep
+  // then measures at its own step.
+  const double step_m = std::max(fine.step_m, 0.5 * c.cell_m);
+  const int nh = std::min(fine.o.max_heights, static_cast<int>(std::ceil((z_top_m - fine.z_lo) / step_m)) + 1);
+  const std::vector<GreyImage> blurred = BlurredTo(fine, c.cell_m, centre_enu_m);
+  const Sweep probe{probe_options, c, fine.z_lo, (z_top_m - fine.z_lo) / (nh - 1), nh, fine.pairs, fine.slot,
+                    blurred, fine.projection};
+  const std::vector<float> cost = CostVolume(probe, nullptr, "dense: probing for surfaces above the tie points", progress);
+  constexpr int kProbeSmoothReach = 1;  // 3 x 3 coarse cells agree: a roof, not a chance match
+  std::vector<float> h = SmoothCellsOnly(PickHeights(probe, cost, progress).height_m, c, kProbeSmoothReach);
+  h.erase(std::remove_if(h.begin(), h.end(), [](float x) { return !std::isfinite(x); }), h.end());
+  constexpr std::size_t kTopCells = 4;  // the top is the 4th highest smooth cell, so one patch cannot set it
+  if (h.size() < kTopCells) return std::nullopt;
+  std::nth_element(h.begin(), h.begin() + (kTopCells - 1), h.end(), std::greater<float>());
+  return h[kTopCells - 1];
 }
 
 }  // namespace dense_detail

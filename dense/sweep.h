@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,13 @@ CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress
 
 // Heights from a sweep at coarse_factor times the cell (sweep.cpp).
 std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress);
+
+// The highest surface that a sweep at coarse_factor (at least 2) times the
+// cell finds between fine.z_lo and z_top_m (ENU up): the 4th highest of
+// the coarse cells that match (max_cost) and agree with their 3 x 3
+// neighbours, or none (sweep.cpp).
+std::optional<double> ProbeTopHeight(const Sweep& fine, double z_top_m, const Eigen::Vector3d& centre_enu_m,
+                                     Progress& progress);
 
 // Per view, the height above which each cell is seen (visibility.cpp).
 std::vector<std::vector<float>> SeenAbove(const HeightGrid& g, const std::vector<float>& surface_m,

@@ -15,6 +15,7 @@
 #include "core/atomic_file.h"
 #include "core/crash_point.h"
 #include "core/error.h"
+#include "core/ground_cell.h"
 #include "products/dsm.h"
 #include "products/dsm_report.h"
 #include "pipeline/aoi_products.h"
@@ -432,10 +433,11 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
     Emit(progress, "info", "city", plan.city, "", "unchanged since the last run; nothing recomputed");
     return unchanged;
   }
-  progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m ({}; finest image GSD {:.2f} m, {:.0f} px a tile)",
+  progress.Info(fmt::format("[{}] {} AOI(s), {}x{} tiles of {} m ({}; finest image GSD {:.2f} m, {:.0f} px and {:.0f} dense cells a tile)",
                             plan.city, aois.size(), plan.grid.cols, plan.grid.rows, plan.grid.tile_m,
                             plan.tile_side_automatic ? "sized by the imagery" : "as given",
-                            plan.finest_gsd_m, plan.finest_gsd_m > 0 ? plan.grid.tile_m / plan.finest_gsd_m : 0.0));
+                            plan.finest_gsd_m, plan.finest_gsd_m > 0 ? plan.grid.tile_m / plan.finest_gsd_m : 0.0,
+                            plan.grid.tile_m / DenseCellForGsdM(plan.finest_gsd_m)));
   Emit(progress, "info", "city", plan.city, "", "start",
        {{"aois", static_cast<double>(aois.size())}, {"tiles", static_cast<double>(plan.grid.cols * plan.grid.rows)}});
   const TilingResult tiles = WriteTiles(plan, (work.city_dir / "tiles").string(), progress);

@@ -43,9 +43,10 @@ template <class IO> void Visit(IO& io, IngestOptions& o) {
 }
 template <class IO> void Visit(IO& io, TilingOptions& o) {
   io("tile_m", o.tile_m,
-     "Tile core side; 0: sized by the imagery (a multiple of 256 m holding about tile_px pixels of the finest image)");
-  io("tile_px", o.tile_px,
-     "What an automatic tile (tile_m 0) holds along a side, in pixels of the finest image");
+     "Tile core side; 0: sized by the imagery (a multiple of 256 m holding about tile_cells dense cells)");
+  io("tile_cells", o.tile_cells,
+     "What an automatic tile (tile_m 0) holds along a side, in cells of the automatic dense grid (0.5 m for "
+     "sub-metre sensors, else about half the finest image's GSD)");
   io("overlap_m", o.overlap_m,
      "Overlap margin around each tile's core");
   io("min_coverage", o.min_coverage,
@@ -147,6 +148,9 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Tie-point heights outside the [p, 1-p] percentiles are ignored for the height range");
   io("max_heights", o.max_heights,
      "Most candidate heights per sweep; longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)");
+  io("range_probe_above_m", o.range_probe_above_m,
+     "A coarse sweep up to this far above the tie points' height range looks for surfaces without tie points (a "
+     "tower in coarse imagery) and raises the sweep's range to them; 0 = off");
   io("window_cells", o.window_cells,
      "Side of the NCC window, odd");
   io("max_pairs", o.max_pairs,

@@ -12,6 +12,7 @@
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/ground_cell.h"
 #include "ingest/gdal_util.h"
 #include "ingest/geo.h"
 
@@ -171,7 +172,7 @@ void TilingOptions::Check() const {
   if (!(tile_m == 0.0 || tile_m >= 16.0)) {
     throw Error("tile", "tile_m", "must be 0 (automatic) or >= 16 m, got " + std::to_string(tile_m));
   }
-  if (tile_px < 64) throw Error("tile", "tile_px", "must be >= 64 px, got " + std::to_string(tile_px));
+  if (tile_cells < 64) throw Error("tile", "tile_cells", "must be >= 64 cells, got " + std::to_string(tile_cells));
   if (!(overlap_m >= 0.0 && (tile_m == 0.0 || overlap_m < tile_m))) {
     throw Error("tile", "overlap_m", "must be in [0, tile_m), got " + std::to_string(overlap_m));
   }
@@ -203,7 +204,7 @@ double ChooseTileSideM(const TilingOptions& options, const std::vector<AoiCatalo
   if (finest_gsd_m) *finest_gsd_m = std::isfinite(finest) ? finest : 0.0;
   if (options.tile_m > 0) return options.tile_m;
   if (!std::isfinite(finest)) return kAutoTileStepM;
-  const double steps = std::max(1.0, std::round(options.tile_px * finest / kAutoTileStepM));
+  const double steps = std::max(1.0, std::round(options.tile_cells * DenseCellForGsdM(finest) / kAutoTileStepM));
   return steps * kAutoTileStepM;
 }
 

@@ -13,12 +13,13 @@ namespace skyfall {
 
 struct TilingOptions {
   // [m] side of a tile core. 0 (the default): sized by the imagery, the
-  // whole multiple of kAutoTileStepM that holds closest to tile_px pixels of
-  // the finest image a side (256 m for 0.3-0.6 m sensors, as fixed-size
-  // tiles were; 1,024 m for ZY-3's 2.1 m, where a 256 m tile holds 120 px,
-  // too few to match). A value > 0 is the user's choice and is kept.
+  // whole multiple of kAutoTileStepM that holds closest to tile_cells cells
+  // of the dense grid a side, the cell following the finest image's GSD
+  // (core/ground_cell.h): 256 m for 0.3-0.6 m sensors, as fixed-size tiles
+  // were; 512 m for ZY-3's 2.1 m (1 m cells), where a 256 m tile holds 120
+  // px, too few to match. A value > 0 is the user's choice and is kept.
   double tile_m = 0.0;
-  int tile_px = 512;          // [px] what an automatic tile should hold a side
+  int tile_cells = 512;       // [cells] what an automatic tile should hold a side
   // [m] margin reconstructed around each core, and beyond the city's bounds
   // at its edge. 8 m: an inner tile
   // reconstructs 1.13x its core (1.27x at 16 m), and with the merge's seam
@@ -51,7 +52,7 @@ struct TilePlan {
   std::string city;
   GeodeticPoint enu_origin;   // shared by every tile
   double finest_gsd_m = 0;    // GSD of the finest image [m] (what an automatic tile side follows)
-  bool tile_side_automatic = false;  // sized by tile_px (tile_m 0), not given
+  bool tile_side_automatic = false;  // sized by tile_cells (tile_m 0), not given
   GroundBox bounds;           // union of the AOI footprints in that frame
   TileGrid grid;
   std::vector<TileSpec> tiles;         // images without crop_path yet
