@@ -167,9 +167,12 @@ struct ViewSlots {
   std::vector<Projection> projection;
   std::vector<Eigen::Vector3d> to_cameras;       // per slot: ENU direction from the centre to the camera
   std::vector<std::array<int, 2>> camera_pairs;  // the pairs, as slots
+  // Per slot, blurred for the coarse sweeps (the range probe, the hole
+  // sweep) at max(coarse_factor, 2) x the cell; empty when neither runs.
+  dense_detail::CoarseViews coarse;
 };
 
-ViewSlots SlotViews(const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
+ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
                     const Eigen::Vector3d& centre) {
   ViewSlots v;
   for (const DensePair& p : pairs) {
@@ -186,6 +189,9 @@ ViewSlots SlotViews(const std::vector<DenseView>& views, const std::vector<Dense
     v.to_cameras.push_back(views[k].camera.Centre() - centre);
   }
   for (const DensePair& p : pairs) v.camera_pairs.push_back({v.slot[p.a], v.slot[p.b]});
+  const bool hole_sweep = o.fill_holes && o.coarse_factor > 1;
+  if (o.range_probe_above_m > 0 || hole_sweep)
+    v.coarse = dense_detail::BlurForCoarseSweeps(v.grey, v.projection, o.cell_m, std::max(o.coarse_factor, 2), centre);
   return v;
 }
 
@@ -200,8 +206,8 @@ void RaiseRangeToProbe(const DenseOptions& o, const HeightGrid& g, const ViewSlo
   plan->tie_points_z_hi = plan->z_hi;
   if (o.range_probe_above_m <= 0) return;
   const Sweep from_tie_points{o, g, plan->z_lo, plan->step_m, plan->nh, pairs, v.slot, v.grey, v.projection};
-  plan->probe_top_m = dense_detail::ProbeTopHeight(from_tie_points, plan->z_hi + o.range_probe_above_m,
-                                                   plan->centre, progress);
+  plan->probe_top_m =
+      dense_detail::ProbeTopHeight(from_tie_points, v.coarse, plan->z_hi + o.range_probe_above_m, progress);
   if (!plan->probe_top_m || *plan->probe_top_m + o.height_margin_m <= plan->z_hi) return;
   plan->z_hi = *plan->probe_top_m + o.height_margin_m;
   SetHeightSteps(o, "tie points and the probe's surfaces", plan);
@@ -266,7 +272,7 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
   counts->occluded = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
   std::vector<std::uint8_t> from_coarse(cells, 0);
   if (o.coarse_factor > 1) {
-    const std::vector<float> coarse = dense_detail::CoarseSweepHeights(sweep, centre, progress);
+    const std::vector<float> coarse = dense_detail::CoarseSweepHeights(sweep, v.coarse, progress);
     for (std::size_t k = 0; k < cells; ++k)
       if (!std::isfinite(g->height_m[k]) && !occluded[k] && std::isfinite(coarse[k])) {
         g->height_m[k] = coarse[k];
@@ -392,10 +398,9 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   if (plan.points_inside < 3)
     return degenerate(std::to_string(plan.points_inside) + " tie points" + (extent ? " inside the tile extent" : "") +
                       ": fewer than 3, no extent or height range to sweep");
-  result.report.message = plan.note;
   result.pairs_used = SelectDensePairs(o, views, pairs, plan.centre);
   if (result.pairs_used.empty()) return degenerate("no image pair has enough tie points at a usable intersection angle");
-  const ViewSlots v = SlotViews(views, result.pairs_used, plan.centre);
+  const ViewSlots v = SlotViews(o, views, result.pairs_used, plan.centre);
   const HoleFillGrid fill = o.fill.OnGrid(o.cell_m);
   RaiseRangeToProbe(o, g, v, result.pairs_used, progress, &plan);
   result.report.message = plan.note;

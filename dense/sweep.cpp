@@ -380,16 +380,6 @@ HeightGrid CoarseGrid(const HeightGrid& g, int factor) {
   return c;
 }
 
-// The fine sweep's views blurred to a coarse cell (a Gaussian of half a
-// coarse cell, against aliasing).
-std::vector<GreyImage> BlurredTo(const Sweep& fine, double cell_m, const Eigen::Vector3d& centre_enu_m) {
-  std::vector<GreyImage> blurred(fine.grey.size());
-  tbb::parallel_for(0, static_cast<int>(fine.grey.size()), [&](int v) {
-    blurred[v] = Blurred(fine.grey[v], 0.5 * cell_m * PixelsPerMetre(fine.projection[v], centre_enu_m));
-  });
-  return blurred;
-}
-
 // Wide windows fatten what they straddle: at a roof's edge the roof's
 // texture wins, and a band of ground takes the roof's height. Only cells
 // whose neighbours within `reach` cells are measured and lie within
@@ -421,16 +411,27 @@ std::vector<float> SmoothCellsOnly(const std::vector<float>& picked, const Heigh
 // blurred to that cell, interpolated bilinearly between coarse cells (the
 // nearest where a neighbour has no height); NaN where the coarse sweep has
 // none.
-std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress) {
+CoarseViews BlurForCoarseSweeps(const std::vector<GreyImage>& grey, const std::vector<Projection>& projection,
+                                double fine_cell_m, int factor, const Eigen::Vector3d& centre_enu_m) {
+  CoarseViews out;
+  out.factor = factor;
+  out.grey.resize(grey.size());
+  const double coarse_cell_m = fine_cell_m * factor;
+  tbb::parallel_for(0, static_cast<int>(grey.size()), [&](int v) {
+    out.grey[v] = Blurred(grey[v], 0.5 * coarse_cell_m * PixelsPerMetre(projection[v], centre_enu_m));
+  });
+  return out;
+}
+
+std::vector<float> CoarseSweepHeights(const Sweep& fine, const CoarseViews& views, Progress& progress) {
   const HeightGrid& g = fine.grid;
-  const int f = fine.o.coarse_factor;
+  const int f = views.factor;
   std::vector<float> out(fine.Cells(), kNan);
   const HeightGrid c = CoarseGrid(g, f);
   DenseOptions coarse_options = fine.o;
   coarse_options.window_cells = fine.o.coarse_window_cells;
   if (c.nx <= coarse_options.window_cells || c.ny <= coarse_options.window_cells) return out;
-  const std::vector<GreyImage> blurred = BlurredTo(fine, c.cell_m, centre_enu_m);
-  const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, blurred, fine.projection};
+  const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, views.grey, fine.projection};
   const std::vector<float> cost = CostVolume(coarse, nullptr, "dense: sweeping holes at a coarser scale", progress);
   constexpr int kSmoothReach = 2;
   const std::vector<float> h =
@@ -450,10 +451,9 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& 
   return out;
 }
 
-std::optional<double> ProbeTopHeight(const Sweep& fine, double z_top_m, const Eigen::Vector3d& centre_enu_m,
+std::optional<double> ProbeTopHeight(const Sweep& fine, const CoarseViews& views, double z_top_m,
                                      Progress& progress) {
-  const int f = std::max(fine.o.coarse_factor, 2);
-  const HeightGrid c = CoarseGrid(fine.grid, f);
+  const HeightGrid c = CoarseGrid(fine.grid, views.factor);
   DenseOptions probe_options = fine.o;
   probe_options.window_cells = fine.o.coarse_window_cells;
   if (c.nx <= probe_options.window_cells || c.ny <= probe_options.window_cells) return std::nullopt;
@@ -462,9 +462,8 @@ std::optional<double> ProbeTopHeight(const Sweep& fine, double z_top_m, const Ei
   // then measures at its own step.
   const double step_m = std::max(fine.step_m, 0.5 * c.cell_m);
   const int nh = std::min(fine.o.max_heights, static_cast<int>(std::ceil((z_top_m - fine.z_lo) / step_m)) + 1);
-  const std::vector<GreyImage> blurred = BlurredTo(fine, c.cell_m, centre_enu_m);
   const Sweep probe{probe_options, c, fine.z_lo, (z_top_m - fine.z_lo) / (nh - 1), nh, fine.pairs, fine.slot,
-                    blurred, fine.projection};
+                    views.grey, fine.projection};
   const std::vector<float> cost = CostVolume(probe, nullptr, "dense: probing for surfaces above the tie points", progress);
   constexpr int kProbeSmoothReach = 1;  // 3 x 3 coarse cells agree: a roof, not a chance match
   std::vector<float> h = SmoothCellsOnly(PickHeights(probe, cost, progress).height_m, c, kProbeSmoothReach);

@@ -60,14 +60,24 @@ struct CellHeights {
 
 CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress& progress);
 
-// Heights from a sweep at coarse_factor times the cell (sweep.cpp).
-std::vector<float> CoarseSweepHeights(const Sweep& fine, const Eigen::Vector3d& centre_enu_m, Progress& progress);
+// The views of the sweeps at a coarser scale (the hole sweep and the range
+// probe), blurred once for both: a Gaussian of half a coarse cell, `factor`
+// times the fine cell, against aliasing (sweep.cpp).
+struct CoarseViews {
+  int factor = 0;
+  std::vector<GreyImage> grey;  // per view slot
+};
+CoarseViews BlurForCoarseSweeps(const std::vector<GreyImage>& grey, const std::vector<Projection>& projection,
+                                double fine_cell_m, int factor, const Eigen::Vector3d& centre_enu_m);
 
-// The highest surface that a sweep at coarse_factor (at least 2) times the
-// cell finds between fine.z_lo and z_top_m (ENU up): the 4th highest of
-// the coarse cells that match (max_cost) and agree with their 3 x 3
-// neighbours, or none (sweep.cpp).
-std::optional<double> ProbeTopHeight(const Sweep& fine, double z_top_m, const Eigen::Vector3d& centre_enu_m,
+// Heights from a sweep at views.factor times the cell (sweep.cpp).
+std::vector<float> CoarseSweepHeights(const Sweep& fine, const CoarseViews& views, Progress& progress);
+
+// The highest surface that a sweep at views.factor times the cell finds
+// between fine.z_lo and z_top_m (ENU up): the 4th highest of the coarse
+// cells that match (max_cost) and agree with their 3 x 3 neighbours, or
+// none (sweep.cpp).
+std::optional<double> ProbeTopHeight(const Sweep& fine, const CoarseViews& views, double z_top_m,
                                      Progress& progress);
 
 // Per view, the height above which each cell is seen (visibility.cpp).
