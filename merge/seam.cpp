@@ -1,6 +1,8 @@
 #include "merge/seam.h"
 
 #include <cmath>
+#include <map>
+#include <utility>
 
 #include "core/error.h"
 #include "ingest/geo.h"
@@ -36,14 +38,20 @@ SeamMetric MeasureSeams(const DsmGrid& dsm, const TileOwnership& ownership, cons
     }
   }
   double boundary = 0, interior = 0;
+  std::map<std::pair<int, int>, std::pair<double, std::size_t>> by_border;  // (a, b) -> (sum, pairs)
   SeamMetric m;
   auto pair = [&](int c0, int r0, int c1, int r1) {
     const float a = dsm.At(c0, r0), b = dsm.At(c1, r1);
     if (!std::isfinite(a) || !std::isfinite(b)) return;
     const double step = std::abs(static_cast<double>(a) - b);
-    if (owner[static_cast<std::size_t>(r0) * dsm.width_px + c0] != owner[static_cast<std::size_t>(r1) * dsm.width_px + c1]) {
+    const int o0 = owner[static_cast<std::size_t>(r0) * dsm.width_px + c0];
+    const int o1 = owner[static_cast<std::size_t>(r1) * dsm.width_px + c1];
+    if (o0 != o1) {
       boundary += step;
       ++m.boundary_pairs;
+      auto& border = by_border[{std::min(o0, o1), std::max(o0, o1)}];
+      border.first += step;
+      ++border.second;
     } else {
       interior += step;
       ++m.interior_pairs;
@@ -58,6 +66,11 @@ SeamMetric MeasureSeams(const DsmGrid& dsm, const TileOwnership& ownership, cons
   m.boundary_mean_step_m = m.boundary_pairs ? boundary / m.boundary_pairs : NAN;
   m.interior_mean_step_m = m.interior_pairs ? interior / m.interior_pairs : NAN;
   m.ratio = m.boundary_mean_step_m / m.interior_mean_step_m;
+  for (const auto& [tiles, sum] : by_border) {
+    const Eigen::Vector2i a(tiles.first % grid.cols, tiles.first / grid.cols);
+    const Eigen::Vector2i b(tiles.second % grid.cols, tiles.second / grid.cols);
+    m.borders.push_back({a, b, sum.first / static_cast<double>(sum.second), sum.second});
+  }
   return m;
 }
 

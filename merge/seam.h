@@ -3,6 +3,9 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "core/tile.h"
 #include "core/dsm_grid.h"
@@ -10,12 +13,20 @@
 
 namespace skyfall {
 
+// The steps across one border: between two tiles whose owned pixels touch.
+struct BorderSeam {
+  Eigen::Vector2i tile_a, tile_b;  // (col, row), tile_a the lower index (row-major)
+  double mean_step_m = 0;          // mean |h(a) - h(b)| over its pixel pairs
+  std::size_t pairs = 0;
+};
+
 struct SeamMetric {
   double boundary_mean_step_m = 0;  // mean |h(a) - h(b)| over adjacent pixels owned by different tiles
   double interior_mean_step_m = 0;  // ... over adjacent pixels owned by one tile
   double ratio = 0;                 // boundary / interior (1 = no seam)
   std::size_t boundary_pairs = 0;
   std::size_t interior_pairs = 0;
+  std::vector<BorderSeam> borders;  // every pair of tiles that touch, row-major by (tile_a, tile_b)
 };
 
 // Adjacent pixel pairs (4-neighbourhood) valid in both; a pixel's tile is

@@ -111,8 +111,11 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
   // 1. Who owns what: core boundaries bent to where neighbours agree. Every
   //    cloud in the city frame; owned and overlap Gaussians apart.
   result.ownership = ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, tiles);
+  // A tile planned in the city's frame (every tile of one tiling) is used as
+  // it is: a copy of the city's Gaussians would double the merge's memory.
   struct Split {
-    GaussianCloud cloud;
+    GaussianCloud moved;                    // the tile in the city frame, when its frame differs
+    const GaussianCloud* cloud = nullptr;   // the tile in the city frame
     std::vector<std::size_t> core, overlap;
   };
   std::vector<Split> split(tiles.size());
@@ -120,7 +123,12 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     const TileSpec& spec = tiles[k].tile;
     // Tile boxes are in the frame the tiles were planned in.
     const Eigen::Isometry3d to_city = FrameChange(spec.enu_origin, city_origin);
-    split[k].cloud = TransformCloud(tiles[k].cloud, to_city);
+    if (to_city.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
+      split[k].cloud = &tiles[k].cloud;
+    } else {
+      split[k].moved = TransformCloud(tiles[k].cloud, to_city);
+      split[k].cloud = &split[k].moved;
+    }
     for (std::size_t i = 0; i < tiles[k].cloud.size(); ++i) {
       const Eigen::Vector3f& p = tiles[k].cloud.means[i];
       const Eigen::Vector2i owner = result.ownership.Owner(p.x(), p.y());
@@ -142,10 +150,10 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
     auto acc = mine->getAccessor();
     for (std::size_t i : split[k].core) {
-      if (OpacityOfLogit(split[k].cloud.opacity_logits[i]) >= options.min_opacity) {
-        acc.setValueOn(VoxelOf(*mine, split[k].cloud.means[i], options.occupancy_columns));
+      if (OpacityOfLogit(split[k].cloud->opacity_logits[i]) >= options.min_opacity) {
+        acc.setValueOn(VoxelOf(*mine, split[k].cloud->means[i], options.occupancy_columns));
       }
-      result.cloud.Append(split[k].cloud, i);
+      result.cloud.Append(*split[k].cloud, i);
       result.source_tile.push_back(static_cast<int>(k));
     }
     result.occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
@@ -162,7 +170,7 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     const auto filled_acc = filled->getConstAccessor();
     std::vector<std::size_t> fills;
     for (std::size_t i : split[k].overlap) {
-      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud.means[i], options.occupancy_columns);
+      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud->means[i], options.occupancy_columns);
       if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
           AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
         ++result.duplicates_removed;
@@ -172,8 +180,8 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
     }
     auto fill_acc = filled->getAccessor();
     for (std::size_t i : fills) {
-      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud.means[i], options.occupancy_columns));
-      result.cloud.Append(split[k].cloud, i);
+      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud->means[i], options.occupancy_columns));
+      result.cloud.Append(*split[k].cloud, i);
       result.source_tile.push_back(static_cast<int>(k));
     }
     result.holes_filled += fills.size();

@@ -252,6 +252,31 @@ TEST(SeamMetric, FlagsAStepBetweenTilesAndNotAConsistentMerge) {
   // above 3 on an expected-depth DSM.
   EXPECT_GT(stepped.ratio, 2.0);
   EXPECT_NEAR(stepped.interior_mean_step_m, clean.interior_mean_step_m, 0.02);
+  // Border by border, the step shows on the two borders of tile (1, 1)
+  // alone. The median-depth DSM spreads the 1.5 m raise over the few pixels
+  // its metre-wide Gaussians cover, so a pair's step is a part of it: the
+  // raised borders' mean step grows by 0.11-0.27 m (measured), the others'
+  // by about 0.01 m; the bounds sit between, 2x from each. (A border's step is measured
+  // across it only, so on hills it differs from the interior's, which mixes
+  // both directions: compare each border with itself.) 2 x 2 tiles have 4
+  // borders; diagonal neighbours touch at a corner through a few pixel pairs
+  // and are not judged.
+  ASSERT_EQ(stepped.borders.size(), clean.borders.size());
+  int judged = 0;
+  for (std::size_t k = 0; k < stepped.borders.size(); ++k) {
+    const BorderSeam& b = stepped.borders[k];
+    ASSERT_EQ(b.tile_a, clean.borders[k].tile_a);
+    ASSERT_EQ(b.tile_b, clean.borders[k].tile_b);
+    if (b.pairs < 100) continue;
+    ++judged;
+    const double grown_m = b.mean_step_m - clean.borders[k].mean_step_m;
+    if (b.tile_b == Eigen::Vector2i(1, 1)) {
+      EXPECT_GT(grown_m, 0.05) << b.tile_a.transpose() << " | " << b.tile_b.transpose();
+    } else {
+      EXPECT_LT(grown_m, 0.025) << b.tile_a.transpose() << " | " << b.tile_b.transpose();
+    }
+  }
+  EXPECT_EQ(judged, 4);
 }
 
 // Tile (1, 0) raised a patch 4 m that straddles its boundary with (0, 0)

@@ -2,6 +2,8 @@
 // an event with figures, and a figure that may be undefined.
 #pragma once
 
+#include <sys/resource.h>
+
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -12,9 +14,20 @@
 
 namespace skyfall {
 
+// [MiB] this process's peak resident memory so far (the kernel's high-water
+// mark: it never falls, so a stage's figure is the peak up to its end).
+inline double PeakSelfRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+// A stage of the city's run; `peak_rss_mb` is the running process's peak up
+// to the stage's end (tile processes report their own in `tiles[]`).
 inline nlohmann::json StageEntry(const std::string& stage, const std::string& status, double seconds,
                                  const std::string& message = "") {
-  return {{"stage", stage}, {"status", status}, {"seconds", seconds}, {"message", message}};
+  return {{"stage", stage}, {"status", status}, {"seconds", seconds}, {"message", message},
+          {"peak_rss_mb", PeakSelfRssMb()}};
 }
 
 // A figure as JSON: null where it is NaN or infinite (JSON has no NaN).

@@ -18,6 +18,7 @@
 #include "pipeline/tile_report.h"
 #include "splat/ply.h"
 #include "ingest/geo.h"
+#include "tiling/tiling.h"
 
 namespace skyfall {
 
@@ -106,6 +107,13 @@ TileScenes ReadTileScenes(const std::string& tiles_dir, const json& index, bool 
   return read;
 }
 
+// True when some tile's reconstruction differs from its scene (its synthesis
+// stage ran) and the DSMs come from the reconstructions.
+bool SurfaceDiffers(const TileScenes& read) {
+  return std::any_of(read.reconstruction_of.begin(), read.reconstruction_of.end(),
+                     [](const std::string& p) { return !p.empty(); });
+}
+
 // The surface the DSMs come from: the reconstructions stitched alike when
 // some tile's synthesis stage changed its scene (written to surface.ply),
 // else none (the merged scene is the surface). The tiles' scenes are not
@@ -115,9 +123,7 @@ std::optional<StitchResult> StitchReconstructions(const MergeOptions& options, c
                                                   const std::string& out_dir, TileScenes* read, Progress& progress,
                                                   MergeSummary* summary) {
   const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
-  const bool any_synthesized = std::any_of(read->reconstruction_of.begin(), read->reconstruction_of.end(),
-                                           [](const std::string& p) { return !p.empty(); });
-  if (!any_synthesized) {
+  if (!SurfaceDiffers(*read)) {
     fs::remove(surface_ply);  // an earlier run's would no longer match the scene
     return std::nullopt;
   }
@@ -137,15 +143,26 @@ std::optional<StitchResult> StitchReconstructions(const MergeOptions& options, c
   return stitched;
 }
 
-void WriteMergeReport(const std::string& out_dir, const json& index, const StitchResult& stitched,
-                      const std::vector<LodLevel>& lod, const std::vector<std::string>& missing,
-                      const MergeSummary& summary) {
+json LodLevelsJson(const std::vector<LodLevel>& lod) {
   json levels = json::array();
   for (const LodLevel& l : lod) {
     levels.push_back({{"level", l.level}, {"count", l.cloud.size()}, {"voxel_m", l.voxel_m},
                       {"geometric_error_m", l.geometric_error_m}});
   }
+  return levels;
+}
+
+void WriteMergeReport(const std::string& out_dir, const json& index, const StitchResult& stitched,
+                      const json& levels, const std::vector<std::string>& missing, const MergeSummary& summary) {
   auto finite = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  const std::string city = index.at("city").get<std::string>();
+  json borders = json::array();
+  for (const BorderSeam& b : summary.seam.borders) {
+    borders.push_back({{"tiles", {TileId(city, b.tile_a.x(), b.tile_a.y()), TileId(city, b.tile_b.x(), b.tile_b.y())}},
+                       {"mean_step_m", b.mean_step_m},
+                       {"ratio", finite(b.mean_step_m / summary.seam.interior_mean_step_m)},
+                       {"pairs", b.pairs}});
+  }
   const json doc = {{"city", index.at("city")},
                     {"tiles_merged", summary.tiles_merged},
                     {"tiles_missing", missing},
@@ -154,7 +171,8 @@ void WriteMergeReport(const std::string& out_dir, const json& index, const Stitc
                               {"interior_mean_step_m", finite(summary.seam.interior_mean_step_m)},
                               {"ratio", finite(summary.seam.ratio)},
                               {"boundary_pairs", summary.seam.boundary_pairs},
-                              {"interior_pairs", summary.seam.interior_pairs}}},
+                              {"interior_pairs", summary.seam.interior_pairs},
+                              {"borders", borders}}},
                     {"lod", levels},
                     {"dsm_source", summary.surface_source},
                     {"seconds", summary.report.seconds}};
@@ -179,16 +197,27 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
 
   const TileOwnership ownership = PlanOwnership(options, dsm_options, read.clouds, summary.epsg, progress);
-  const StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, read.clouds, &ownership);
+  StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, read.clouds, &ownership);
   fs::create_directories(out_dir);
   summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
   WriteGaussiansPly(summary.scene_path, stitched.cloud);
-  const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
-  WriteLod(out_dir, lod);
+  json lod_levels;
+  {
+    // The levels are on disk once written; only their figures stay.
+    const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
+    WriteLod(out_dir, lod);
+    lod_levels = LodLevelsJson(lod);
+  }
   summary.surface_path = summary.scene_path;
   summary.surface_source = "final";
+  // When the DSMs come from the reconstructions, the merged scene is done
+  // with (it is on disk): one city's worth of Gaussians less while they are
+  // stitched.
+  if (SurfaceDiffers(read)) stitched.cloud = GaussianCloud();
   const std::optional<StitchResult> surface_stitched =
       StitchReconstructions(options, dsm_options, out_dir, &read, progress, &summary);
+  summary.tiles_merged = read.clouds.size();
+  read.clouds.clear();  // stitched: what is left to do needs the city's cloud only
   const StitchResult& surface = surface_stitched ? *surface_stitched : stitched;
 
   // Seam metric on a city DSM rendered from that surface.
@@ -196,15 +225,14 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   RasterizeDsm(surface.cloud, summary.enu_origin, dsm_options, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
   summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
-  summary.tiles_merged = read.clouds.size();
   summary.tiles_missing = read.missing.size();
-  summary.lod_levels = static_cast<int>(lod.size());
+  summary.lod_levels = static_cast<int>(lod_levels.size());
   const json frame = {{"enu_origin", o}, {"epsg", summary.epsg}, {"city", index.at("city")}};
   WriteFileAtomic((fs::path(out_dir) / "frame.json").string(), frame.dump(2) + "\n");
   summary.report.seconds = clock.Seconds();
   summary.report.metrics = stitched.report.metrics;
   summary.report.metrics["seam_ratio"] = summary.seam.ratio;
-  WriteMergeReport(out_dir, index, stitched, lod, read.missing, summary);
+  WriteMergeReport(out_dir, index, stitched, lod_levels, read.missing, summary);
   return summary;
 }
 

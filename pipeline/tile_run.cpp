@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "core/crash_point.h"
+#include "pipeline/city_entries.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/tile_report.h"
 #include "pipeline/stage_jobs.h"
@@ -38,18 +39,12 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;
-}
-
 json OptionsJson(const RunOptions& o) { return json::parse(TileOptionsJson(o)); }
 
 StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunOptions& o, StageReport report,
                         const std::vector<StageReport>& stages, const json& decisions = json::object()) {
   report.stage = "run-tile";
-  report.metrics["peak_rss_mb"] = PeakRssMb();
+  report.metrics["peak_rss_mb"] = PeakSelfRssMb();
   TileReport doc;
   doc.tile = spec.id;
   doc.status = report.status;

@@ -63,7 +63,8 @@ std::string IndexHtml(const std::string& city, const GroundImage& ground) {
 <style>html, body, #map { width: 100%; height: 100%; margin: 0; overflow: hidden; }
 #info { position: absolute; top: 8px; left: 8px; background: rgba(0,0,0,.6); color: #fff; padding: 4px 8px;
 font: 13px system-ui, sans-serif; border-radius: 4px; }</style></head>
-<body><div id="map"></div><div id="info">)" + HtmlEscape(city) + R"(: loading…</div>
+<body><div id="map"></div><div id="info"><span id="state">)" + HtmlEscape(city) + R"(: loading…</span>
+<label><input type="checkbox" id="dsm"> DSM under the city</label></div>
 <script>
 const config = )" + config.dump() + R"(;
 window.skyfallStatus = { loaded: false, errors: [] };
@@ -80,27 +81,32 @@ window.addEventListener("error", (e) => window.skyfallStatus.errors.push(String(
     // The city lies near the ellipsoid: draw it whether above or below it.
     viewer.scene.globe.depthTestAgainstTerrain = false;
     // The DSM as a coloured rectangle just below the city's lowest heights
-    // (an imagery layer would lie on the ellipsoid, metres away from it).
+    // (an imagery layer would lie on the ellipsoid, metres away from it),
+    // off until the checkbox turns it on: its height colours show through
+    // the translucent splats. Drawn in the opaque pass: as a translucent
+    // primitive it was sorted over the splats and hid the whole city.
     const r = config.rectangle_deg;
-    viewer.entities.add({ rectangle: {
+    const dsm = viewer.entities.add({ show: false, rectangle: {
       coordinates: Cesium.Rectangle.fromDegrees(r[0], r[1], r[2], r[3]),
       height: config.ground_height_m,
-      material: new Cesium.ImageMaterialProperty({ image: config.ground, transparent: true }) } });
+      material: new Cesium.ImageMaterialProperty({ image: config.ground, transparent: false }) } });
+    document.getElementById("dsm").addEventListener("change", (e) => { dsm.show = e.target.checked; });
     const tileset = await Cesium.Cesium3DTileset.fromUrl(config.tileset);
     viewer.scene.primitives.add(tileset);
     tileset.tileFailed.addEventListener((e) => window.skyfallStatus.errors.push("tile " + e.url + ": " + e.message));
     tileset.allTilesLoaded.addEventListener(() => {
       window.skyfallStatus.loaded = true;
       window.skyfallStatus.tilesLoaded = tileset.tilesLoaded;
-      document.getElementById("info").textContent = config.city + ": all visible tiles loaded";
+      document.getElementById("state").textContent = config.city + ": all visible tiles loaded";
     });
+    window.skyfallView = { viewer, tileset };  // for scripts that move the camera (web/check_city_view.mjs)
     const sphere = tileset.boundingSphere;
     viewer.camera.viewBoundingSphere(sphere,
       new Cesium.HeadingPitchRange(0.3, Cesium.Math.toRadians(-45), sphere.radius * 2.2));
     viewer.camera.lookAtTransform(Cesium.Matrix4.IDENTITY);
   } catch (e) {
     window.skyfallStatus.errors.push(String(e && e.message || e));
-    document.getElementById("info").textContent = "error: " + e;
+    document.getElementById("state").textContent = "error: " + e;
   }
 })();
 </script></body></html>

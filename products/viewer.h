@@ -1,7 +1,8 @@
 // `skyfall view OUT`: a CesiumJS page over a run's 3D Tiles, served on
 // localhost. CesiumJS comes from the project's npm install (web/), so the
-// page needs no network, imagery provider or ion token: the ground is the
-// city's DSM, coloured by height and warped to WGS84, as one image.
+// page needs no network, imagery provider or ion token: the ground under
+// the city is the city's DSM, coloured by height and warped to WGS84, as one
+// image (off until the page's checkbox turns it on).
 #pragma once
 
 #include <string>

@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# A city run end to end, as users run one: `skyfall synth` makes an N x N km
+# city of adjacent 256 m AOIs (4 x 4 for 1 km, 8 x 8 for 2 km), `skyfall run`
+# reconstructs it with the defaults and --3dtiles, and this script prints and
+# writes OUT/bench_city.json: time (whole, per km^2, per stage), peak memory
+# of the tile processes and of the merge and the export, Gaussians per LOD
+# level, the tileset's size and depth, the city DSM's MAE against the truth,
+# the mean MAE of the tiles' own reconstructions over their cores (each
+# tile rasterized alone, before the merge), the MAE within 10 m of an
+# interior tile border, and the seam metric per interior border.
+#
+# Usage: scripts/bench_city.sh [--km N] [--slurm] [OUT]   (default: --km 1, OUT=out/bench_city_<N>km)
+#   --slurm   run through `--executor slurm` on a one-node cluster started on
+#             this machine (scripts/slurm_local.sh, in OUT/cluster; one CPU
+#             per tile job, as the local executor gives each of its two
+#             tiles): OUT/run_slurm and OUT/bench_city_slurm.json, whose DSM
+#             figures should equal the local run's
+#   SKYFALL_BIN, SKYFALL_RUN_ARGS as for the other benchmarks (bench_env.sh)
+#   SKYFALL_CITY_BLOCK_M   AOI side [m], default 256
+# The synthetic city is made once (about 7 min for 1 km on 2 cores) and kept.
+# A finished run is reused (delete OUT/run to measure again); an interrupted
+# one resumes, and the JSON then says `resumed` (its time is not a whole run).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+KM=1
+OUT=
+EXECUTOR=local
+while [ $# -gt 0 ]; do
+  case $1 in
+    --km) KM=$2; shift 2 ;;
+    --km=*) KM=${1#--km=}; shift ;;
+    --slurm) EXECUTOR=slurm; shift ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -*) echo "bench_city: unknown option $1" >&2; exit 2 ;;
+    *) OUT=$1; shift ;;
+  esac
+done
+BLOCK=${SKYFALL_CITY_BLOCK_M:-256}
+N=$(python3 -c "import sys; n = round(float(sys.argv[1]) * 1000 / float(sys.argv[2])); print(n if n >= 1 else '')" "$KM" "$BLOCK")
+[ -n "$N" ] || { echo "bench_city: --km $KM is less than one ${BLOCK} m AOI" >&2; exit 2; }
+OUT=${OUT:-out/bench_city_${KM}km}
+source scripts/bench_env.sh
+mkdir -p "$OUT"
+root="$OUT/city" run="$OUT/run" figures_json=bench_city.json
+EXEC_ARGS=()
+if [ "$EXECUTOR" = slurm ]; then
+  run="$OUT/run_slurm" figures_json=bench_city_slurm.json
+  EXEC_ARGS=(--executor slurm --slurm-cpus 1)
+fi
+if [ ! -f "$root/synth_report.json" ]; then
+  echo "bench_city: synthesizing a city of ${N} x ${N} AOIs of ${BLOCK} m ..." >&2
+  "$B" -q synth --out "$root" --size-m "$BLOCK" --blocks-x "$N" --blocks-y "$N" --aoi CTY_001
+fi
+if [ -f "$run/wall_seconds" ]; then
+  echo "bench_city: reusing the finished run in $run" >&2
+else
+  resumed=false
+  [ -d "$run" ] && resumed=true
+  if [ "$EXECUTOR" = slurm ]; then
+    bash scripts/slurm_local.sh start "$OUT/cluster" >&2
+    trap 'bash scripts/slurm_local.sh stop "$OUT/cluster" >/dev/null 2>&1 || true' EXIT
+    export SLURM_CONF="$(cd "$OUT/cluster" && pwd)/slurm.conf"
+  fi
+  echo "bench_city: skyfall run on ${N} x ${N} AOIs, $EXECUTOR executor (log: $run.log) ..." >&2
+  start=$(date +%s.%N)
+  "$B" run "$root" --out "$run" --3dtiles "${EXEC_ARGS[@]}" "${RUN_ARGS[@]}" 2> "$run.log" || {
+    echo "bench_city: skyfall run failed (exit $?); see $run.log" >&2; exit 1; }
+  awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' > "$run/wall_seconds"
+  echo "$resumed" > "$run/resumed"
+fi
+
+# Each tile's own reconstruction, rasterized alone on the grid of every AOI
+# its core touches and compared with that AOI's truth (the single-tile
+# figures the city's are judged against).
+# (Debian's python3: GDAL and NumPy come with python3-gdal.)
+/usr/bin/python3 scripts/bench_city_figures.py jobs "$root" "$run" > "$OUT/single_tile_jobs.txt"
+while read -r id dir aoi epsg; do
+  dest="$OUT/single_tile/$id/$aoi"
+  [ -f "$dest/compare/report.json" ] && continue
+  mkdir -p "$dest"
+  truth="$root/Track3-Truth/$aoi"
+  "$B" -q dsm export --scene "$dir/splat/scene.ply" --frame "$dir/aoi.json" --grid "${truth}_DSM.txt" \
+    --out "$dest/dsm.tmp.tif" && mv "$dest/dsm.tmp.tif" "$dest/dsm.tif"
+  "$B" -q dsm compare --pred "$dest/dsm.tif" --gt "${truth}_DSM.tif" --gt-txt "${truth}_DSM.txt" --epsg "$epsg" \
+    --cls "${truth}_CLS.tif" --out "$dest/compare"
+done < "$OUT/single_tile_jobs.txt"
+
+/usr/bin/python3 scripts/bench_city_figures.py figures "$KM" "$N" "$BLOCK" "$root" "$run" "$OUT" "$figures_json" "$EXECUTOR"
