@@ -85,4 +85,31 @@ while read -r id dir aoi epsg; do
     --cls "${truth}_CLS.tif" --out "$dest/compare"
 done < "$OUT/single_tile_jobs.txt"
 
+# The merge and the 3D Tiles export alone, each in its own process, for
+# their own peak memory (the run's figures are one process's high-water
+# mark, which the products stage between them may have set).
+city_dir=$(dirname "$(ls -d "$run"/*/tiles | head -1)")
+for step in merge export; do
+  [ -f "$OUT/$step.time" ] && [ "$OUT/$step.time" -nt "$run/wall_seconds" ] && continue
+  rm -rf "$OUT/${step}_alone"
+  if [ "$step" = merge ]; then
+    /usr/bin/time -v "$B" -q merge --tiles "$city_dir/tiles" --out "$OUT/merge_alone" 2> "$OUT/$step.time"
+  else
+    /usr/bin/time -v "$B" -q export 3dtiles --scene "$city_dir/scene" --out "$OUT/export_alone" 2> "$OUT/$step.time"
+  fi
+done
+
+# The viewer on the city's tileset (headless Chromium): the whole city, then a street.
+if [ -d "$city_dir/3dtiles" ] && [ ! -f "$OUT/viewer/check.json" ]; then
+  port=$((20000 + $$ % 20000))
+  "$B" -q view "$run" --port "$port" > "$OUT/view.log" 2>&1 &
+  server=$!
+  sleep 3
+  mkdir -p "$OUT/viewer"
+  node web/check_city_view.mjs "http://127.0.0.1:$port/view/index.html" "$OUT/viewer" > "$OUT/viewer/check.tmp" \
+    && mv "$OUT/viewer/check.tmp" "$OUT/viewer/check.json" || echo "bench_city: the viewer check failed ($OUT/viewer/check.tmp)" >&2
+  kill "$server" 2>/dev/null || true
+  pkill -P "$server" 2>/dev/null || true
+fi
+
 /usr/bin/python3 scripts/bench_city_figures.py figures "$KM" "$N" "$BLOCK" "$root" "$run" "$OUT" "$figures_json" "$EXECUTOR"

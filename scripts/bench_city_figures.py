@@ -142,6 +142,28 @@ def tileset_stats(tileset_path):
     return size, depth(json.load(open(tileset_path))["root"])
 
 
+def time_peak_mb(path):
+    """Maximum resident set size [MiB] from a `/usr/bin/time -v` log, or None."""
+    if not os.path.exists(path):
+        return None
+    for line in open(path):
+        if "Maximum resident set size" in line:
+            return int(line.split(":")[1]) / 1024.0
+    return None
+
+
+def viewer_figures(path):
+    """web/check_city_view.mjs's report, trimmed to its figures, or None."""
+    if not os.path.exists(path):
+        return None
+    v = json.load(open(path))
+    keep = ("seconds_to_tiles_loaded", "seconds_to_complete_frame", "contents", "bytes", "contents_by_depth",
+            "tileset_visible_fraction")
+    return {"streams": v["streams"], "contents_per_depth": v["contents_per_depth"],
+            "errors": v["errors"] + v["external"],
+            **{view: {k: v[view][k] for k in keep} for view in ("whole_city", "street")}}
+
+
 def figures(km, n, block_m, root, run, out, json_name, executor):
     wall = float(open(os.path.join(run, "wall_seconds")).read())
     resumed = os.path.exists(os.path.join(run, "resumed")) and open(os.path.join(run, "resumed")).read().strip() == "true"
@@ -208,8 +230,16 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
         "stage_seconds": stage_seconds, "tile_stage_seconds_summed": tile_stage_seconds,
         "tiles": len(report["tiles"]), "tiles_ok": len(tiles_ok),
         "tile_seconds_mean": float(np.mean([t["tile_seconds"] for t in tiles_ok])) if tiles_ok else None,
+        # tile: the largest tile process; merge, export: each run alone in its
+        # own process (bench_city.sh); the run's own high-water marks beside.
         "peak_rss_mb": {"tile": max((t.get("peak_rss_mb", 0) for t in report["tiles"]), default=None),
-                        "merge": peak.get("merge"), "export": peak.get("3dtiles")},
+                        "merge": time_peak_mb(os.path.join(out, "merge.time")),
+                        "export": time_peak_mb(os.path.join(out, "export.time"))},
+        "run_high_water_mb": {"merge": peak.get("merge"),
+                              "products": max((v for k, v in peak.items() if k.startswith("products") and v),
+                                              default=None),
+                              "3dtiles": peak.get("3dtiles")},
+        "viewer": viewer_figures(os.path.join(out, "viewer", "check.json")),
         "gaussians_per_level": [lvl["count"] for lvl in merge_report["lod"]],
         "tileset_bytes": tileset_bytes, "tileset_depth": tileset_depth,
         "city_mae_m": float(all_err.mean()), "city_cells": int(all_err.size),
@@ -239,6 +269,11 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
     print("  tile stages summed: " + ", ".join(f"{k} {v:.0f} s" for k, v in tile_stage_seconds.items()))
     print(f"  peak RSS [MiB]: tile {fmt(doc['peak_rss_mb']['tile'], '{:.0f}')}, merge "
           f"{fmt(doc['peak_rss_mb']['merge'], '{:.0f}')}, export {fmt(doc['peak_rss_mb']['export'], '{:.0f}')}")
+    if doc["viewer"]:
+        w, st = doc["viewer"]["whole_city"], doc["viewer"]["street"]
+        print(f"  viewer: whole city {w['contents']} contents, {w['bytes'] / 1e6:.2f} MB, frame at "
+              f"{w['seconds_to_complete_frame']:.1f} s; street {st['contents']} more, {st['bytes'] / 1e6:.2f} MB, "
+              f"frame at {st['seconds_to_complete_frame']:.1f} s; streams: {doc['viewer']['streams']}")
     print(f"  Gaussians per level {doc['gaussians_per_level']}; tileset {fmt(tileset_bytes, '{:d}')} bytes, "
           f"depth {fmt(tileset_depth, '{:d}')}")
     print(f"  DSM MAE: city {doc['city_mae_m']:.3f} m, mean single tile {fmt(doc['mean_tile_mae_m'])} m, "

@@ -12,7 +12,7 @@
 // A streaming tileset loads the whole city without fetching every leaf and
 // fetches deeper contents for the street. Requests off the machine are
 // refused and listed. Prints one JSON object; exits 1 when a view failed.
-import { chromium } from "playwright-core";
+import { openOfflinePage } from "./offline_page.mjs";
 import fs from "node:fs";
 import path from "node:path";
 
@@ -45,22 +45,8 @@ async function tilesetDepths(tilesetUrl) {
   return { depthOf, perDepth };
 }
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium",
-  args: ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--no-sandbox"],
-});
-const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
-const external = [];
-const errors = [];
+const { browser, page, external, errors } = await openOfflinePage();
 const fetched = [];  // {path, bytes} of every 3D Tiles request, in order
-const local = (u) => ["file:", "data:", "blob:"].includes(u.protocol) || ["127.0.0.1", "localhost"].includes(u.hostname);
-await page.route(() => true, (route) => {
-  if (local(new URL(route.request().url()))) return route.continue();
-  external.push(route.request().url());
-  return route.abort();
-});
-page.on("console", (m) => { if (m.type() === "error") errors.push(m.text()); });
-page.on("pageerror", (e) => errors.push(String(e)));
 page.on("requestfinished", async (request) => {
   const u = new URL(request.url());
   if (!u.pathname.includes("/3dtiles/")) return;
