@@ -208,7 +208,7 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
 
     # Each tile alone: its reconstruction compared with the truth of the
     # AOIs its core touches, over its core.
-    single = {}
+    single, single_border = {}, []
     for d, spec in specs:
         parts = []
         for aoi in aois_under_core(root, spec, origin, epsg):
@@ -218,6 +218,8 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
             err, east, north = raster_enu(path, origin, epsg)
             m = np.isfinite(err) & in_core(spec, east, north)
             parts.append(np.abs(err[m]))
+            near = m & (border_distance(spec["grid"], east, north) <= BORDER_BAND_M)
+            single_border.append(np.abs(err[near]))
         if parts and sum(p.size for p in parts):
             single[spec["id"]] = float(np.concatenate(parts).mean())
     city_tile = {k: float(np.concatenate(v).mean()) for k, v in per_tile_city.items() if sum(p.size for p in v)}
@@ -248,6 +250,11 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
         "city_mae_by_tile_core_m": city_tile,
         "border_mae_m": float(border_err.mean()) if border_err.size else None,
         "border_cells": int(border_err.size), "border_band_m": BORDER_BAND_M,
+        # The same band from the tiles' own reconstructions, each over its core:
+        # what the border cells cost before the merge (hard content near a
+        # border raises both; a seam raises the city's alone).
+        "single_tile_border_mae_m": float(np.concatenate(single_border).mean())
+        if single_border and sum(p.size for p in single_border) else None,
         "seams": {"ratio": seam["ratio"], "boundary_mean_step_m": seam["boundary_mean_step_m"],
                   "interior_mean_step_m": seam["interior_mean_step_m"], "borders": seam.get("borders", [])},
         "dsm_mae_m_by_aoi": {d["aoi"]: d["mae_m"] for d in report.get("dsm", [])},
@@ -278,7 +285,7 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
           f"depth {fmt(tileset_depth, '{:d}')}")
     print(f"  DSM MAE: city {doc['city_mae_m']:.3f} m, mean single tile {fmt(doc['mean_tile_mae_m'])} m, "
           f"within {BORDER_BAND_M:.0f} m of interior borders {fmt(doc['border_mae_m'])} m "
-          f"({doc['border_cells']} cells)")
+          f"({doc['border_cells']} cells; the tiles alone there {fmt(doc['single_tile_border_mae_m'])} m)")
     print(f"  seams: ratio {fmt(seam['ratio'])}, boundary {fmt(seam['boundary_mean_step_m'])} m, "
           f"interior {fmt(seam['interior_mean_step_m'])} m, worst border ratio "
           f"{fmt(max((b['ratio'] or 0 for b in doc['seams']['borders']), default=None))}")
