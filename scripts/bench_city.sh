@@ -30,7 +30,7 @@ while [ $# -gt 0 ]; do
     --km) KM=$2; shift 2 ;;
     --km=*) KM=${1#--km=}; shift ;;
     --slurm) EXECUTOR=slurm; shift ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     -*) echo "bench_city: unknown option $1" >&2; exit 2 ;;
     *) OUT=$1; shift ;;
   esac
