@@ -253,14 +253,14 @@ TEST(SeamMetric, FlagsAStepBetweenTilesAndNotAConsistentMerge) {
   EXPECT_GT(stepped.ratio, 2.0);
   EXPECT_NEAR(stepped.interior_mean_step_m, clean.interior_mean_step_m, 0.02);
   // Border by border, the step shows on the two borders of tile (1, 1)
-  // alone. The median-depth DSM spreads the 1.5 m raise over the few pixels
-  // its metre-wide Gaussians cover, so a pair's step is a part of it: the
-  // raised borders' mean step grows by 0.11-0.27 m (measured), the others'
-  // by about 0.01 m; the bounds sit between, 2x from each. (A border's step is measured
-  // across it only, so on hills it differs from the interior's, which mixes
-  // both directions: compare each border with itself.) 2 x 2 tiles have 4
-  // borders; diagonal neighbours touch at a corner through a few pixel pairs
-  // and are not judged.
+  // alone. A border's step is measured across it only, so on hills it
+  // differs from the interior's (which mixes both directions): each border
+  // is compared with itself before the raise. The median-depth DSM spreads
+  // the 1.5 m raise over the few pixels its metre-wide Gaussians cover, so
+  // a pair's step is a part of it: the raised borders' mean step grows by
+  // 0.11-0.27 m (measured), the others' by about 0.01 m; the bounds sit
+  // between, 2x from each. 2 x 2 tiles have 4 borders; diagonal neighbours
+  // touch at a corner through a few pixel pairs and are not judged.
   ASSERT_EQ(stepped.borders.size(), clean.borders.size());
   int judged = 0;
   for (std::size_t k = 0; k < stepped.borders.size(); ++k) {

@@ -13,6 +13,7 @@ Pixel centres go UTM -> WGS84 geodetic (GDAL/PROJ) -> ENU (WGS84 ellipsoid,
 at the origin's ellipsoidal height: a horizontal position, so the height used
 moves it by far less than a millimetre over a few km).
 """
+import functools
 import glob
 import json
 import math
@@ -53,17 +54,24 @@ def utm_to_geodetic(epsg):
     return osr.CoordinateTransformation(src, dst)
 
 
-def raster_enu(path, origin, epsg):
-    """The raster's band 1 and the ENU (east, north) of every pixel centre."""
-    ds = gdal.Open(path)
-    values = ds.GetRasterBand(1).ReadAsArray().astype(np.float64)
-    x0, dx, _, y0, _, dy = ds.GetGeoTransform()
-    rows, cols = values.shape
+@functools.lru_cache(maxsize=None)
+def grid_enu(geotransform, rows, cols, origin, epsg):
+    """ENU (east, north) of every pixel centre of a UTM grid. A tile's own
+    error maps lie on its AOIs' truth grids: each grid is converted once."""
+    x0, dx, _, y0, _, dy = geotransform
     cc, rr = np.meshgrid(np.arange(cols) + 0.5, np.arange(rows) + 0.5)
     e, n = x0 + cc * dx, y0 + rr * dy
     lonlat = np.array(utm_to_geodetic(epsg).TransformPoints(np.stack([e.ravel(), n.ravel()], axis=1)))
     east, north = enu_of_geodetic(origin, lonlat[:, 0], lonlat[:, 1])
-    return values, east.reshape(values.shape), north.reshape(values.shape)
+    return east.reshape(rows, cols), north.reshape(rows, cols)
+
+
+def raster_enu(path, origin, epsg):
+    """The raster's band 1 and the ENU (east, north) of every pixel centre."""
+    ds = gdal.Open(path)
+    values = ds.GetRasterBand(1).ReadAsArray().astype(np.float64)
+    east, north = grid_enu(tuple(ds.GetGeoTransform()), *values.shape, tuple(origin), epsg)
+    return values, east, north
 
 
 def city_dirs(run):
