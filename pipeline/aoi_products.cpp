@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <optional>
 
 #include "catalogs/tile_catalog.h"
@@ -38,6 +39,8 @@ UtmBox FootprintUtm(const AoiCatalog& c) {
 
 namespace {
 
+constexpr float kNanF = std::numeric_limits<float>::quiet_NaN();  // nodata in the mosaics
+
 // The AOI's image of that name, or null.
 const ImageRecord* ImageNamed(const AoiCatalog& a, const std::string& name) {
   for (const ImageRecord& image : a.images)
@@ -69,21 +72,27 @@ std::vector<std::string> AoiProductFiles(const ProductOptions& o, const AoiCatal
 
 namespace {
 
-// Every finished tile's dense cells with the spec that says which it owns.
-std::vector<DenseTileCells> ReadDenseTiles(const std::vector<std::string>& tile_dirs) {
+// The dense cells, with the spec that says which it owns, of every finished
+// tile whose extent meets `box` (ENU, the city's frame; every tile without
+// one): the tiles that own a cell of a grid in that box.
+std::vector<DenseTileCells> ReadDenseTiles(const std::vector<std::string>& tile_dirs, const GroundBox& box) {
+  constexpr double kCellReachM = 2.0;  // a cell's Gaussian is half a cell wide, a cell at most a metre
   std::vector<DenseTileCells> tiles;
   for (const std::string& dir : tile_dirs) {
     const fs::path ply = fs::path(dir) / "sfm" / "dense.ply";
     if (!fs::exists(ply)) continue;
     const fs::path spec_path = fs::path(dir) / "tile.json";
-    tiles.push_back({ReadDenseCells(ply.string()), fs::exists(spec_path)
-                                                       ? std::optional<TileSpec>(ReadTileSpec(spec_path.string()))
-                                                       : std::nullopt});
+    std::optional<TileSpec> spec;
+    if (fs::exists(spec_path)) spec = ReadTileSpec(spec_path.string());
+    if (spec && (spec->extent.max_m.x() + kCellReachM < box.min_m.x() || spec->extent.min_m.x() - kCellReachM > box.max_m.x() ||
+                 spec->extent.max_m.y() + kCellReachM < box.min_m.y() || spec->extent.min_m.y() - kCellReachM > box.max_m.y()))
+      continue;
+    tiles.push_back({ReadDenseCells(ply.string()), spec});
   }
   return tiles;
 }
 
-// The dense heights of every finished tile as opaque Gaussians (one per cell:
+// The dense heights of the tiles as opaque Gaussians (one per cell:
 // half a cell wide, flat), so they go through the same DSM export as the
 // trained scene and the two can be compared side by side: all cells, and the
 // matched ones alone (the filled ones left out). Tiles share the city frame;
@@ -390,32 +399,76 @@ DsmGrid CityGrid(const std::vector<AoiCatalog>& aois, double gsd_m) {
   return GridOfBounds(min_e, min_n, max_e, max_n, gsd, aois.front().epsg, "city");
 }
 
+// A city mosaic's layers, pasted block by block.
+struct MosaicLayers {
+  DsmGrid dsm;
+  std::vector<float> rgb;
+  DenseLayers dense;
+  std::vector<float> spread_m;
+};
+
+MosaicLayers EmptyMosaic(const DsmGrid& grid, const ProductOptions& po) {
+  MosaicLayers m;
+  m.dsm = grid;
+  m.dsm.height_m.assign(static_cast<std::size_t>(grid.width_px) * grid.height_px, kNanF);
+  m.dsm.reference = HeightReference::kEllipsoid;  // RasterizeDsm's and SampleDenseLayers' heights
+  const std::size_t n = m.dsm.height_m.size();
+  if (po.ortho) m.rgb.assign(3 * n, kNanF);
+  m.dense.dtm = m.dsm;
+  m.dense.views.assign(n, kNanF);
+  m.dense.fill_rule.assign(n, kNanF);
+  m.dense.cost.assign(n, kNanF);
+  if (po.quality) m.spread_m.assign(n, kNanF);
+  return m;
+}
+
+// The city's layers in blocks of kDsmBlockPx: each block reads the
+// Gaussians and dense tiles that meet it, so memory holds the mosaics'
+// rasters and one block's scene, not the city's.
+MosaicLayers RenderMosaic(const RunOptions& options, const DsmGrid& grid, const std::string& surface_path,
+                          const GeodeticPoint& enu_origin, const std::vector<std::string>& tile_dirs) {
+  const ProductOptions& po = options.products;
+  MosaicLayers m = EmptyMosaic(grid, po);
+  const auto read = [&](const GaussianFilter& keep) { return ReadGaussiansPly(surface_path, keep); };
+  const auto layers = [&](const GridBlock& b, const GaussianCloud& part) {
+    const DenseLayers dense = SampleDenseLayers(ReadDenseTiles(tile_dirs, EnuBoxOfGrid(b.grid, enu_origin)),
+                                                enu_origin, b.grid);
+    PasteBlock(dense.dtm.height_m, b.grid, b.col0, b.row0, 1, grid, &m.dense.dtm.height_m);
+    PasteBlock(dense.views, b.grid, b.col0, b.row0, 1, grid, &m.dense.views);
+    PasteBlock(dense.fill_rule, b.grid, b.col0, b.row0, 1, grid, &m.dense.fill_rule);
+    PasteBlock(dense.cost, b.grid, b.col0, b.row0, 1, grid, &m.dense.cost);
+    if (po.quality)
+      PasteBlock(GaussianHeightSpreadM(part, enu_origin, b.grid, po.min_opacity), b.grid, b.col0, b.row0, 1, grid,
+                 &m.spread_m);
+  };
+  RasterizeDsmInBlocks(read, enu_origin, options.dsm.export_options, &m.dsm, po.ortho ? &m.rgb : nullptr, layers);
+  return m;
+}
+
 // ortho_city.tif, dtm_city.tif and quality_city.tif over all of a city's
 // AOIs, like scene/dsm_city.tif; a city of one AOI has its AOI's.
-json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& aois, const AoiScene& s,
+json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& surface_path,
+                      const GeodeticPoint& enu_origin, const std::vector<std::string>& tile_dirs,
                       const fs::path& city_dir) {
   if (aois.size() < 2) return {{"left_out", "one AOI: its own products are the city's"}};
   const ProductOptions& po = options.products;
-  DsmGrid dsm = CityGrid(aois, po.gsd_m);
-  std::vector<float> rgb;
-  RasterizeDsm(s.scene, s.enu_origin, options.dsm.export_options, &dsm, po.ortho ? &rgb : nullptr);
-  const DenseLayers layers = SampleDenseLayers(s.dense_tiles, s.enu_origin, dsm);
+  const MosaicLayers m = RenderMosaic(options, CityGrid(aois, po.gsd_m), surface_path, enu_origin, tile_dirs);
   json files = json::object();
   if (po.ortho) {
     const std::string path = (city_dir / "ortho_city.tif").string();
-    WriteOrthoCog(path, dsm, rgb, {Panchromatic(aois.front()), po.ortho_bits},
+    WriteOrthoCog(path, m.dsm, m.rgb, {Panchromatic(aois.front()), po.ortho_bits},
                   {{"ORTHO_SOURCE", "nadir render of the city's trained scene"},
                    {"APPEARANCE", "the scene's own colours (each AOI's ortho.tif takes one image's date)"}});
     files["ortho"] = path;
   }
   if (po.terrain) {
     const std::string path = (city_dir / "dtm_city.tif").string();
-    WriteHeights(path, layers.dtm, po.vertical_datum);
+    WriteHeights(path, m.dense.dtm, po.vertical_datum);
     files["dtm"] = path;
   }
   if (po.quality) {
     const std::string path = (city_dir / "quality_city.tif").string();
-    WriteQualityCog(path, dsm, layers, GaussianHeightSpreadM(s.scene, s.enu_origin, dsm, po.min_opacity));
+    WriteQualityCog(path, m.dsm, m.dense, m.spread_m);
     files["quality"] = path;
   }
   return files;
@@ -427,12 +480,16 @@ AoiProducts WriteAoiProducts(const RunOptions& options, const std::vector<AoiCat
                              const MergeSummary& merged, const std::vector<std::string>& tile_dirs,
                              const std::string& out_dir, json* stages, CityOutcome* outcome, Progress& progress) {
   AoiProducts out;
-  const GaussianCloud scene = ReadGaussiansPly(merged.surface_path);
-  const std::vector<DenseTileCells> dense_tiles = ReadDenseTiles(tile_dirs);
-  const DenseClouds dense = DenseCellsAsGaussians(dense_tiles);
-  const AoiScene s{scene, merged.enu_origin, dense_tiles};
   for (const AoiCatalog& a : aois) {
     Stopwatch clock;
+    // Only what meets the AOI's grid is read: memory follows the AOI, not
+    // the city, and the products are those of the whole scene.
+    const DsmGrid grid = ProductGrid(a, options.products.gsd_m);
+    const GroundBox box = EnuBoxOfGrid(grid, merged.enu_origin);
+    const GaussianCloud scene = ReadGaussiansPly(merged.surface_path, MeetsGrid(box, grid.gsd_m));
+    const std::vector<DenseTileCells> dense_tiles = ReadDenseTiles(tile_dirs, box);
+    const DenseClouds dense = DenseCellsAsGaussians(dense_tiles);
+    const AoiScene s{scene, merged.enu_origin, dense_tiles};
     json comparison;
     out.products.push_back(WriteOneAoi(options, a, s, dense, out_dir, &comparison, outcome, progress));
     if (!comparison.is_null()) {
@@ -449,7 +506,8 @@ AoiProducts WriteAoiProducts(const RunOptions& options, const std::vector<AoiCat
     stages->push_back(StageEntry("products " + a.aoi, "ok", clock.Seconds()));
   }
   Stopwatch clock;
-  out.city = WriteCityMosaics(options, aois, s, fs::path(out_dir) / outcome->city);
+  out.city = WriteCityMosaics(options, aois, merged.surface_path, merged.enu_origin, tile_dirs,
+                              fs::path(out_dir) / outcome->city);
   stages->push_back(StageEntry("products city", "ok", clock.Seconds()));
   return out;
 }

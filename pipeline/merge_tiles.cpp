@@ -222,7 +222,9 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
 
   // Seam metric on a city DSM rendered from that surface.
   DsmGrid city = GridCovering(BoxFromJson(index.at("bounds")), summary.enu_origin, summary.epsg, options.seam_gsd_m);
-  RasterizeDsm(surface.cloud, summary.enu_origin, dsm_options, &city);
+  // In blocks: the render's buffers follow a block, not the city.
+  RasterizeDsmInBlocks([&](const GaussianFilter& keep) { return CropCloud(surface.cloud, keep); },
+                       summary.enu_origin, dsm_options, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
   summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
   summary.tiles_missing = read.missing.size();

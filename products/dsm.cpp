@@ -150,15 +150,22 @@ void WriteDsm(const std::string& path, const DsmGrid& g) {
                 {g.upper_left_easting_m, g.upper_left_northing_m, g.gsd_m, g.epsg, g.reference});
 }
 
-void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,
-                  DsmGrid* grid, std::vector<float>* rgb) {
-  const EnuFrame frame(enu_origin);
-  const UtmZone zone = UtmZoneFromEpsg(grid->epsg);
-  const int W = grid->width_px, H = grid->height_px;
+namespace {
+
+// The nadir camera whose pixels are a grid's pixels.
+struct NadirCamera {
+  PinholeCamera cam;
+  Eigen::Vector3d eye;
+};
+
+NadirCamera NadirCameraOfGrid(const DsmGrid& grid, const EnuFrame& frame, const GeodeticPoint& enu_origin,
+                              const DsmExportOptions& o) {
+  const UtmZone zone = UtmZoneFromEpsg(grid.epsg);
+  const int W = grid.width_px, H = grid.height_px;
   // ENU position of a grid pixel centre at the frame's height.
   auto enu_of_pixel = [&](double col, double row) {
-    const Eigen::Vector2d ll = GeodeticFromUtm(zone, grid->upper_left_easting_m + (col + 0.5) * grid->gsd_m,
-                                               grid->upper_left_northing_m - (row + 0.5) * grid->gsd_m);
+    const Eigen::Vector2d ll = GeodeticFromUtm(zone, grid.upper_left_easting_m + (col + 0.5) * grid.gsd_m,
+                                               grid.upper_left_northing_m - (row + 0.5) * grid.gsd_m);
     return frame.EnuFromGeodetic({ll.x(), ll.y(), enu_origin.height_m});
   };
   // Image axes: one grid pixel along each, measured in ENU (UTM's scale
@@ -166,7 +173,8 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   const Eigen::Vector3d centre = enu_of_pixel(0.5 * (W - 1), 0.5 * (H - 1));
   const Eigen::Vector3d du = (enu_of_pixel(W - 1, 0.5 * (H - 1)) - enu_of_pixel(0, 0.5 * (H - 1))) / std::max(1, W - 1);
   const Eigen::Vector3d dv = (enu_of_pixel(0.5 * (W - 1), H - 1) - enu_of_pixel(0.5 * (W - 1), 0)) / std::max(1, H - 1);
-  PinholeCamera cam;
+  NadirCamera n;
+  PinholeCamera& cam = n.cam;
   const Eigen::Vector3d right = du.normalized();
   const Eigen::Vector3d forward = -Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d down = forward.cross(right).normalized();
@@ -174,8 +182,8 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   cam.cam_from_world_rotation.row(0) = right_orth.transpose();
   cam.cam_from_world_rotation.row(1) = down.transpose();
   cam.cam_from_world_rotation.row(2) = forward.transpose();
-  const Eigen::Vector3d eye = centre + o.camera_height_m * Eigen::Vector3d::UnitZ();
-  cam.cam_from_world_translation = -cam.cam_from_world_rotation * eye;
+  n.eye = centre + o.camera_height_m * Eigen::Vector3d::UnitZ();
+  cam.cam_from_world_translation = -cam.cam_from_world_rotation * n.eye;
   // Focal lengths so that one pixel spans |du| and |dv| at the ground; the
   // small skew absorbs a non-orthogonal grid.
   const double depth = o.camera_height_m;
@@ -186,28 +194,134 @@ void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, c
   cam.cy = 0.5 * (H - 1);
   cam.width_px = W;
   cam.height_px = H;
+  return n;
+}
+
+// Renders the window of `nadir`'s image at (col0, row0) of `width_px` x
+// `height_px` into the whole grid's heights (and `rgb`): the same camera,
+// its principal point moved, so a window's pixels are the whole image's.
+void RenderWindow(const GaussianCloud& scene, const NadirCamera& nadir, const EnuFrame& frame,
+                  const DsmExportOptions& o, int col0, int row0, int width_px, int height_px, DsmGrid* grid,
+                  std::vector<float>* rgb) {
+  PinholeCamera cam = nadir.cam;
+  cam.cx -= col0;
+  cam.cy -= row0;
+  cam.width_px = width_px;
+  cam.height_px = height_px;
   RasterOptions ro;
   ro.median_depth = o.median_depth;
   const RenderOutput<float> r = RenderGaussians(scene, cam, ro);
-  grid->height_m.assign(static_cast<size_t>(W) * H, kNoData);
-  grid->reference = HeightReference::kEllipsoid;  // what GeodeticFromEnu gives
-  if (rgb) rgb->assign(3 * static_cast<size_t>(W) * H, kNoData);
-  for (int row = 0; row < H; ++row)
-    for (int col = 0; col < W; ++col) {
-      const size_t p = static_cast<size_t>(row) * W + col;
-      if (r.alpha[p] < o.min_alpha) continue;
-      const float rel_depth = o.median_depth ? r.median_depth[p] : r.depth[p];
+  for (int row = 0; row < height_px; ++row)
+    for (int col = 0; col < width_px; ++col) {
+      const size_t q = static_cast<size_t>(row) * width_px + col;
+      const size_t p = static_cast<size_t>(row0 + row) * grid->width_px + col0 + col;
+      if (r.alpha[q] < o.min_alpha) continue;
+      const float rel_depth = o.median_depth ? r.median_depth[q] : r.depth[q];
       if (!std::isfinite(rel_depth)) continue;
       const double z_cam = rel_depth + r.reference_depth_m;
       // The pixel's ray with unit camera-z, so that z_cam scales it to the hit.
       const double yn = (row - cam.cy) / cam.fy;
       const Eigen::Vector3d dir = cam.cam_from_world_rotation.transpose() *
                                   Eigen::Vector3d((col - cam.cx - cam.skew * yn) / cam.fx, yn, 1.0);
-      const Eigen::Vector3d hit = eye + z_cam * dir;
+      const Eigen::Vector3d hit = nadir.eye + z_cam * dir;
       grid->height_m[p] = static_cast<float>(frame.GeodeticFromEnu(hit).height_m);
       if (rgb)
-        for (int c = 0; c < 3; ++c) (*rgb)[3 * p + c] = std::clamp(r.rgb[3 * p + c] / r.alpha[p], 0.0f, 1.0f);
+        for (int c = 0; c < 3; ++c) (*rgb)[3 * p + c] = std::clamp(r.rgb[3 * q + c] / r.alpha[q], 0.0f, 1.0f);
     }
+}
+
+void ClearRaster(DsmGrid* grid, std::vector<float>* rgb) {
+  grid->height_m.assign(static_cast<size_t>(grid->width_px) * grid->height_px, kNoData);
+  grid->reference = HeightReference::kEllipsoid;  // what GeodeticFromEnu gives
+  if (rgb) rgb->assign(3 * grid->height_m.size(), kNoData);
+}
+
+}  // namespace
+
+void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& o,
+                  DsmGrid* grid, std::vector<float>* rgb) {
+  const EnuFrame frame(enu_origin);
+  const NadirCamera nadir = NadirCameraOfGrid(*grid, frame, enu_origin, o);
+  ClearRaster(grid, rgb);
+  RenderWindow(scene, nadir, frame, o, 0, 0, grid->width_px, grid->height_px, grid, rgb);
+}
+
+GroundBox EnuBoxOfGrid(const DsmGrid& grid, const GeodeticPoint& enu_origin) {
+  const EnuFrame frame(enu_origin);
+  const UtmZone zone = UtmZoneFromEpsg(grid.epsg);
+  GroundBox box{Eigen::Vector2d(1e300, 1e300), Eigen::Vector2d(-1e300, -1e300)};
+  // Corners and edge midpoints: the map from UTM to ENU bends a box's edges
+  // by millimetres over kilometres, far inside the filter's metre of slack.
+  for (int i = 0; i <= 2; ++i)
+    for (int j = 0; j <= 2; ++j) {
+      const double e = grid.upper_left_easting_m + 0.5 * i * grid.width_px * grid.gsd_m;
+      const double n = grid.upper_left_northing_m - 0.5 * j * grid.height_px * grid.gsd_m;
+      const Eigen::Vector2d ll = GeodeticFromUtm(zone, e, n);
+      const Eigen::Vector3d p = frame.EnuFromGeodetic({ll.x(), ll.y(), enu_origin.height_m});
+      box.min_m = box.min_m.cwiseMin(p.head<2>());
+      box.max_m = box.max_m.cwiseMax(p.head<2>());
+    }
+  return box;
+}
+
+GaussianFilter MeetsGrid(const GroundBox& box, double gsd_m) {
+  constexpr double kSigmas = 3.0;          // RasterOptions::sigma_extent
+  const double slack_m = 2.0 * gsd_m + 1.0;  // anti-aliasing dilation, parallax
+  return [box, slack_m](const Eigen::Vector3f& mean, const Eigen::Vector3f& log_scale) {
+    const double reach_m = kSigmas * std::exp(static_cast<double>(log_scale.maxCoeff())) + slack_m;
+    return mean.x() >= box.min_m.x() - reach_m && mean.x() <= box.max_m.x() + reach_m &&
+           mean.y() >= box.min_m.y() - reach_m && mean.y() <= box.max_m.y() + reach_m;
+  };
+}
+
+GaussianCloud CropCloud(const GaussianCloud& cloud, const GaussianFilter& keep) {
+  GaussianCloud out;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    if (keep(cloud.means[i], cloud.log_scales[i])) out.Append(cloud, i);
+  return out;
+}
+
+DsmGrid SubGrid(const DsmGrid& grid, int col0, int row0, int width_px, int height_px) {
+  DsmGrid part = grid;
+  part.height_m.clear();
+  part.width_px = width_px;
+  part.height_px = height_px;
+  part.upper_left_easting_m = grid.upper_left_easting_m + col0 * grid.gsd_m;
+  part.upper_left_northing_m = grid.upper_left_northing_m - row0 * grid.gsd_m;
+  return part;
+}
+
+void PasteBlock(const std::vector<float>& part, const DsmGrid& part_grid, int col0, int row0, int channels,
+                const DsmGrid& whole_grid, std::vector<float>* whole) {
+  const std::size_t row_values = static_cast<std::size_t>(part_grid.width_px) * channels;
+  for (int r = 0; r < part_grid.height_px; ++r)
+    std::copy_n(part.begin() + static_cast<std::ptrdiff_t>(r * row_values), row_values,
+                whole->begin() + static_cast<std::ptrdiff_t>(
+                                     (static_cast<std::size_t>(row0 + r) * whole_grid.width_px + col0) * channels));
+}
+
+std::vector<GridBlock> GridBlocks(const DsmGrid& grid, int block_px) {
+  if (block_px < 1) throw Error("dsm", "block_px", "must be >= 1, got " + std::to_string(block_px));
+  std::vector<GridBlock> blocks;
+  for (int row0 = 0; row0 < grid.height_px; row0 += block_px)
+    for (int col0 = 0; col0 < grid.width_px; col0 += block_px) {
+      const int w = std::min(block_px, grid.width_px - col0), h = std::min(block_px, grid.height_px - row0);
+      blocks.push_back({col0, row0, SubGrid(grid, col0, row0, w, h)});
+    }
+  return blocks;
+}
+
+void RasterizeDsmInBlocks(const GaussiansMeeting& source, const GeodeticPoint& enu_origin,
+                          const DsmExportOptions& options, DsmGrid* grid, std::vector<float>* rgb,
+                          const BlockVisitor& visit, int block_px) {
+  const EnuFrame frame(enu_origin);
+  const NadirCamera nadir = NadirCameraOfGrid(*grid, frame, enu_origin, options);
+  ClearRaster(grid, rgb);
+  for (const GridBlock& b : GridBlocks(*grid, block_px)) {
+    const GaussianCloud part = source(MeetsGrid(EnuBoxOfGrid(b.grid, enu_origin), grid->gsd_m));
+    RenderWindow(part, nadir, frame, options, b.col0, b.row0, b.grid.width_px, b.grid.height_px, grid, rgb);
+    if (visit) visit(b, part);
+  }
 }
 
 DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std::vector<float>* cls,

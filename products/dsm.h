@@ -10,8 +10,10 @@
 #include "core/aoi.h"
 #include "core/dsm_grid.h"
 #include "core/gaussians.h"
+#include "core/tile.h"
 #include "products/dsm_breakdown.h"
 #include "ingest/dfc2019.h"
+#include "splat/ply.h"
 
 namespace skyfall {
 
@@ -60,6 +62,52 @@ struct DsmExportOptions {
 // NaN where the DSM has no height: the true orthophoto of the scene.
 void RasterizeDsm(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmExportOptions& options,
                   DsmGrid* grid, std::vector<float>* rgb = nullptr);
+
+// The box in `enu_origin`'s frame (east, north) around the grid's pixel
+// corners at the frame's height.
+GroundBox EnuBoxOfGrid(const DsmGrid& grid, const GeodeticPoint& enu_origin);
+
+// The Gaussians RasterizeDsm can draw on a grid of `gsd_m` pixels whose ENU
+// box is `box`: those whose centre lies within three standard deviations of
+// their largest axis of it (the rasterizer blends within three), plus two
+// pixels of anti-aliasing and a metre of the camera's parallax. A render
+// from them equals a render from the whole cloud, byte for byte.
+GaussianFilter MeetsGrid(const GroundBox& box, double gsd_m);
+
+// The Gaussians of `cloud` that `keep` takes, in order.
+GaussianCloud CropCloud(const GaussianCloud& cloud, const GaussianFilter& keep);
+
+// A grid's part: `width_px` x `height_px` pixels from (col0, row0), no data.
+DsmGrid SubGrid(const DsmGrid& grid, int col0, int row0, int width_px, int height_px);
+// Copies a part's per-pixel values (`channels` per pixel) into the whole's.
+void PasteBlock(const std::vector<float>& part, const DsmGrid& part_grid, int col0, int row0, int channels,
+                const DsmGrid& whole_grid, std::vector<float>* whole);
+
+// A grid cut into square blocks of at most `block_px` a side, row by row.
+struct GridBlock {
+  int col0 = 0, row0 = 0;
+  DsmGrid grid;  // no data
+};
+std::vector<GridBlock> GridBlocks(const DsmGrid& grid, int block_px);
+
+// The Gaussians that meet a grid, from wherever the scene is kept (cropped
+// from a cloud in memory, or read from a PLY file with the filter).
+using GaussiansMeeting = std::function<GaussianCloud(const GaussianFilter& keep)>;
+
+// RasterizeDsm block by block (GridBlocks): one camera over the whole grid,
+// each block a window of its image rendered from the Gaussians that meet
+// the block, so memory holds one block's Gaussians and render, not the
+// scene's, and a city's mosaic needs no more than an AOI. Blocks start at
+// multiples of the rasterizer's 16 px tiles, so a pixel blends the same
+// Gaussians in the same order as in one render; only the float rounding of
+// their image positions differs. `visit`, when given, is called with each
+// block and its Gaussians after the block is rendered (for the layers that
+// come from the same Gaussians).
+constexpr int kDsmBlockPx = 1024;
+using BlockVisitor = std::function<void(const GridBlock& block, const GaussianCloud& part)>;
+void RasterizeDsmInBlocks(const GaussiansMeeting& source, const GeodeticPoint& enu_origin,
+                          const DsmExportOptions& options, DsmGrid* grid, std::vector<float>* rgb = nullptr,
+                          const BlockVisitor& visit = {}, int block_px = kDsmBlockPx);
 
 struct DsmCompareOptions {
   int max_shift_px = 5;        // search radius per pyramid level

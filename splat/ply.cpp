@@ -1,6 +1,8 @@
 #include "splat/ply.h"
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <cstring>
 #include <map>
 #include <sstream>
@@ -48,43 +50,61 @@ void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int 
   WriteFileAtomic(path, GaussiansToPly(cloud, sh_degree));
 }
 
-GaussianCloud ReadGaussiansPly(const std::string& path) { return ParseGaussiansPly(ReadTextFile(path), path); }
+namespace {
 
-GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path) {
-  const size_t end = data.find("end_header\n");
-  if (data.rfind("ply\n", 0) != 0 || end == std::string::npos) {
-    throw Error("ply", path, "not a PLY file (missing 'ply' magic or 'end_header')");
-  }
-  std::istringstream header(data.substr(0, end));
-  std::string line, format;
-  size_t count = 0;
-  bool in_vertex = false;
+// What a PLY header declares: the format, the vertex count, the properties
+// in order, and where the Inria fields sit among them.
+struct PlyLayout {
+  std::string format;
+  std::size_t count = 0;
   std::vector<std::string> props;
-  while (std::getline(header, line)) {
+  int px = 0, py = 0, pz = 0, op = 0;
+  int dc[3] = {0, 0, 0}, sc[3] = {0, 0, 0}, rot[4] = {0, 0, 0, 0};
+  std::vector<int> rest;  // channel-major f_rest_* columns
+  int rest_per_channel = 0;
+};
+
+// A header is a few kB; a file without `end_header` in its first MB is not a PLY.
+constexpr std::size_t kMaxHeaderBytes = 1 << 20;
+
+PlyLayout ReadHeader(std::istream& in, const std::string& path) {
+  auto not_ply = [&] { return Error("ply", path, "not a PLY file (missing 'ply' magic or 'end_header')"); };
+  std::string line;
+  if (!std::getline(in, line) || line != "ply") throw not_ply();
+  PlyLayout l;
+  bool in_vertex = false, ended = false;
+  std::size_t header_bytes = line.size() + 1;
+  while (!ended && std::getline(in, line)) {
+    header_bytes += line.size() + 1;
+    if (header_bytes > kMaxHeaderBytes) break;
+    if (in.eof()) break;  // the last line has no newline: the header never ended
     std::istringstream ls(line);
     std::string word;
     ls >> word;
-    if (word == "format") {
-      ls >> format;
+    if (word == "end_header") {
+      ended = line == "end_header";
+    } else if (word == "format") {
+      ls >> l.format;
     } else if (word == "element") {
       std::string name;
-      ls >> name >> count;
+      ls >> name >> l.count;
       in_vertex = name == "vertex";
-      if (!in_vertex && count > 0) throw Error("ply", path, "unexpected element '" + name + "' (only vertex)");
+      if (!in_vertex && l.count > 0) throw Error("ply", path, "unexpected element '" + name + "' (only vertex)");
     } else if (word == "property" && in_vertex) {
       std::string type, name;
       ls >> type >> name;
       if (type != "float" && type != "float32") {
         throw Error("ply", path, "property '" + name + "' has type '" + type + "', expected float");
       }
-      props.push_back(name);
+      l.props.push_back(name);
     }
   }
-  if (format != "binary_little_endian" && format != "ascii") {
-    throw Error("ply", path, "format '" + format + "' is not supported (binary_little_endian or ascii)");
+  if (!ended) throw not_ply();
+  if (l.format != "binary_little_endian" && l.format != "ascii") {
+    throw Error("ply", path, "format '" + l.format + "' is not supported (binary_little_endian or ascii)");
   }
   std::map<std::string, int> col;
-  for (size_t k = 0; k < props.size(); ++k) col[props[k]] = static_cast<int>(k);
+  for (std::size_t k = 0; k < l.props.size(); ++k) col[l.props[k]] = static_cast<int>(k);
   auto need = [&](const std::string& name) {
     const auto it = col.find(name);
     if (it == col.end()) throw Error("ply", path, "property '" + name + "' is missing (not an Inria 3DGS PLY)");
@@ -93,56 +113,98 @@ GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path
   int rest_count = 0;
   while (col.count("f_rest_" + std::to_string(rest_count))) ++rest_count;
   if (rest_count % 3 != 0) throw Error("ply", path, "f_rest_* count " + std::to_string(rest_count) + " is not 3 * k");
-  const int rest_per_channel = rest_count / 3;
-  const char* body = data.data() + end + std::strlen("end_header\n");
-  const size_t body_size = data.size() - (end + std::strlen("end_header\n"));
+  l.rest_per_channel = rest_count / 3;
+  // Every property by its own name: a header may list them in any order.
+  l.px = need("x"), l.py = need("y"), l.pz = need("z");
+  for (int c = 0; c < 3; ++c) l.dc[c] = need("f_dc_" + std::to_string(c));
+  l.op = need("opacity");
+  for (int a = 0; a < 3; ++a) l.sc[a] = need("scale_" + std::to_string(a));
+  for (int a = 0; a < 4; ++a) l.rot[a] = need("rot_" + std::to_string(a));
+  for (int k = 0; k < rest_count; ++k) l.rest.push_back(col["f_rest_" + std::to_string(k)]);
+  return l;
+}
+
+// Appends the vertex `v` (one value per property) to `c` when `keep` takes it.
+void AppendVertex(const PlyLayout& l, const float* v, std::size_t index, const GaussianFilter& keep,
+                  const std::string& path, GaussianCloud* c) {
+  const Eigen::Vector3f mean(v[l.px], v[l.py], v[l.pz]);
+  const Eigen::Vector3f log_scale(v[l.sc[0]], v[l.sc[1]], v[l.sc[2]]);
+  if (!mean.allFinite() || !log_scale.allFinite()) {
+    throw Error("ply", path, "Gaussian " + std::to_string(index) + " has a non-finite position or scale");
+  }
+  if (keep && !keep(mean, log_scale)) return;
+  std::array<float, 3 * kShCoeffsPerChannel> sh{};
+  for (int ch = 0; ch < 3; ++ch) {
+    sh[ch * 4] = v[l.dc[ch]];
+    for (int j = 1; j < 4 && j <= l.rest_per_channel; ++j) sh[ch * 4 + j] = v[l.rest[ch * l.rest_per_channel + (j - 1)]];
+  }
+  c->means.push_back(mean);
+  c->log_scales.push_back(log_scale);
+  c->rotations.emplace_back(v[l.rot[0]], v[l.rot[1]], v[l.rot[2]], v[l.rot[3]]);
+  c->opacity_logits.push_back(v[l.op]);
+  c->sh.push_back(sh);
+}
+
+// The vertices after the header, a chunk at a time, so that memory holds the
+// kept Gaussians and one chunk, never the whole file.
+GaussianCloud ReadBody(std::istream& in, std::size_t body_size, const PlyLayout& l, const GaussianFilter& keep,
+                       const std::string& path) {
+  const std::size_t n_props = l.props.size();
   // The declared count must fit the data before anything is allocated: a
   // binary value takes 4 bytes, an ASCII one at least 2 characters.
-  const size_t min_value_bytes = format == "binary_little_endian" ? sizeof(float) : 2;
-  if (props.empty() || count > body_size / min_value_bytes / props.size() + 1) {
-    throw Error("ply", path, "declares " + std::to_string(count) + " vertices of " + std::to_string(props.size()) +
+  const bool binary = l.format == "binary_little_endian";
+  const std::size_t min_value_bytes = binary ? sizeof(float) : 2;
+  if (n_props == 0 || l.count > body_size / min_value_bytes / n_props + 1) {
+    throw Error("ply", path, "declares " + std::to_string(l.count) + " vertices of " + std::to_string(n_props) +
                                  " properties, more than its " + std::to_string(body_size) + " bytes of data hold");
   }
-  std::vector<float> values(count * props.size());
-  if (format == "binary_little_endian") {
-    if (body_size < values.size() * sizeof(float)) {
-      throw Error("ply", path, "truncated: " + std::to_string(body_size) + " bytes of data, " +
-                                   std::to_string(values.size() * sizeof(float)) + " expected");
-    }
-    if (!values.empty()) std::memcpy(values.data(), body, values.size() * sizeof(float));
-  } else {
-    std::istringstream in(std::string(body, body_size));
-    for (size_t k = 0; k < values.size(); ++k)
-      if (!(in >> values[k])) throw Error("ply", path, "truncated ASCII data at value " + std::to_string(k));
+  if (binary && body_size < l.count * n_props * sizeof(float)) {
+    throw Error("ply", path, "truncated: " + std::to_string(body_size) + " bytes of data, " +
+                                 std::to_string(l.count * n_props * sizeof(float)) + " expected");
   }
   GaussianCloud c;
-  c.resize(count);
-  // Every property by its own name: a header may list them in any order.
-  const int px = need("x"), py = need("y"), pz = need("z");
-  const int dc[3] = {need("f_dc_0"), need("f_dc_1"), need("f_dc_2")};
-  const int op = need("opacity");
-  const int sc[3] = {need("scale_0"), need("scale_1"), need("scale_2")};
-  const int rot[4] = {need("rot_0"), need("rot_1"), need("rot_2"), need("rot_3")};
-  std::vector<int> rest(rest_count);
-  for (int k = 0; k < rest_count; ++k) rest[k] = col["f_rest_" + std::to_string(k)];
-  for (size_t i = 0; i < count; ++i) {
-    const float* v = &values[i * props.size()];
-    c.means[i] = Eigen::Vector3f(v[px], v[py], v[pz]);
-    c.sh[i].fill(0.0f);
-    for (int ch = 0; ch < 3; ++ch) {
-      c.sh[i][ch * 4] = v[dc[ch]];
-      for (int j = 1; j < 4 && j <= rest_per_channel; ++j) c.sh[i][ch * 4 + j] = v[rest[ch * rest_per_channel + (j - 1)]];
+  if (!keep) {
+    c.means.reserve(l.count), c.log_scales.reserve(l.count), c.rotations.reserve(l.count);
+    c.opacity_logits.reserve(l.count), c.sh.reserve(l.count);
+  }
+  constexpr std::size_t kChunkVertices = 1 << 16;
+  std::vector<float> values(std::min(l.count, kChunkVertices) * n_props);
+  for (std::size_t first = 0; first < l.count; first += kChunkVertices) {
+    const std::size_t n = std::min(kChunkVertices, l.count - first);
+    if (binary) {
+      in.read(reinterpret_cast<char*>(values.data()), static_cast<std::streamsize>(n * n_props * sizeof(float)));
+      if (static_cast<std::size_t>(in.gcount()) != n * n_props * sizeof(float))
+        throw Error("ply", path, "truncated at vertex " + std::to_string(first));  // x86-64 is little endian
+    } else {
+      for (std::size_t k = 0; k < n * n_props; ++k)
+        if (!(in >> values[k]))
+          throw Error("ply", path, "truncated ASCII data at value " + std::to_string(first * n_props + k));
     }
-    c.opacity_logits[i] = v[op];
-    c.log_scales[i] = Eigen::Vector3f(v[sc[0]], v[sc[1]], v[sc[2]]);
-    c.rotations[i] = Eigen::Vector4f(v[rot[0]], v[rot[1]], v[rot[2]], v[rot[3]]);
-    for (int a = 0; a < 3; ++a) {
-      if (!std::isfinite(c.means[i][a]) || !std::isfinite(c.log_scales[i][a])) {
-        throw Error("ply", path, "Gaussian " + std::to_string(i) + " has a non-finite position or scale");
-      }
-    }
+    for (std::size_t i = 0; i < n; ++i) AppendVertex(l, &values[i * n_props], first + i, keep, path, &c);
   }
   return c;
+}
+
+GaussianCloud ReadPly(std::istream& in, std::size_t total_bytes, const GaussianFilter& keep, const std::string& path) {
+  const PlyLayout layout = ReadHeader(in, path);
+  const std::size_t header_bytes = static_cast<std::size_t>(in.tellg());
+  return ReadBody(in, total_bytes - header_bytes, layout, keep, path);
+}
+
+}  // namespace
+
+GaussianCloud ReadGaussiansPly(const std::string& path, const GaussianFilter& keep) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error("ply", path, "cannot be opened");
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error("ply", path, "cannot be sized: " + ec.message());
+  return ReadPly(in, static_cast<std::size_t>(size), keep, path);
+}
+
+GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path) {
+  std::istringstream in(data);
+  return ReadPly(in, data.size(), GaussianFilter(), path);
 }
 
 }  // namespace skyfall

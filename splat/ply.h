@@ -4,6 +4,8 @@
 // viewers load them.
 #pragma once
 
+#include <Eigen/Core>
+#include <functional>
 #include <string>
 
 #include "core/gaussians.h"
@@ -15,10 +17,15 @@ std::string GaussiansToPly(const GaussianCloud& cloud, int sh_degree = 1);
 // Atomic write (temporary file + rename).
 void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int sh_degree = 1);
 
+// Which Gaussians a read keeps, by centre [m] and log standard deviations.
+using GaussianFilter = std::function<bool(const Eigen::Vector3f& mean, const Eigen::Vector3f& log_scale)>;
+
 // Reads Inria-layout PLY (binary little endian or ASCII) of any SH degree;
-// coefficients beyond degree 1 are dropped. Throws Error("ply", path, ...)
-// naming the missing property or the bad header line.
-GaussianCloud ReadGaussiansPly(const std::string& path);
+// coefficients beyond degree 1 are dropped. With `keep`, only the Gaussians
+// it takes, in file order; the file is read a chunk at a time, so memory
+// holds what is kept and one chunk. Throws Error("ply", path, ...) naming
+// the missing property, the bad header line or the truncation.
+GaussianCloud ReadGaussiansPly(const std::string& path, const GaussianFilter& keep = {});
 // The same from the file's bytes; `path` names it in errors.
 GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path);
 

@@ -83,5 +83,40 @@ TEST(Ply, BadFilesNameTheProblem) {
   EXPECT_NE(ErrorText([&] { ReadGaussiansPly((dir / "text.ply").string()); }).find("not a PLY"), std::string::npos);
 }
 
+TEST(Ply, AFilteredReadKeepsWhatTheFilterTakesInFileOrder) {
+  // More vertices than one read chunk (65,536), so chunk borders are crossed.
+  const fs::path dir = ScratchDir("plyfilter");
+  GaussianCloud c;
+  constexpr std::size_t kCount = 150001;
+  c.resize(kCount);
+  for (std::size_t i = 0; i < kCount; ++i) {
+    c.means[i] = Eigen::Vector3f(static_cast<float>(i % 1000), static_cast<float>(i / 1000), 0.5f);
+    c.log_scales[i] = Eigen::Vector3f(-1.0f, -1.0f, static_cast<float>(i % 7) - 3.0f);
+    c.rotations[i] = Eigen::Vector4f(1.0f, 0.0f, 0.0f, 0.0f);
+    c.opacity_logits[i] = static_cast<float>(i % 13);
+    c.sh[i].fill(static_cast<float>(i % 17));
+  }
+  WriteGaussiansPly((dir / "big.ply").string(), c);
+  const GaussianCloud all = ReadGaussiansPly((dir / "big.ply").string());
+  ASSERT_EQ(all.size(), kCount);
+  EXPECT_EQ(all.means.back(), c.means.back());
+  EXPECT_EQ(all.sh[70000], c.sh[70000]);
+  const GaussianCloud band = ReadGaussiansPly((dir / "big.ply").string(), [](const Eigen::Vector3f& m,
+                                                                           const Eigen::Vector3f& s) {
+    return m.y() >= 60.0f && m.y() < 80.0f && s.z() > 0.0f;  // rows 60-79, i % 7 in {4, 5, 6}
+  });
+  std::vector<std::size_t> expected;
+  for (std::size_t i = 60000; i < 80000; ++i)
+    if (i % 7 >= 4) expected.push_back(i);
+  ASSERT_EQ(band.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); k += 997) {
+    const std::size_t i = expected[k];
+    EXPECT_EQ(band.means[k], c.means[i]) << i;
+    EXPECT_EQ(band.log_scales[k], c.log_scales[i]) << i;
+    EXPECT_EQ(band.opacity_logits[k], c.opacity_logits[i]) << i;
+    EXPECT_EQ(band.sh[k], c.sh[i]) << i;
+  }
+}
+
 }  // namespace
 }  // namespace skyfall
