@@ -453,57 +453,48 @@ std::vector<Eigen::Vector2d> FootprintOverlap(const std::vector<ImageRecord>& im
   return {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
 }
 
-AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const std::string& root,
-                          const std::string& out_dir, const IngestOptions& options,
-                          Progress& progress) {
-  Stopwatch clock;
-  AoiIngestResult result;
-  result.aoi = aoi;
-  result.report.stage = "ingest";
-  AoiCatalog& c = result.catalog;
-  c.aoi = aoi;
-  c.source_root = root;
-
+// Reads every image of the AOI into the catalog; an unreadable one is
+// skipped with its reason. Returns each kept image's Sat-NeRF camera, if any.
+std::vector<std::optional<SatNerfCamera>> ReadImages(const AoiFiles& files, const IngestOptions& options,
+                                                     AoiIngestResult* result, Progress& progress) {
   for (const Skipped& s : files.skipped) {
-    result.skipped_images.push_back(s);
+    result->skipped_images.push_back(s);
     progress.Warn("skipping file: " + s.reason);
   }
-  progress.Begin("ingest " + aoi, files.images.size());
+  progress.Begin("ingest " + result->aoi, files.images.size());
   std::vector<std::optional<SatNerfCamera>> satnerf;
   std::size_t done = 0;
   for (const auto& [stem, path] : files.images) {
     std::optional<SatNerfCamera> cam;
     try {
-      c.images.push_back(ReadImage(stem, path, files, options, &cam));
+      result->catalog.images.push_back(ReadImage(stem, path, files, options, &cam));
       satnerf.push_back(cam);
     } catch (const Error& e) {
-      result.skipped_images.push_back({path, e.what()});
+      result->skipped_images.push_back({path, e.what()});
       progress.Warn(std::string("skipping image: ") + e.what());
     }
     progress.Advance(++done, stem);
   }
   progress.End();
   if (!files.empty_folder.empty()) throw Error("ingest", files.empty_folder, "AOI folder holds no image (*_NNN_RGB.tif)");
-  if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
+  if (result->catalog.images.empty()) throw Error("ingest", result->aoi, "no usable image (all were skipped)");
+  return satnerf;
+}
 
+std::optional<TruthGrid> ReadAnyTruth(const std::string& aoi, const AoiFiles& files) {
+  if (!files.truth_dsm_path.empty()) return ReadGeoreferencedTruth(files);
   const bool has_truth = fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.tif")) ||
                          fs::exists(fs::path(files.truth_dir) / (aoi + "_DSM.txt"));
-  if (!files.truth_dsm_path.empty()) {
-    c.truth = ReadGeoreferencedTruth(files);
-  } else if (has_truth) {
-    c.truth = ReadTruth(aoi, files);
-  }
+  if (has_truth) return ReadTruth(aoi, files);
+  return std::nullopt;
+}
 
-  const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
-  c.min_ellipsoid_height_m = range.min_m;
-  c.max_ellipsoid_height_m = range.max_m;
-  c.height_range_source = range.source;
-  const double mid_height_m = 0.5 * (c.min_ellipsoid_height_m + c.max_ellipsoid_height_m);
-
-  LocateFootprints(mid_height_m, &c.images, &result.skipped_images, progress);
-  SkipDuplicateViews(&c.images, &result.skipped_images, progress);
-  if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
-  const std::vector<Eigen::Vector2d> overlap = FootprintOverlap(c.images, aoi);
+// The AOI's UTM zone, footprint and ENU origin (at `mid_height_m`,
+// ellipsoidal): the truth's grid where there is one, else the images' common
+// footprint.
+void PlaceAoi(double mid_height_m, AoiCatalog* catalog) {
+  AoiCatalog& c = *catalog;
+  const std::vector<Eigen::Vector2d> overlap = FootprintOverlap(c.images, c.aoi);
   Eigen::Vector2d centre = 0.25 * (overlap[0] + overlap[1] + overlap[2] + overlap[3]);
   centre.x() = WrapLongitudeDeg(centre.x());
   UtmZone zone = StandardUtmZone(centre.x(), centre.y());
@@ -533,7 +524,31 @@ AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const s
   c.utm_north = zone.north;
   c.epsg = zone.Epsg();
   c.enu_origin = {centre.x(), centre.y(), mid_height_m};
+}
 
+AoiIngestResult IngestAoi(const std::string& aoi, const AoiFiles& files, const std::string& root,
+                          const std::string& out_dir, const IngestOptions& options,
+                          Progress& progress) {
+  Stopwatch clock;
+  AoiIngestResult result;
+  result.aoi = aoi;
+  result.report.stage = "ingest";
+  AoiCatalog& c = result.catalog;
+  c.aoi = aoi;
+  c.source_root = root;
+
+  const std::vector<std::optional<SatNerfCamera>> satnerf = ReadImages(files, options, &result, progress);
+  c.truth = ReadAnyTruth(aoi, files);
+  const HeightRange range = ChooseHeightRange(c.truth, satnerf, c.images, options);
+  c.min_ellipsoid_height_m = range.min_m;
+  c.max_ellipsoid_height_m = range.max_m;
+  c.height_range_source = range.source;
+  const double mid_height_m = 0.5 * (c.min_ellipsoid_height_m + c.max_ellipsoid_height_m);
+
+  LocateFootprints(mid_height_m, &c.images, &result.skipped_images, progress);
+  SkipDuplicateViews(&c.images, &result.skipped_images, progress);
+  if (c.images.empty()) throw Error("ingest", aoi, "no usable image (all were skipped)");
+  PlaceAoi(mid_height_m, &c);
   const EnuFrame frame(c.enu_origin);
   for (auto& im : c.images) SetViewGeometry(frame, mid_height_m, options, &im);
 

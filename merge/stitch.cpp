@@ -4,7 +4,9 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <map>
 #include <mutex>
+#include <string>
 
 #include "core/error.h"
 #include "ingest/geo.h"
@@ -92,13 +94,9 @@ GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d
   return out;
 }
 
-StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
-                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership) {
-  options.Check();
-  InitOpenVdb();
-  Stopwatch clock;
-  StitchResult result;
-  result.report.stage = "merge";
+namespace {
+
+void CheckOneTiling(const std::vector<TileCloud>& tiles) {
   if (tiles.empty()) throw Error("merge", "", "no tile to merge");
   const TileGrid& grid = tiles[0].tile.grid;
   for (const TileCloud& t : tiles) {
@@ -107,95 +105,129 @@ StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city
       throw Error("merge", t.tile.id, "comes from another tiling than " + tiles[0].tile.id + " (grids differ)");
     }
   }
+}
 
-  // 1. Who owns what: core boundaries bent to where neighbours agree. Every
-  //    cloud in the city frame; owned and overlap Gaussians apart.
-  result.ownership = ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, tiles);
-  // A tile planned in the city's frame (every tile of one tiling) is used as
-  // it is: a copy of the city's Gaussians would double the merge's memory.
-  struct Split {
-    GaussianCloud moved;                    // the tile in the city frame, when its frame differs
-    const GaussianCloud* cloud = nullptr;   // the tile in the city frame
-    std::vector<std::size_t> core, overlap;
-  };
-  std::vector<Split> split(tiles.size());
-  for (std::size_t k = 0; k < tiles.size(); ++k) {
-    const TileSpec& spec = tiles[k].tile;
-    // Tile boxes are in the frame the tiles were planned in.
-    const Eigen::Isometry3d to_city = FrameChange(spec.enu_origin, city_origin);
-    if (to_city.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
-      split[k].cloud = &tiles[k].cloud;
+// One tile's Gaussians in the city frame, sorted into what its core owns and
+// what lies in its overlap band. A tile planned in the city's frame (every
+// tile of one tiling) is used as it is: a copy of the city's Gaussians would
+// double the merge's memory.
+struct TileSplit {
+  const GaussianCloud* in_place = nullptr;  // the tile itself, when it is already in the city frame
+  GaussianCloud moved;                      // else the tile moved to the city frame
+  std::vector<std::size_t> core, overlap;
+  // Resolved on use, not stored: a pointer into `moved` would dangle once
+  // the split is moved into its vector.
+  const GaussianCloud& cloud() const { return in_place ? *in_place : moved; }
+};
+
+TileSplit SplitByOwner(const StitchOptions& options, const GeodeticPoint& city_origin, const TileCloud& tile,
+                       StitchResult* result) {
+  TileSplit split;
+  const TileSpec& spec = tile.tile;
+  // Tile boxes are in the frame the tiles were planned in.
+  const Eigen::Isometry3d to_city = FrameChange(spec.enu_origin, city_origin);
+  if (to_city.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
+    split.in_place = &tile.cloud;
+  } else {
+    split.moved = TransformCloud(tile.cloud, to_city);
+  }
+  for (std::size_t i = 0; i < tile.cloud.size(); ++i) {
+    const Eigen::Vector3f& p = tile.cloud.means[i];
+    const Eigen::Vector2i owner = result->ownership.Owner(p.x(), p.y());
+    if (owner.x() == spec.col && owner.y() == spec.row) {
+      split.core.push_back(i);
+    } else if (!spec.extent.Contains(p.x(), p.y())) {
+      ++result->outside_extent;
+    } else if (OpacityOfLogit(tile.cloud.opacity_logits[i]) < options.min_opacity) {
+      ++result->transparent_dropped;
     } else {
-      split[k].moved = TransformCloud(tiles[k].cloud, to_city);
-      split[k].cloud = &split[k].moved;
-    }
-    for (std::size_t i = 0; i < tiles[k].cloud.size(); ++i) {
-      const Eigen::Vector3f& p = tiles[k].cloud.means[i];
-      const Eigen::Vector2i owner = result.ownership.Owner(p.x(), p.y());
-      if (owner.x() == spec.col && owner.y() == spec.row) {
-        split[k].core.push_back(i);
-      } else if (!spec.extent.Contains(p.x(), p.y())) {
-        ++result.outside_extent;
-      } else if (OpacityOfLogit(tiles[k].cloud.opacity_logits[i]) < options.min_opacity) {
-        ++result.transparent_dropped;
-      } else {
-        split[k].overlap.push_back(i);
-      }
+      split.overlap.push_back(i);
     }
   }
+  return split;
+}
 
-  // 2. Occupancy of what each tile keeps in its core, and of the union.
+// Keeps every core Gaussian; returns the occupancy of the opaque ones.
+openvdb::MaskGrid::Ptr KeepCores(const StitchOptions& options, const std::vector<TileSplit>& split,
+                                 StitchResult* result) {
   openvdb::MaskGrid::Ptr occupied = NewMask(options.voxel_m);
-  for (std::size_t k = 0; k < tiles.size(); ++k) {
+  for (std::size_t k = 0; k < split.size(); ++k) {
     openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
     auto acc = mine->getAccessor();
     for (std::size_t i : split[k].core) {
-      if (OpacityOfLogit(split[k].cloud->opacity_logits[i]) >= options.min_opacity) {
-        acc.setValueOn(VoxelOf(*mine, split[k].cloud->means[i], options.occupancy_columns));
+      if (OpacityOfLogit(split[k].cloud().opacity_logits[i]) >= options.min_opacity) {
+        acc.setValueOn(VoxelOf(*mine, split[k].cloud().means[i], options.occupancy_columns));
       }
-      result.cloud.Append(*split[k].cloud, i);
-      result.source_tile.push_back(static_cast<int>(k));
+      result->cloud.Append(split[k].cloud(), i);
+      result->source_tile.push_back(static_cast<int>(k));
     }
-    result.occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
+    result->occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
     occupied->topologyUnion(*mine);
   }
-  result.kept_in_core = result.cloud.size();
+  result->kept_in_core = result->cloud.size();
+  return occupied;
+}
 
-  // 3. Overlap bands: duplicates of the owners' geometry go; Gaussians where
-  //    no core has geometry fill the hole, once (fills of earlier tiles count
-  //    as occupied for later ones).
+// Overlap bands: duplicates of the owners' geometry go; Gaussians where no
+// core has geometry fill the hole, once (fills of earlier tiles count as
+// occupied for later ones).
+void FillFromOverlaps(const StitchOptions& options, const std::vector<TileSplit>& split,
+                      const openvdb::MaskGrid& occupied, StitchResult* result) {
   openvdb::MaskGrid::Ptr filled = NewMask(options.voxel_m);
-  for (std::size_t k = 0; k < tiles.size(); ++k) {
-    const auto occupied_acc = occupied->getConstAccessor();
+  for (std::size_t k = 0; k < split.size(); ++k) {
+    const auto occupied_acc = occupied.getConstAccessor();
     const auto filled_acc = filled->getConstAccessor();
     std::vector<std::size_t> fills;
     for (std::size_t i : split[k].overlap) {
-      const openvdb::Coord c = VoxelOf(*occupied, split[k].cloud->means[i], options.occupancy_columns);
+      const openvdb::Coord c = VoxelOf(occupied, split[k].cloud().means[i], options.occupancy_columns);
       if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
           AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
-        ++result.duplicates_removed;
+        ++result->duplicates_removed;
       } else {
         fills.push_back(i);
       }
     }
     auto fill_acc = filled->getAccessor();
     for (std::size_t i : fills) {
-      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud->means[i], options.occupancy_columns));
-      result.cloud.Append(*split[k].cloud, i);
-      result.source_tile.push_back(static_cast<int>(k));
+      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud().means[i], options.occupancy_columns));
+      result->cloud.Append(split[k].cloud(), i);
+      result->source_tile.push_back(static_cast<int>(k));
     }
-    result.holes_filled += fills.size();
+    result->holes_filled += fills.size();
   }
+}
+
+std::map<std::string, double> StitchMetrics(const StitchResult& r) {
+  return {{"gaussians", static_cast<double>(r.cloud.size())},
+          {"kept_in_core", static_cast<double>(r.kept_in_core)},
+          {"duplicates_removed", static_cast<double>(r.duplicates_removed)},
+          {"holes_filled", static_cast<double>(r.holes_filled)},
+          {"outside_extent_dropped", static_cast<double>(r.outside_extent)},
+          {"transparent_overlap_dropped", static_cast<double>(r.transparent_dropped)},
+          {"occupied_voxels_union", static_cast<double>(r.occupied_voxels_union)},
+          {"seam_lines", static_cast<double>(r.ownership.lines())},
+          {"seam_line_mean_offset_m", r.ownership.MeanDeviationM()}};
+}
+
+}  // namespace
+
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
+                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership) {
+  options.Check();
+  InitOpenVdb();
+  Stopwatch clock;
+  CheckOneTiling(tiles);
+  StitchResult result;
+  result.report.stage = "merge";
+  // Who owns what: core boundaries bent to where neighbours agree.
+  result.ownership = ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, tiles);
+  std::vector<TileSplit> split;
+  split.reserve(tiles.size());
+  for (const TileCloud& tile : tiles) split.push_back(SplitByOwner(options, city_origin, tile, &result));
+  const openvdb::MaskGrid::Ptr occupied = KeepCores(options, split, &result);
+  FillFromOverlaps(options, split, *occupied, &result);
   result.occupied_voxels_union = occupied->activeVoxelCount();
-  result.report.metrics = {{"gaussians", static_cast<double>(result.cloud.size())},
-                           {"kept_in_core", static_cast<double>(result.kept_in_core)},
-                           {"duplicates_removed", static_cast<double>(result.duplicates_removed)},
-                           {"holes_filled", static_cast<double>(result.holes_filled)},
-                           {"outside_extent_dropped", static_cast<double>(result.outside_extent)},
-                           {"transparent_overlap_dropped", static_cast<double>(result.transparent_dropped)},
-                           {"occupied_voxels_union", static_cast<double>(result.occupied_voxels_union)},
-                           {"seam_lines", static_cast<double>(result.ownership.lines())},
-                           {"seam_line_mean_offset_m", result.ownership.MeanDeviationM()}};
+  result.report.metrics = StitchMetrics(result);
   result.report.seconds = clock.Seconds();
   return result;
 }

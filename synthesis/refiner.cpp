@@ -128,6 +128,134 @@ ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, Repr
   for (const TrainView& s : satellite_) satellite_centres_.push_back(s.camera.Centre());
 }
 
+namespace {
+
+// What a pixel's votes are drawn from: the satellite views, their visible
+// depth, their camera centres and the refiner's options.
+struct VoteSources {
+  const std::vector<TrainView>& satellite;
+  const std::vector<SatelliteDepth>& depth;
+  const std::vector<Eigen::Vector3d>& centres;
+  const ReprojectOptions& options;
+};
+
+// One vote per satellite view that sees world point X (not hidden there by a
+// nearer surface), weighted by how close its direction is to the orbit eye's.
+void CollectVotes(const VoteSources& src, const Eigen::Vector3d& X, const Eigen::Vector3d& eye,
+                  std::vector<Vote>* votes) {
+  const double power = src.options.angle_weight_power;
+  const bool integer_power = power == std::floor(power) && power <= 16;
+  const Eigen::Vector3d to_orbit = (eye - X).normalized();
+  votes->clear();
+  for (int s = 0; s < static_cast<int>(src.satellite.size()); ++s) {
+    const TrainView& sv = src.satellite[s];
+    const Eigen::Vector2d uv = sv.camera.Project(X);
+    if (!(uv.x() >= 0 && uv.y() >= 0 && uv.x() <= sv.camera.width_px - 1 && uv.y() <= sv.camera.height_px - 1))
+      continue;
+    const std::size_t q = static_cast<std::size_t>(std::lround(uv.y())) * sv.camera.width_px + std::lround(uv.x());
+    if (!sv.valid.empty() && !sv.valid[q]) continue;
+    const float seen = src.depth[s].depth[q];
+    if (!std::isfinite(seen)) continue;
+    const double here = sv.camera.Depth(X) - src.depth[s].reference_m;
+    if (std::abs(here - seen) > src.options.visibility_tolerance_m) continue;  // hidden from this view
+    const double cosine = std::max(0.0, to_orbit.dot((src.centres[s] - X).normalized()));
+    const double weight = integer_power ? IntegerPower(cosine, static_cast<int>(power)) : std::pow(cosine, power);
+    votes->push_back({s, static_cast<float>(weight) + 1e-6f, Bilinear(sv, uv.x(), uv.y())});
+  }
+}
+
+// Each sample's colour of one pixel: the weighted median of the votes of the
+// views that sample keeps (all votes when it keeps none of them).
+void SampleColours(const std::vector<Vote>& votes, const std::vector<std::vector<float>>& factors, int y, int x,
+                   std::vector<cv::Mat>* images, std::vector<std::pair<float, float>>* channel) {
+  for (std::size_t k = 0; k < factors.size(); ++k) {
+    const std::vector<float>& factor = factors[k];
+    bool subset = false;
+    for (const Vote& v : votes) subset = subset || factor[v.view] > 0;
+    cv::Vec3f& px = (*images)[k].at<cv::Vec3f>(y, x);
+    for (int c = 0; c < 3; ++c) {
+      channel->clear();
+      for (const Vote& v : votes) {
+        const float w = subset ? v.weight * factor[v.view] : v.weight;
+        if (w > 0) channel->emplace_back(v.colour[c], w);
+      }
+      px[c] = WeightedMedian(*channel);
+    }
+  }
+}
+
+// Pixels no satellite view sees are inpainted (or keep the render), the
+// image smoothed, and returned as interleaved RGB in [0, 1].
+std::vector<float> FinishSample(const ReprojectOptions& o, const cv::Mat& unseen, cv::Mat image) {
+  if (o.inpaint != Inpaint::kRender && cv::countNonZero(unseen) > 0) {
+    cv::Mat bytes, filled;
+    image.convertTo(bytes, CV_8UC3, 255.0);
+    cv::inpaint(bytes, unseen, filled, o.inpaint_radius_px,
+                o.inpaint == Inpaint::kNavierStokes ? cv::INPAINT_NS : cv::INPAINT_TELEA);
+    cv::Mat filled_f;
+    filled.convertTo(filled_f, CV_32FC3, 1.0 / 255.0);
+    filled_f.copyTo(image, unseen);
+  }
+  if (o.smooth_diameter_px > 0) {
+    cv::Mat smooth;
+    cv::bilateralFilter(image, smooth, o.smooth_diameter_px, o.smooth_sigma_colour, o.smooth_sigma_space_px);
+    image = smooth;
+  }
+  const int W = image.cols, H = image.rows;
+  std::vector<float> rgb(3 * static_cast<std::size_t>(W) * H);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int c = 0; c < 3; ++c)
+        rgb[3 * (static_cast<std::size_t>(y) * W + x) + c] = std::clamp(image.at<cv::Vec3f>(y, x)[c], 0.0f, 1.0f);
+  return rgb;
+}
+
+// The samples of one orbit view (number `vi` of the request).
+RefinedSamples RefineView(const VoteSources& src, const RefineInput& in, std::size_t vi,
+                          const RefineRequest& request) {
+  const PinholeCamera& cam = in.camera;
+  const int W = cam.width_px, H = cam.height_px;
+  const std::size_t n = static_cast<std::size_t>(W) * H;
+  if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
+  // Each sample keeps a random subset of the satellite views with jittered
+  // weights (drawn before the pixels, so they do not depend on threads).
+  const int S = static_cast<int>(src.satellite.size());
+  std::vector<std::vector<float>> factors(request.samples);
+  for (int k = 0; k < request.samples; ++k) factors[k] = SampleFactors(src.options, request, vi, k, S);
+  std::vector<cv::Mat> images(request.samples);
+  for (cv::Mat& image : images) image.create(H, W, CV_32FC3);
+  cv::Mat unseen = cv::Mat::zeros(H, W, CV_8U);
+  const PixelToWorld to_world(cam);
+  const Eigen::Vector3d eye = cam.Centre();
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<Vote> votes;  // the pixel's votes, one per satellite view that sees its point
+    votes.reserve(S);
+    std::vector<std::pair<float, float>> channel;
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < W; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * W + x;
+        for (cv::Mat& image : images) {
+          cv::Vec3f& px = image.at<cv::Vec3f>(y, x);
+          for (int c = 0; c < 3; ++c) px[c] = in.rgb[3 * p + c];
+        }
+        const double depth = in.depth_m[p];
+        if (!std::isfinite(depth)) continue;  // no surface: the render stays (masked in training)
+        CollectVotes(src, to_world(x, y, depth), eye, &votes);
+        if (votes.empty()) {
+          unseen.at<std::uint8_t>(y, x) = 255;
+          continue;
+        }
+        SampleColours(votes, factors, y, x, &images, &channel);
+      }
+    }
+  });
+  RefinedSamples out;
+  for (cv::Mat& image : images) out.push_back(FinishSample(src.options, unseen, image));
+  return out;
+}
+
+}  // namespace
+
 std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene, const std::vector<RefineInput>& views,
                                                      const RefineRequest& request, Progress& progress) {
   std::vector<SatelliteDepth> sat_depth;
@@ -145,103 +273,12 @@ std::vector<RefinedSamples> ReprojectRefiner::Refine(const GaussianCloud& scene,
         if (m.valid[q]) sat_depth[s].depth[q] = m.depth[q];
     }
   }
-  const int S = static_cast<int>(satellite_.size());
+  const VoteSources sources{satellite_, sat_depth, satellite_centres_, options_};
   std::vector<RefinedSamples> out(views.size());
   progress.Begin("idu refine (reproject)", views.size());
   for (std::size_t vi = 0; vi < views.size(); ++vi) {
-    const RefineInput& in = views[vi];
-    const PinholeCamera& cam = in.camera;
-    const int W = cam.width_px, H = cam.height_px;
-    const std::size_t n = static_cast<std::size_t>(W) * H;
-    if (in.rgb.size() != 3 * n || in.depth_m.size() != n) throw Error("idu", in.name, "render size does not match its camera");
-    // Each sample keeps a random subset of the satellite views with jittered
-    // weights (drawn before the pixels, so they do not depend on threads).
-    std::vector<std::vector<float>> factors(request.samples);
-    for (int k = 0; k < request.samples; ++k) factors[k] = SampleFactors(options_, request, vi, k, S);
-    std::vector<cv::Mat> images(request.samples);
-    for (cv::Mat& image : images) image.create(H, W, CV_32FC3);
-    cv::Mat unseen = cv::Mat::zeros(H, W, CV_8U);
-    const PixelToWorld to_world(cam);
-    const Eigen::Vector3d eye = cam.Centre();
-    const double power = options_.angle_weight_power;
-    const bool integer_power = power == std::floor(power) && power <= 16;
-    tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
-      std::vector<Vote> votes;  // the pixel's votes, one per satellite view that sees its point
-      votes.reserve(S);
-      std::vector<std::pair<float, float>> channel;
-      for (int y = rows.begin(); y < rows.end(); ++y) {
-        for (int x = 0; x < W; ++x) {
-          const std::size_t p = static_cast<std::size_t>(y) * W + x;
-          for (cv::Mat& image : images) {
-            cv::Vec3f& px = image.at<cv::Vec3f>(y, x);
-            for (int c = 0; c < 3; ++c) px[c] = in.rgb[3 * p + c];
-          }
-          const double depth = in.depth_m[p];
-          if (!std::isfinite(depth)) continue;  // no surface: the render stays (masked in training)
-          const Eigen::Vector3d X = to_world(x, y, depth);
-          const Eigen::Vector3d to_orbit = (eye - X).normalized();
-          votes.clear();
-          for (int s = 0; s < S; ++s) {
-            const TrainView& sv = satellite_[s];
-            const Eigen::Vector2d uv = sv.camera.Project(X);
-            if (!(uv.x() >= 0 && uv.y() >= 0 && uv.x() <= sv.camera.width_px - 1 && uv.y() <= sv.camera.height_px - 1))
-              continue;
-            const std::size_t q = static_cast<std::size_t>(std::lround(uv.y())) * sv.camera.width_px + std::lround(uv.x());
-            if (!sv.valid.empty() && !sv.valid[q]) continue;
-            const float seen = sat_depth[s].depth[q];
-            if (!std::isfinite(seen)) continue;
-            const double here = sv.camera.Depth(X) - sat_depth[s].reference_m;
-            if (std::abs(here - seen) > options_.visibility_tolerance_m) continue;  // hidden from this view
-            const double cosine = std::max(0.0, to_orbit.dot((satellite_centres_[s] - X).normalized()));
-            const double weight = integer_power ? IntegerPower(cosine, static_cast<int>(power)) : std::pow(cosine, power);
-            votes.push_back({s, static_cast<float>(weight) + 1e-6f, Bilinear(sv, uv.x(), uv.y())});
-          }
-          if (votes.empty()) {
-            unseen.at<std::uint8_t>(y, x) = 255;
-            continue;
-          }
-          for (int k = 0; k < request.samples; ++k) {
-            const std::vector<float>& factor = factors[k];
-            bool subset = false;
-            for (const Vote& v : votes) subset = subset || factor[v.view] > 0;
-            cv::Vec3f& px = images[k].at<cv::Vec3f>(y, x);
-            for (int c = 0; c < 3; ++c) {
-              channel.clear();
-              for (const Vote& v : votes) {
-                const float w = subset ? v.weight * factor[v.view] : v.weight;
-                if (w > 0) channel.emplace_back(v.colour[c], w);
-              }
-              px[c] = WeightedMedian(channel);
-            }
-          }
-        }
-      }
-    });
-    for (int k = 0; k < request.samples; ++k) {
-      cv::Mat& image = images[k];
-      if (options_.inpaint != Inpaint::kRender && cv::countNonZero(unseen) > 0) {
-        cv::Mat bytes, filled;
-        image.convertTo(bytes, CV_8UC3, 255.0);
-        cv::inpaint(bytes, unseen, filled, options_.inpaint_radius_px,
-                    options_.inpaint == Inpaint::kNavierStokes ? cv::INPAINT_NS : cv::INPAINT_TELEA);
-        cv::Mat filled_f;
-        filled.convertTo(filled_f, CV_32FC3, 1.0 / 255.0);
-        filled_f.copyTo(image, unseen);
-      }
-      if (options_.smooth_diameter_px > 0) {
-        cv::Mat smooth;
-        cv::bilateralFilter(image, smooth, options_.smooth_diameter_px, options_.smooth_sigma_colour,
-                            options_.smooth_sigma_space_px);
-        image = smooth;
-      }
-      std::vector<float> rgb(3 * n);
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-          for (int c = 0; c < 3; ++c)
-            rgb[3 * (static_cast<std::size_t>(y) * W + x) + c] = std::clamp(image.at<cv::Vec3f>(y, x)[c], 0.0f, 1.0f);
-      out[vi].push_back(std::move(rgb));
-    }
-    progress.Advance(vi + 1, in.name);
+    out[vi] = RefineView(sources, views[vi], vi, request);
+    progress.Advance(vi + 1, views[vi].name);
   }
   progress.End();
   return out;

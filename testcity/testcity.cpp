@@ -555,99 +555,96 @@ Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx
 
 }  // namespace
 
-SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progress& progress) {
-  o.Check();
-  Stopwatch clock;
-  SynthResult r;
-  r.report.stage = "synth";
-  const Scene scene = MakeScene(o, &r);
+namespace {
+
+// One view of an AOI: its camera, lighting, fitted (and biased) RPC, image
+// and Sat-NeRF JSON.
+SynthView SynthesizeView(const SynthOptions& o, const Scene& scene, const SynthResult& r, const SynthAoi& aoi,
+                         const fs::path& root, int bx, int by, int v, const ViewGeometry& vg, const PointingBias& bias,
+                         const City& city_of_date) {
   const CityOptions& co = scene.city_options;
   const Georef& g = scene.georef;
+  const Acquisition acq = ViewAcquisition(o, v);
+  SynthView view;
+  char name[64];
+  std::snprintf(name, sizeof(name), "%s_%03d_RGB", aoi.name.c_str(), v + 1);
+  view.name = name;
+  view.path = (root / "Track3-RGB-crops" / aoi.name / (view.name + ".tif")).string();
+  view.camera = vg.camera;
+  view.off_nadir_deg = vg.off_nadir_deg;
+  view.view_zenith_deg = vg.zenith_deg;
+  view.view_azimuth_deg = vg.azimuth_deg;
+  view.range_km = vg.range_m / 1000.0;
+  view.lighting = ViewLighting(o, r, v, bx, by, &view);
 
-  const fs::path root(root_dir);
-  const int dates = (o.views + o.views_per_date - 1) / o.views_per_date;
-  progress.Begin("synth render", static_cast<size_t>(o.views) * o.blocks_x * o.blocks_y);
-  size_t done = 0;
-  double worst_fit = 0;
-  for (int by = 0; by < o.blocks_y; ++by) {
-    for (int bx = 0; bx < o.blocks_x; ++bx) {
-      SynthAoi aoi;
-      aoi.name = (o.blocks_x * o.blocks_y == 1) ? o.aoi
-                                                : o.aoi + "_X" + std::to_string(bx) + "Y" + std::to_string(by);
-      aoi.x0_m = bx * o.size_m;
-      aoi.y0_m = by * o.size_m;
-      std::map<int, City> with_cars;  // per date: transient objects move between passes
-      std::vector<ViewGeometry> geometries;
-      std::vector<Eigen::Matrix<double, 2, 3>> jacobians;
-      const Eigen::Vector3d centre_enu = g.EnuFromScene(
-          {aoi.x0_m + 0.5 * o.size_m, aoi.y0_m + 0.5 * o.size_m, co.base_height_m});
-      for (int v = 0; v < o.views; ++v) {
-        geometries.push_back(MakeCamera(o, g, r.city, aoi.x0_m, aoi.y0_m, v));
-        jacobians.push_back(ProjectionJacobian(geometries.back().camera, centre_enu));
-      }
-      const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()), jacobians);
-      const fs::path image_dir = root / "Track3-RGB-crops" / aoi.name;
-      const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
-      for (int v = 0; v < o.views; ++v) {
-        const int date = v / o.views_per_date;
-        if (!with_cars.count(date)) {
-          with_cars.emplace(date, WithCars(r.city, o.cars_per_block * o.blocks_x * o.blocks_y,
-                                           o.seed * 7919 + date));
-        }
-        const ViewGeometry& vg = geometries[v];
-        const Acquisition acq = ViewAcquisition(o, v);
-        SynthView view;
-        char name[64];
-        std::snprintf(name, sizeof(name), "%s_%03d_RGB", aoi.name.c_str(), v + 1);
-        view.name = name;
-        view.path = (image_dir / (view.name + ".tif")).string();
-        view.camera = vg.camera;
-        view.off_nadir_deg = vg.off_nadir_deg;
-        view.view_zenith_deg = vg.zenith_deg;
-        view.view_azimuth_deg = vg.azimuth_deg;
-        view.range_km = vg.range_m / 1000.0;
-        view.lighting = ViewLighting(o, r, v, bx, by, &view);
-        const Lighting& light = view.lighting;
+  const RpcFitResult fit = FitViewRpc(view.camera, g, r.city, o.rpc_height_offset_m, bias);
+  view.rpc_bias_shift_px = bias.shift_px;
+  view.rpc_bias_rotation_deg = bias.rotation_deg;
+  view.rpc_fit_max_px = fit.max_residual_px;
+  view.rpc_fit_rms_px = fit.rms_residual_px;
 
-        const RpcFitResult fit = FitViewRpc(view.camera, g, r.city, o.rpc_height_offset_m, biases[v]);
-        view.rpc_bias_shift_px = biases[v].shift_px;
-        view.rpc_bias_rotation_deg = biases[v].rotation_deg;
-        view.rpc_fit_max_px = fit.max_residual_px;
-        view.rpc_fit_rms_px = fit.rms_residual_px;
-        worst_fit = std::max(worst_fit, fit.max_residual_px);
+  const RenderedView img = RenderView(city_of_date, view.camera, r.scene_from_enu, view.lighting);
+  RasterWriteOptions wo;
+  wo.metadata["NITF_IDATIM"] = acq.compact;
+  wo.rpc_metadata = RpcToGdalMetadata(fit.rpc);
+  WriteSensorImage(view.path, img, o, wo);
 
-        const RenderedView img = RenderView(with_cars.at(date), view.camera, r.scene_from_enu, light);
-        RasterWriteOptions wo;
-        wo.metadata["NITF_IDATIM"] = acq.compact;
-        wo.rpc_metadata = RpcToGdalMetadata(fit.rpc);
-        WriteSensorImage(view.path, img, o, wo);
-
-        std::vector<Eigen::Vector2d> footprint;
-        for (const auto& c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(img.width_px - 0.5, -0.5),
-                              Eigen::Vector2d(img.width_px - 0.5, img.height_px - 0.5),
-                              Eigen::Vector2d(-0.5, img.height_px - 0.5)}) {
-          footprint.push_back(Localize(fit.rpc, c.x(), c.y(), co.base_height_m));
-        }
-        WriteFileAtomic((json_dir / (view.name + ".json")).string(),
-                        SatNerfJson(view, fit.rpc, footprint, acq, r.city).dump(2) + "\n");
-        aoi.views.push_back(view);
-        progress.Advance(++done, view.name);
-      }
-      // Sat-NeRF-style split: the second image of the first and of the middle pass are held out.
-      std::string train, test;
-      for (int v = 0; v < o.views; ++v) {
-        const bool held_out = o.views >= 4 && (v == 1 || v == (o.views / 2) + 1);
-        (held_out ? test : train) += aoi.views[v].name + "\n";
-      }
-      WriteFileAtomic((json_dir / "train.txt").string(), train);
-      WriteFileAtomic((json_dir / "test.txt").string(), test);
-      WriteTruth(r, aoi, o, root);
-      WriteOrthoTruth(r, aoi, o, root);
-      r.aois.push_back(aoi);
-    }
+  std::vector<Eigen::Vector2d> footprint;
+  for (const auto& c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(img.width_px - 0.5, -0.5),
+                        Eigen::Vector2d(img.width_px - 0.5, img.height_px - 0.5),
+                        Eigen::Vector2d(-0.5, img.height_px - 0.5)}) {
+    footprint.push_back(Localize(fit.rpc, c.x(), c.y(), co.base_height_m));
   }
-  progress.End();
+  WriteFileAtomic((root / "satnerf-rpcs" / aoi.name / (view.name + ".json")).string(),
+                  SatNerfJson(view, fit.rpc, footprint, acq, r.city).dump(2) + "\n");
+  return view;
+}
 
+// Sat-NeRF-style split: the second image of the first and of the middle pass are held out.
+void WriteSplit(const SynthOptions& o, const SynthAoi& aoi, const fs::path& root) {
+  const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
+  std::string train, test;
+  for (int v = 0; v < o.views; ++v) {
+    const bool held_out = o.views >= 4 && (v == 1 || v == (o.views / 2) + 1);
+    (held_out ? test : train) += aoi.views[v].name + "\n";
+  }
+  WriteFileAtomic((json_dir / "train.txt").string(), train);
+  WriteFileAtomic((json_dir / "test.txt").string(), test);
+}
+
+// Block (bx, by) of the city: its views, split and truth.
+SynthAoi SynthesizeAoi(const SynthOptions& o, const Scene& scene, int bx, int by, const fs::path& root,
+                       const SynthResult& r, Progress& progress, std::size_t* done) {
+  SynthAoi aoi;
+  aoi.name = (o.blocks_x * o.blocks_y == 1) ? o.aoi : o.aoi + "_X" + std::to_string(bx) + "Y" + std::to_string(by);
+  aoi.x0_m = bx * o.size_m;
+  aoi.y0_m = by * o.size_m;
+  std::vector<ViewGeometry> geometries;
+  std::vector<Eigen::Matrix<double, 2, 3>> jacobians;
+  const Eigen::Vector3d centre_enu = scene.georef.EnuFromScene(
+      {aoi.x0_m + 0.5 * o.size_m, aoi.y0_m + 0.5 * o.size_m, scene.city_options.base_height_m});
+  for (int v = 0; v < o.views; ++v) {
+    geometries.push_back(MakeCamera(o, scene.georef, r.city, aoi.x0_m, aoi.y0_m, v));
+    jacobians.push_back(ProjectionJacobian(geometries.back().camera, centre_enu));
+  }
+  const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()), jacobians);
+  std::map<int, City> with_cars;  // per date: transient objects move between passes
+  for (int v = 0; v < o.views; ++v) {
+    const int date = v / o.views_per_date;
+    if (!with_cars.count(date)) {
+      with_cars.emplace(date, WithCars(r.city, o.cars_per_block * o.blocks_x * o.blocks_y, o.seed * 7919 + date));
+    }
+    const City& city_of_date = with_cars.at(date);
+    aoi.views.push_back(SynthesizeView(o, scene, r, aoi, root, bx, by, v, geometries[v], biases[v], city_of_date));
+    progress.Advance(++*done, aoi.views.back().name);
+  }
+  WriteSplit(o, aoi, root);
+  WriteTruth(r, aoi, o, root);
+  WriteOrthoTruth(r, aoi, o, root);
+  return aoi;
+}
+
+json SynthReportJson(const SynthOptions& o, const SynthResult& r, double worst_fit_px) {
   json report = {{"seed", o.seed},
                  {"options", SceneOptionsJson(o)},
                  {"epsg", r.epsg},
@@ -655,8 +652,8 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                  {"buildings", r.city.buildings.size()},
                  {"height_range_m", {r.city.min_height_m, r.city.max_height_m}},
                  {"scene_from_enu_max_error_m", r.scene_from_enu.max_error_m},
-                 {"rpc_fit_max_residual_px", worst_fit},
-                 {"dates", dates}};
+                 {"rpc_fit_max_residual_px", worst_fit_px},
+                 {"dates", (o.views + o.views_per_date - 1) / o.views_per_date}};
   json images = json::array();
   for (const auto& aoi : r.aois)
     for (const auto& v : aoi.views)
@@ -669,6 +666,31 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
                         {"rpc_bias_rotation_deg", v.rpc_bias_rotation_deg},
                         {"width_px", v.camera.width_px}, {"height_px", v.camera.height_px}});
   report["images"] = images;
+  return report;
+}
+
+}  // namespace
+
+SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progress& progress) {
+  o.Check();
+  Stopwatch clock;
+  SynthResult r;
+  r.report.stage = "synth";
+  const Scene scene = MakeScene(o, &r);
+  const fs::path root(root_dir);
+  progress.Begin("synth render", static_cast<size_t>(o.views) * o.blocks_x * o.blocks_y);
+  std::size_t done = 0;
+  for (int by = 0; by < o.blocks_y; ++by) {
+    for (int bx = 0; bx < o.blocks_x; ++bx) {
+      r.aois.push_back(SynthesizeAoi(o, scene, bx, by, root, r, progress, &done));
+    }
+  }
+  progress.End();
+  double worst_fit = 0;
+  for (const SynthAoi& aoi : r.aois)
+    for (const SynthView& v : aoi.views) worst_fit = std::max(worst_fit, v.rpc_fit_max_px);
+
+  json report = SynthReportJson(o, r, worst_fit);
   r.report.seconds = clock.Seconds();
   report["seconds"] = r.report.seconds;
   WriteFileAtomic((root / "synth_report.json").string(), report.dump(2) + "\n");
