@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <iostream>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "apps/commands.h"
@@ -14,28 +15,21 @@
 
 namespace skyfall::cli {
 
-void AddSynthCommand(CLI::App& app, Runner* runner) {
-  auto opts = std::make_shared<synth::SynthOptions>();
-  auto out = std::make_shared<std::string>();
-  auto render_cameras = std::make_shared<std::string>();
-  auto render_out = std::make_shared<std::string>();
-  auto lighting_view = std::make_shared<int>(0);
-  auto draw = std::make_shared<std::uint64_t>(0);
-  CLI::App* cmd = app.add_subcommand(
-      "synth",
-      "Write a procedural satellite city as a DFC2019-style tree (RGB crops with RPCs, truth "
-      "DSM/CLS, Sat-NeRF JSONs) that `skyfall ingest` reads like real data");
-  std::vector<CLI::Option*> drawn;  // the options --draw chooses, refused beside it
+namespace {
+
+// What the command line fills in.
+struct SynthArgs {
+  synth::SynthOptions opts;
+  std::string out, render_cameras, render_out;
+  int lighting_view = 0;
+  std::uint64_t draw = 0;
+};
+
+// The scene's options, in --help order. Those --draw chooses go to `drawn`.
+void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::Option*>* drawn) {
   auto drawn_option = [&](const std::string& name, auto& value, const std::string& help) {
-    drawn.push_back(cmd->add_option(name, value, help)->capture_default_str());
+    drawn->push_back(cmd->add_option(name, value, help)->capture_default_str());
   };
-  cmd->add_option("--out", *out, "Root folder of the tree to write");
-  cmd->add_option("--render-cameras", *render_cameras,
-                  "Instead of the tree: truth images of the same city for the cameras of this cameras.json "
-                  "(e.g. orbit views), into --render-out");
-  cmd->add_option("--render-out", *render_out, "Folder for the truth images (<name>.png, <name>_mask.png)");
-  cmd->add_option("--lighting-view", *lighting_view, "Truth images are lit as this image (0-based) of the first AOI")
-      ->capture_default_str();
   cmd->add_option("--aoi", opts->aoi, "AOI name, NAME_NNN")->capture_default_str();
   drawn_option("--seed", opts->seed, "Random seed; equal seeds give identical output");
   cmd->add_option("--size-m", opts->size_m, "AOI side [m]")->capture_default_str();
@@ -70,42 +64,61 @@ void AddSynthCommand(CLI::App& app, Runner* runner) {
                   "one pass (ZY-3: --views 3 --views-per-date 3 --along-track-deg 22) [deg]")
       ->capture_default_str();
   drawn_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)");
+}
+
+int RunSynthCommand(SynthArgs& a) {
+  ConsoleProgress progress;
+  synth::SynthOptions& opts = a.opts;
+  if (a.draw > 0) {
+    opts = synth::DrawSceneOptions(a.draw, opts);
+    spdlog::info(
+        "synth: draw {}: seed {}, lat {} lon {}, off-nadir {}-{} deg, {} views ({} per date), {} band(s) of {} "
+        "bits, relief {} m, buildings up to {} m, date contrast {}",
+        a.draw, opts.seed, opts.lat_deg, opts.lon_deg, opts.min_off_nadir_deg, opts.max_off_nadir_deg, opts.views,
+        opts.views_per_date, opts.bands, opts.bit_depth, opts.relief_m, opts.max_building_m, opts.date_contrast);
+  }
+  if (!a.render_cameras.empty()) {
+    if (a.render_out.empty()) throw Error("synth", "--render-out", "is needed with --render-cameras");
+    const int n = synth::RenderTruthViews(opts, ReadCameras(a.render_cameras), ReadCamerasFrameOrigin(a.render_cameras),
+                                          a.lighting_view, a.render_out, progress);
+    spdlog::info("synth: {} truth images in {}", n, a.render_out);
+    return 0;
+  }
+  if (a.out.empty()) throw Error("synth", "--out", "is needed (the root folder of the tree to write)");
+  const synth::SynthResult r = synth::RunSynth(opts, a.out, progress);
+  spdlog::info("synth: {} AOI(s), {} images, {} buildings, RPC fit max residual {:.2e} px, {:.1f} s", r.aois.size(),
+               r.report.metrics.at("images"), r.city.buildings.size(), r.report.metrics.at("rpc_fit_max_residual_px"),
+               r.report.seconds);
+  spdlog::info("synth: wrote {} (report: {}/synth_report.json)", a.out, a.out);
+  return 0;
+}
+
+}  // namespace
+
+void AddSynthCommand(CLI::App& app, Runner* runner) {
+  auto args = std::make_shared<SynthArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "synth",
+      "Write a procedural satellite city as a DFC2019-style tree (RGB crops with RPCs, truth "
+      "DSM/CLS, Sat-NeRF JSONs) that `skyfall ingest` reads like real data");
+  cmd->add_option("--out", args->out, "Root folder of the tree to write");
+  cmd->add_option("--render-cameras", args->render_cameras,
+                  "Instead of the tree: truth images of the same city for the cameras of this cameras.json "
+                  "(e.g. orbit views), into --render-out");
+  cmd->add_option("--render-out", args->render_out, "Folder for the truth images (<name>.png, <name>_mask.png)");
+  cmd->add_option("--lighting-view", args->lighting_view,
+                  "Truth images are lit as this image (0-based) of the first AOI")
+      ->capture_default_str();
+  std::vector<CLI::Option*> drawn;  // the options --draw chooses, refused beside it
+  AddSceneOptions(cmd, &args->opts, &drawn);
   CLI::Option* draw_option = cmd->add_option(
-      "--draw", *draw,
+      "--draw", args->draw,
       "Draw the scene at random instead (N >= 1; equal N, equal scene): seed, latitude, longitude, "
       "off-nadir range, views, views per date, bands, bit depth, relief, tallest building and date contrast, "
       "recorded in synth_report.json's options; for accuracy checks on scenes no setting was chosen on")
       ->check(CLI::PositiveNumber);
   for (CLI::Option* o : drawn) draw_option->excludes(o);
-  cmd->callback([runner, opts, out, render_cameras, render_out, lighting_view, draw] {
-    *runner = [opts, out, render_cameras, render_out, lighting_view, draw] {
-      ConsoleProgress progress;
-      if (*draw > 0) {
-        *opts = synth::DrawSceneOptions(*draw, *opts);
-        spdlog::info(
-            "synth: draw {}: seed {}, lat {} lon {}, off-nadir {}-{} deg, {} views ({} per date), {} band(s) of {} "
-            "bits, relief {} m, buildings up to {} m, date contrast {}",
-            *draw, opts->seed, opts->lat_deg, opts->lon_deg, opts->min_off_nadir_deg, opts->max_off_nadir_deg,
-            opts->views, opts->views_per_date, opts->bands, opts->bit_depth, opts->relief_m, opts->max_building_m,
-            opts->date_contrast);
-      }
-      if (!render_cameras->empty()) {
-        if (render_out->empty()) throw Error("synth", "--render-out", "is needed with --render-cameras");
-        const int n = synth::RenderTruthViews(*opts, ReadCameras(*render_cameras),
-                                              ReadCamerasFrameOrigin(*render_cameras), *lighting_view, *render_out,
-                                              progress);
-        spdlog::info("synth: {} truth images in {}", n, *render_out);
-        return 0;
-      }
-      if (out->empty()) throw Error("synth", "--out", "is needed (the root folder of the tree to write)");
-      const synth::SynthResult r = synth::RunSynth(*opts, *out, progress);
-      spdlog::info("synth: {} AOI(s), {} images, {} buildings, RPC fit max residual {:.2e} px, {:.1f} s",
-                   r.aois.size(), r.report.metrics.at("images"), r.city.buildings.size(),
-                   r.report.metrics.at("rpc_fit_max_residual_px"), r.report.seconds);
-      spdlog::info("synth: wrote {} (report: {}/synth_report.json)", *out, *out);
-      return 0;
-    };
-  });
+  cmd->callback([runner, args] { *runner = [args] { return RunSynthCommand(*args); }; });
 }
 
 }  // namespace skyfall::cli

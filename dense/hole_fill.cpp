@@ -486,11 +486,8 @@ void MarkEnclosedByRoof(const std::vector<float>& h, const std::vector<float>& a
   });
 }
 
-}  // namespace
-
-std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillGrid& o,
-                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded,
-                                    std::vector<FillRule>* rules) {
+void CheckFillInputs(const std::vector<float>& h, int nx, int ny, const HoleFillGrid& o, const GroundModel& model,
+                     const std::vector<std::uint8_t>* occluded) {
   CheckGrid(h, nx, ny);
   if (o.radius_cells < 1) throw Error("dense", "fill radius", std::to_string(o.radius_cells) + " cells must be >= 1");
   if (o.max_reach_cells < o.radius_cells)
@@ -500,6 +497,74 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
   if (model.terrain_m.size() != h.size() || model.seen_hole_base_m.size() != h.size())
     throw Error("dense", "ground model", "size differs from the height grid's");
   if (occluded && occluded->size() != h.size()) throw Error("dense", "occluded", "size differs from the height grid's");
+}
+
+// What every pass of FillHoles reads: the options, the ground model, the
+// occlusion mask, which cells lie within reach of a measured one, and which
+// holes belong to a roof.
+struct FillContext {
+  const HoleFillGrid& o;
+  const GroundModel& model;
+  const std::vector<std::uint8_t>* occluded;
+  const std::vector<float>& in_reach;
+  const std::vector<std::uint8_t>& roof_hole;
+};
+
+// The lowest heights above the seen-hole base within one pass's radius `r`:
+// over every measured cell, and over the raised (roof) cells alone.
+struct PassMinima {
+  int r;
+  const std::vector<float>& low_all;
+  const std::vector<float>& low_raised;
+};
+
+// Fills hole cell k if this pass reaches it and returns true; false leaves
+// it open for a wider pass.
+bool FillCell(const FillContext& c, const PassMinima& pass, std::size_t k, std::vector<float>& h, FillRule* rule) {
+  const HoleFillGrid& o = c.o;
+  const std::vector<float>& base = c.model.seen_hole_base_m;
+  const std::vector<float>& terrain = c.model.terrain_m;
+  const bool hidden = c.occluded && (*c.occluded)[k];
+  const bool raised_in_reach = c.roof_hole[k] && std::isfinite(pass.low_raised[k]);
+  // Occluded cells of a roof's hole wait for the roof to come in reach.
+  if (hidden && c.roof_hole[k] && !raised_in_reach && pass.r < o.max_reach_cells) return false;
+  const bool ground = hidden && !raised_in_reach;
+  const std::vector<float>& low = raised_in_reach ? pass.low_raised : pass.low_all;
+  if (ground ? !std::isfinite(terrain[k]) || !std::isfinite(c.in_reach[k])
+             : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
+    return false;
+  }
+  // "Ground" is judged above the opening. Where the opening is uphill
+  // ground, a low roof can pass for ground and its hole takes the
+  // terrain: judged above the terrain instead, the streets between a
+  // hillside's tall buildings, whose nearest measured cells are all
+  // roofs, kept the opening's height (decision D-102; D-106 is the
+  // rejected alternative). Without a terrain model at the cell a
+  // seen hole keeps the opening plus its lowest height.
+  const bool seen_ground = o.seen_ground_takes_terrain && !ground && !raised_in_reach &&
+                           low[k] <= o.roof_rim_min_m && std::isfinite(terrain[k]);
+  const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && pass.r > o.radius_cells &&
+                          low[k] > o.roof_rim_min_m;
+  // Seen ground and the far-raised cell's ground take the terrain model,
+  // which keeps a hillside's slope; the plain opening there is the
+  // highest of the lowest heights around (uphill ground), and for the
+  // far-raised cell the lowest roof in reach.
+  const float terrain_or_base = std::isfinite(terrain[k]) ? terrain[k] : base[k];
+  h[k] = ground ? terrain[k] : (far_raised || seen_ground) ? terrain_or_base : base[k] + low[k];
+  *rule = ground            ? FillRule::kOccludedGround
+          : raised_in_reach ? FillRule::kRoofHole
+          : seen_ground     ? FillRule::kSeenGround
+          : far_raised      ? FillRule::kFarRaised
+                            : FillRule::kSeenHole;
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const HoleFillGrid& o,
+                                    const GroundModel& model, const std::vector<std::uint8_t>* occluded,
+                                    std::vector<FillRule>* rules) {
+  CheckFillInputs(h, nx, ny, o, model, occluded);
   std::vector<std::uint8_t> filled(h.size(), 0);
   if (rules) rules->assign(h.size(), FillRule::kMatched);
   // Heights of the measured cells above the base of seen holes.
@@ -525,53 +590,24 @@ std::vector<std::uint8_t> FillHoles(std::vector<float>& h, int nx, int ny, const
     for (std::size_t k = 0; k < h.size(); ++k)
       if (above[k] > o.roof_rim_min_m) above_raised[k] = above[k];
   }
+  const FillContext context{o, model, occluded, in_reach, roof_hole};
   // Each pass fills what a square of this radius reaches; the radius
   // doubles up to the largest reach.
   for (int r = o.radius_cells;; r = std::min(2 * r, o.max_reach_cells)) {
     const std::vector<float> low_all = MinFilter(above, nx, ny, r, WindowEdge::kClip);
     const std::vector<float> low_raised =
         above_raised.empty() ? std::vector<float>() : MinFilter(above_raised, nx, ny, r, WindowEdge::kClip);
+    const PassMinima pass{r, low_all, low_raised};
     bool open = false;
     for (std::size_t k = 0; k < h.size(); ++k) {
       if (std::isfinite(h[k])) continue;  // measured, or filled by an earlier pass
-      const bool hidden = occluded && (*occluded)[k];
-      const bool raised_in_reach = roof_hole[k] && std::isfinite(low_raised[k]);
-      // Occluded cells of a roof's hole wait for the roof to come in reach.
-      if (hidden && roof_hole[k] && !raised_in_reach && r < o.max_reach_cells) {
+      FillRule rule;
+      if (!FillCell(context, pass, k, h, &rule)) {
         open = true;
         continue;
       }
-      const bool ground = hidden && !raised_in_reach;
-      const std::vector<float>& low = raised_in_reach ? low_raised : low_all;
-      if (ground ? !std::isfinite(model.terrain_m[k]) || !std::isfinite(in_reach[k])
-                 : !std::isfinite(low[k]) || !std::isfinite(base[k])) {
-        open = true;
-        continue;
-      }
-      // "Ground" is judged above the opening. Where the opening is uphill
-      // ground, a low roof can pass for ground and its hole takes the
-      // terrain: judged above the terrain instead, the streets between a
-      // hillside's tall buildings, whose nearest measured cells are all
-      // roofs, kept the opening's height (decision D-102; D-106 is the
-      // rejected alternative). Without a terrain model at the cell a
-      // seen hole keeps the opening plus its lowest height.
-      const bool seen_ground = o.seen_ground_takes_terrain && !ground && !raised_in_reach &&
-                               low[k] <= o.roof_rim_min_m && std::isfinite(model.terrain_m[k]);
-      const bool far_raised = o.far_raised_takes_ground && !ground && !raised_in_reach && r > o.radius_cells &&
-                              low[k] > o.roof_rim_min_m;
-      // Seen ground and the far-raised cell's ground take the terrain model,
-      // which keeps a hillside's slope; the plain opening there is the
-      // highest of the lowest heights around (uphill ground), and for the
-      // far-raised cell the lowest roof in reach.
-      const float terrain_or_base = std::isfinite(model.terrain_m[k]) ? model.terrain_m[k] : base[k];
-      h[k] = ground ? model.terrain_m[k] : (far_raised || seen_ground) ? terrain_or_base : base[k] + low[k];
       filled[k] = 1;
-      if (rules)
-        (*rules)[k] = ground            ? FillRule::kOccludedGround
-                      : raised_in_reach ? FillRule::kRoofHole
-                      : seen_ground     ? FillRule::kSeenGround
-                      : far_raised      ? FillRule::kFarRaised
-                                        : FillRule::kSeenHole;
+      if (rules) (*rules)[k] = rule;
     }
     if (!open || r >= o.max_reach_cells) break;
   }

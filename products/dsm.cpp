@@ -324,26 +324,26 @@ void RasterizeDsmInBlocks(const GaussiansMeeting& source, const GeodeticPoint& e
   }
 }
 
-DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std::vector<float>* cls,
-                         const DsmCompareOptions& o) {
-  if (pred.width_px != truth_in.width_px || pred.height_px != truth_in.height_px) {
-    throw Error("dsm", "compare", "prediction is " + std::to_string(pred.width_px) + "x" + std::to_string(pred.height_px) +
-                                      " px, truth is " + std::to_string(truth_in.width_px) + "x" +
-                                      std::to_string(truth_in.height_px) + ": resample the prediction to the truth grid");
-  }
+namespace {
+
+// The truth with water cells (by class) set to no-data, when asked.
+DsmGrid TruthForComparison(const DsmGrid& truth_in, const std::vector<float>* cls, const DsmCompareOptions& o) {
   DsmGrid truth = truth_in;
   if (cls && o.mask_water) {
     if (cls->size() != truth.height_m.size()) throw Error("dsm", "compare", "CLS raster size differs from the truth");
     for (size_t p = 0; p < truth.height_m.size(); ++p)
       if (ClassCodeOf((*cls)[p]) == kWaterClass) truth.height_m[p] = kNoData;
   }
-  // Coarse-to-fine integer shift search maximizing NCC.
+  return truth;
+}
+
+// Coarse-to-fine integer shift search maximizing NCC: sets the shift and its NCC.
+void FindBestShift(const DsmGrid& pred, const DsmGrid& truth, const DsmCompareOptions& o, DsmComparison* out) {
   std::vector<DsmGrid> pp{pred}, tp{truth};
   for (int l = 1; l < o.pyramid_levels; ++l) {
     pp.push_back(Downsample(pp.back()));
     tp.push_back(Downsample(tp.back()));
   }
-  DsmComparison out;
   int bx = 0, by = 0;
   for (int l = o.pyramid_levels - 1; l >= 0; --l) {
     const int cx = 2 * bx * (l < o.pyramid_levels - 1), cy = 2 * by * (l < o.pyramid_levels - 1);
@@ -358,13 +358,17 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
           by = dy;
         }
       }
-    out.ncc = best;
+    out->ncc = best;
   }
-  out.shift_col_px = bx;
-  out.shift_row_px = by;
-  // Vertical offset, then the metrics, over pixels valid in both.
+  out->shift_col_px = bx;
+  out->shift_row_px = by;
+}
+
+// Prediction minus truth (shifted) over cells valid in both: fills the error
+// map and completeness, and returns the differences.
+std::vector<double> ShiftedDifferences(const DsmGrid& pred, const DsmGrid& truth, DsmComparison* out) {
   const int W = truth.width_px, H = truth.height_px;
-  out.error_m.assign(static_cast<size_t>(W) * H, kNoData);
+  out->error_m.assign(static_cast<size_t>(W) * H, kNoData);
   std::vector<double> diff;
   int valid_truth = 0;
   for (int r = 0; r < H; ++r)
@@ -372,53 +376,69 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
       const float t = truth.At(c, r);
       if (!std::isfinite(t)) continue;
       ++valid_truth;
-      const int pc = c + bx, pr = r + by;
+      const int pc = c + out->shift_col_px, pr = r + out->shift_row_px;
       if (pc < 0 || pr < 0 || pc >= W || pr >= H) continue;
       const float v = pred.At(pc, pr);
       if (!std::isfinite(v)) continue;
       diff.push_back(static_cast<double>(v) - t);
-      out.error_m[static_cast<size_t>(r) * W + c] = v - t;
+      out->error_m[static_cast<size_t>(r) * W + c] = v - t;
     }
-  out.valid_pixels = static_cast<int>(diff.size());
-  out.completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
-  // With classes, the errors' breakdown, on the final (offset-free) error map.
-  const auto break_down = [&] {
-    if (!cls) return;
-    out.breakdown = BreakDownDsmError(out.error_m, *cls, W, H, truth.gsd_m, o.breakdown);
-    out.has_breakdown = true;
-  };
-  if (diff.empty()) {
-    break_down();
-    return out;
-  }
+  out->valid_pixels = static_cast<int>(diff.size());
+  out->completeness = valid_truth ? static_cast<double>(diff.size()) / valid_truth : 0.0;
+  return diff;
+}
+
+// Removes the vertical offset from the differences and the error map, then
+// the metrics. `diff` is not empty.
+void ErrorStatistics(const std::vector<double>& diff, const DsmCompareOptions& o, DsmComparison* out) {
   double sum = 0;
   for (double d : diff) sum += d;
-  out.bias_m = sum / diff.size();
+  out->bias_m = sum / diff.size();
   // The vertical offset removed is the median difference, as in the DFC2019
   // alignment (align3d): a mean would let a few large errors (a roof missed
   // by 30 m) shift every correct pixel and count those errors twice.
-  out.z_offset_m = Median(diff);
+  out->z_offset_m = Median(diff);
   double abs_sum = 0, sq_sum = 0;
   int within = 0;
   std::vector<double> abs_err(diff.size());
   for (size_t k = 0; k < diff.size(); ++k) {
-    const double e = diff[k] - out.z_offset_m;
+    const double e = diff[k] - out->z_offset_m;
     abs_err[k] = std::abs(e);
     abs_sum += abs_err[k];
     sq_sum += e * e;
     within += abs_err[k] <= o.within_m;
   }
-  for (float& e : out.error_m)
-    if (std::isfinite(e)) e = static_cast<float>(e - out.z_offset_m);
-  out.mae_m = abs_sum / diff.size();
-  out.rmse_m = std::sqrt(sq_sum / diff.size());
-  out.median_abs_m = Median(abs_err);
+  for (float& e : out->error_m)
+    if (std::isfinite(e)) e = static_cast<float>(e - out->z_offset_m);
+  out->mae_m = abs_sum / diff.size();
+  out->rmse_m = std::sqrt(sq_sum / diff.size());
+  out->median_abs_m = Median(abs_err);
   // The errors are centred on their own median (z_offset_m is a sample of
   // diff, so the centred median is exactly 0): NMAD is the scaled median
   // absolute error.
-  out.nmad_m = 1.4826 * out.median_abs_m;
-  out.within_fraction = static_cast<double>(within) / diff.size();
-  break_down();
+  out->nmad_m = 1.4826 * out->median_abs_m;
+  out->within_fraction = static_cast<double>(within) / diff.size();
+}
+
+}  // namespace
+
+DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std::vector<float>* cls,
+                         const DsmCompareOptions& o) {
+  if (pred.width_px != truth_in.width_px || pred.height_px != truth_in.height_px) {
+    throw Error("dsm", "compare", "prediction is " + std::to_string(pred.width_px) + "x" + std::to_string(pred.height_px) +
+                                      " px, truth is " + std::to_string(truth_in.width_px) + "x" +
+                                      std::to_string(truth_in.height_px) + ": resample the prediction to the truth grid");
+  }
+  const DsmGrid truth = TruthForComparison(truth_in, cls, o);
+  DsmComparison out;
+  FindBestShift(pred, truth, o, &out);
+  const std::vector<double> diff = ShiftedDifferences(pred, truth, &out);
+  if (!diff.empty()) ErrorStatistics(diff, o, &out);
+  // With classes, the errors' breakdown, on the final (offset-free) error map.
+  if (cls) {
+    out.breakdown = BreakDownDsmError(out.error_m, *cls, truth.width_px, truth.height_px, truth.gsd_m, o.breakdown);
+    out.has_breakdown = true;
+  }
   return out;
 }
 

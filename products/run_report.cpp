@@ -197,11 +197,32 @@ int NiceAxis::Decimals() const {
   return decimals;
 }
 
-void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path) {
-  constexpr int kW = 900, kH = 520;
-  const cv::Rect box(70, 40, kW - 110, kH - 100);
-  cv::Mat img(kH, kW, CV_8UC3, cv::Scalar(255, 255, 255));
-  cv::rectangle(img, box, cv::Scalar(0, 0, 0));
+namespace {
+
+const cv::Scalar kBlack(0, 0, 0), kHeldOut(200, 90, 30), kTuned(150, 150, 150), kTarget(60, 160, 60);
+constexpr int kMarkerPx = 6;
+
+// The chart of MAE against run time: its image, plot box and axes.
+struct ScenesChart {
+  static constexpr int kW = 900, kH = 520;
+  cv::Mat img{kH, kW, CV_8UC3, cv::Scalar(255, 255, 255)};
+  cv::Rect box{70, 40, kW - 110, kH - 100};
+  NiceAxis x_axis, y_axis;
+
+  cv::Point At(double seconds, double mae) const {
+    return cv::Point(box.x + static_cast<int>((seconds - x_axis.lo) / (x_axis.hi - x_axis.lo) * box.width),
+                     box.y + box.height - static_cast<int>(mae / y_axis.hi * box.height));
+  }
+  void Text(const std::string& s, cv::Point p, const cv::Scalar& c) {
+    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, 0.42, c, 1, cv::LINE_AA);
+  }
+};
+
+// The time axis starts at 0 unless every run took more than half the
+// longest: then at a round number below the shortest, so runs of similar
+// length do not crowd into one corner. Both axes end on round ticks with
+// room beyond the last point.
+void ChooseAxes(const std::vector<ScenePoint>& scenes, ScenesChart* chart) {
   double x_min = std::numeric_limits<double>::infinity(), x_max = 1, y_max = 0.5;
   for (const ScenePoint& s : scenes) {
     if (std::isfinite(s.seconds)) {
@@ -211,93 +232,114 @@ void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& p
     if (std::isfinite(s.mae_m)) y_max = std::max(y_max, s.mae_m);
     if (std::isfinite(s.dense_mae_m)) y_max = std::max(y_max, s.dense_mae_m);
   }
-  // The time axis starts at 0 unless every run took more than half the
-  // longest: then at a round number below the shortest, so runs of similar
-  // length do not crowd into one corner. Both axes end on round ticks with
-  // room beyond the last point.
   const bool from_zero = !(std::isfinite(x_min) && x_min > 0.5 * x_max);
-  const NiceAxis x_axis = NiceAxisOf(from_zero ? 0.0 : 0.9 * x_min, 1.05 * x_max, 6);
-  const NiceAxis y_axis = NiceAxisOf(0.0, 1.1 * y_max, 8);
-  const double x_lo = x_axis.lo;
-  x_max = x_axis.hi;
-  y_max = y_axis.hi;
-  auto at = [&](double seconds, double mae) {
-    return cv::Point(box.x + static_cast<int>((seconds - x_lo) / (x_max - x_lo) * box.width),
-                     box.y + box.height - static_cast<int>(mae / y_max * box.height));
-  };
-  const cv::Scalar black(0, 0, 0), held_out(200, 90, 30), tuned(150, 150, 150), target(60, 160, 60);
-  auto text = [&](const std::string& s, cv::Point p, const cv::Scalar& c) {
-    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, 0.42, c, 1, cv::LINE_AA);
-  };
-  // The accuracy target lines (1.5 m required, 1.0 m goal) for reference.
+  chart->x_axis = NiceAxisOf(from_zero ? 0.0 : 0.9 * x_min, 1.05 * x_max, 6);
+  chart->y_axis = NiceAxisOf(0.0, 1.1 * y_max, 8);
+}
+
+// The accuracy target lines (1.5 m required, 1.0 m goal) for reference.
+void DrawTargets(ScenesChart* chart) {
   for (double line : {1.0, 1.5}) {
-    if (line > y_max) continue;
-    const int y = at(0, line).y;
-    cv::line(img, {box.x, y}, {box.x + box.width, y}, target, 1, cv::LINE_AA);
-    text(line == 1.0 ? "1.0 m" : "1.5 m", {box.x + box.width - 45, y - 4}, target);
+    if (line > chart->y_axis.hi) continue;
+    const int y = chart->At(0, line).y;
+    cv::line(chart->img, {chart->box.x, y}, {chart->box.x + chart->box.width, y}, kTarget, 1, cv::LINE_AA);
+    chart->Text(line == 1.0 ? "1.0 m" : "1.5 m", {chart->box.x + chart->box.width - 45, y - 4}, kTarget);
   }
-  constexpr int kMarkerPx = 6;
+}
+
+// Draws each scene's points; returns where its name should go and what the
+// names must not cover.
+struct SceneLabels {
   std::vector<PixelBox> markers;
   std::vector<std::array<int, 2>> anchors, sizes;
   std::vector<int> glyph_heights;  // above the text's baseline [px]
   std::vector<const ScenePoint*> labelled;
-  auto marker = [&](cv::Point p) { markers.push_back({p.x - kMarkerPx, p.y - kMarkerPx, 2 * kMarkerPx, 2 * kMarkerPx}); };
+};
+
+SceneLabels DrawPoints(const std::vector<ScenePoint>& scenes, ScenesChart* chart) {
+  SceneLabels l;
+  auto marker = [&](cv::Point p) { l.markers.push_back({p.x - kMarkerPx, p.y - kMarkerPx, 2 * kMarkerPx, 2 * kMarkerPx}); };
   for (const ScenePoint& s : scenes) {
-    const cv::Scalar colour = s.tuned_on ? tuned : held_out;
+    const cv::Scalar colour = s.tuned_on ? kTuned : kHeldOut;
     if (std::isfinite(s.dense_mae_m) && std::isfinite(s.seconds)) {
-      cv::circle(img, at(s.seconds, s.dense_mae_m), kMarkerPx, colour, 1, cv::LINE_AA);
-      marker(at(s.seconds, s.dense_mae_m));
-      if (std::isfinite(s.mae_m)) cv::line(img, at(s.seconds, s.dense_mae_m), at(s.seconds, s.mae_m), colour, 1);
+      cv::circle(chart->img, chart->At(s.seconds, s.dense_mae_m), kMarkerPx, colour, 1, cv::LINE_AA);
+      marker(chart->At(s.seconds, s.dense_mae_m));
+      if (std::isfinite(s.mae_m))
+        cv::line(chart->img, chart->At(s.seconds, s.dense_mae_m), chart->At(s.seconds, s.mae_m), colour, 1);
     }
     if (std::isfinite(s.mae_m) && std::isfinite(s.seconds)) {
-      const cv::Point p = at(s.seconds, s.mae_m);
-      cv::circle(img, p, kMarkerPx, colour, cv::FILLED, cv::LINE_AA);
+      const cv::Point p = chart->At(s.seconds, s.mae_m);
+      cv::circle(chart->img, p, kMarkerPx, colour, cv::FILLED, cv::LINE_AA);
       marker(p);
       int baseline = 0;
       const cv::Size size = cv::getTextSize(s.scene, cv::FONT_HERSHEY_SIMPLEX, 0.42, 1, &baseline);
-      anchors.push_back({p.x, p.y});
-      sizes.push_back({size.width, size.height + baseline + 2});
-      glyph_heights.push_back(size.height);
-      labelled.push_back(&s);
+      l.anchors.push_back({p.x, p.y});
+      l.sizes.push_back({size.width, size.height + baseline + 2});
+      l.glyph_heights.push_back(size.height);
+      l.labelled.push_back(&s);
     }
   }
+  return l;
+}
+
+void DrawLabels(const SceneLabels& l, ScenesChart* chart) {
+  const cv::Rect& box = chart->box;
   const std::vector<PixelBox> labels =
-      PlaceLabels(anchors, sizes, markers, {box.x, box.y, box.width, box.height}, kMarkerPx + 3);
+      PlaceLabels(l.anchors, l.sizes, l.markers, {box.x, box.y, box.width, box.height}, kMarkerPx + 3);
   for (std::size_t k = 0; k < labels.size(); ++k) {
     const PixelBox& b = labels[k];
-    const cv::Scalar colour = labelled[k]->tuned_on ? tuned : held_out;
+    const cv::Scalar colour = l.labelled[k]->tuned_on ? kTuned : kHeldOut;
+    const std::array<int, 2>& a = l.anchors[k];
     // A leader line where the label had to move off its point's level.
-    if (std::abs(b.y + b.height / 2 - anchors[k][1]) > b.height / 2)
-      cv::line(img, {anchors[k][0], anchors[k][1]}, {b.x < anchors[k][0] ? b.x + b.width : b.x, b.y + b.height / 2},
-               colour, 1, cv::LINE_AA);
-    text(labelled[k]->scene, {b.x, b.y + 1 + glyph_heights[k]}, colour);
+    if (std::abs(b.y + b.height / 2 - a[1]) > b.height / 2)
+      cv::line(chart->img, {a[0], a[1]}, {b.x < a[0] ? b.x + b.width : b.x, b.y + b.height / 2}, colour, 1,
+               cv::LINE_AA);
+    chart->Text(l.labelled[k]->scene, {b.x, b.y + 1 + l.glyph_heights[k]}, colour);
   }
-  auto tick_label = [](const NiceAxis& axis, double v) {
-    char s[32];
-    std::snprintf(s, sizeof(s), "%.*f", axis.Decimals(), v);
-    return std::string(s);
-  };
-  auto ticks = [](const NiceAxis& axis) {
-    std::vector<double> v;
-    const long n = std::lround((axis.hi - axis.lo) / axis.step);
-    for (long i = 0; i <= n; ++i) v.push_back(axis.lo + static_cast<double>(i) * axis.step);
-    return v;
-  };
-  for (double v : ticks(y_axis)) {
-    const int y = at(x_lo, v).y;
-    cv::line(img, {box.x - 4, y}, {box.x, y}, black, 1);
-    text(tick_label(y_axis, v), {box.x - 42, y + 4}, black);
+}
+
+std::string TickLabel(const NiceAxis& axis, double v) {
+  char s[32];
+  std::snprintf(s, sizeof(s), "%.*f", axis.Decimals(), v);
+  return std::string(s);
+}
+
+std::vector<double> Ticks(const NiceAxis& axis) {
+  std::vector<double> v;
+  const long n = std::lround((axis.hi - axis.lo) / axis.step);
+  for (long i = 0; i <= n; ++i) v.push_back(axis.lo + static_cast<double>(i) * axis.step);
+  return v;
+}
+
+void DrawAxes(ScenesChart* chart) {
+  const cv::Rect& box = chart->box;
+  for (double v : Ticks(chart->y_axis)) {
+    const int y = chart->At(chart->x_axis.lo, v).y;
+    cv::line(chart->img, {box.x - 4, y}, {box.x, y}, kBlack, 1);
+    chart->Text(TickLabel(chart->y_axis, v), {box.x - 42, y + 4}, kBlack);
   }
-  for (double v : ticks(x_axis)) {
-    const int x = at(v, 0).x;
-    cv::line(img, {x, box.y + box.height}, {x, box.y + box.height + 4}, black, 1);
-    text(tick_label(x_axis, v), {x - 10, box.y + box.height + 18}, black);
+  for (double v : Ticks(chart->x_axis)) {
+    const int x = chart->At(v, 0).x;
+    cv::line(chart->img, {x, box.y + box.height}, {x, box.y + box.height + 4}, kBlack, 1);
+    chart->Text(TickLabel(chart->x_axis, v), {x - 10, box.y + box.height + 18}, kBlack);
   }
-  text("whole run [s]", {box.x + box.width - 90, box.y + box.height + 34}, black);
-  text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on", {box.x, kH - 8}, black);
-  text("DSM MAE [m]", {4, 25}, black);
+  chart->Text("whole run [s]", {box.x + box.width - 90, box.y + box.height + 34}, kBlack);
+  chart->Text("DSM MAE [m]: filled = trained scene, open = dense heights alone; grey = tuned on",
+              {box.x, ScenesChart::kH - 8}, kBlack);
+  chart->Text("DSM MAE [m]", {4, 25}, kBlack);
+}
+
+}  // namespace
+
+void WriteScenesPlot(const std::vector<ScenePoint>& scenes, const std::string& png_path) {
+  ScenesChart chart;
+  cv::rectangle(chart.img, chart.box, kBlack);
+  ChooseAxes(scenes, &chart);
+  DrawTargets(&chart);
+  DrawLabels(DrawPoints(scenes, &chart), &chart);
+  DrawAxes(&chart);
   cv::Mat rgb;
-  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+  cv::cvtColor(chart.img, rgb, cv::COLOR_BGR2RGB);
   WriteBytePng(png_path, rgb.cols, rgb.rows, 3, rgb.ptr<std::uint8_t>());
 }
 
