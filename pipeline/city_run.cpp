@@ -20,6 +20,7 @@
 #include "products/dsm_report.h"
 #include "pipeline/aoi_products.h"
 #include "pipeline/city_entries.h"
+#include "products/city_report.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/inputs_stamp.h"
 #include "pipeline/merge_tiles.h"
@@ -71,33 +72,22 @@ json TileEntry(const TileOutcome& o) {
 // options and its products are all there; then `outcome` gets its figures.
 bool UnchangedSinceLastRun(const ProductOptions& options, const json& inputs, const std::vector<AoiCatalog>& aois,
                            const std::string& out_dir, CityOutcome* outcome) {
-  try {
-    if (!fs::exists(outcome->report_path)) return false;
-    const json report = json::parse(ReadTextFile(outcome->report_path));
-    if (report.value("inputs", json()) != inputs || !report.contains("scene")) return false;
-    if (!fs::exists(report.at("scene").get<std::string>())) return false;
-    for (const json& tile : report.at("tiles")) {
-      if (tile.value("status", "failed") == "failed") return false;  // retry failed tiles
-    }
-    std::vector<double> mae;
-    for (const AoiCatalog& a : aois) {
-      for (const std::string& file : AoiProductFiles(options, a, out_dir))
-        if (!fs::exists(file)) return false;
-      if (!a.truth) continue;
-      bool found = false;
-      for (const json& entry : report.at("dsm")) {
-        if (entry.at("aoi") == a.aoi) {
-          mae.push_back(entry.at("mae_m").get<double>());
-          found = true;
-        }
-      }
-      if (!found) return false;
-    }
-    outcome->dsm_mae_m = mae;
-    return true;
-  } catch (const std::exception&) {
-    return false;  // an unreadable report: run the city again
+  // No report, or an unreadable one: run the city again.
+  const std::optional<CityReport> report = ReadCityReport(outcome->report_path);
+  std::error_code unreadable;
+  if (!report || !report->scene || report->inputs != inputs || !fs::exists(*report->scene, unreadable)) return false;
+  if (report->AnyTileFailed()) return false;  // retry failed tiles
+  std::vector<double> mae;
+  for (const AoiCatalog& a : aois) {
+    for (const std::string& file : AoiProductFiles(options, a, out_dir))
+      if (!fs::exists(file, unreadable)) return false;  // a product that cannot be looked at counts as missing
+    if (!a.truth) continue;
+    const std::optional<double> m = report->DsmMaeM(a.aoi);
+    if (!m) return false;
+    mae.push_back(*m);
   }
+  outcome->dsm_mae_m = mae;
+  return true;
 }
 
 // Redoes the tiles whose images changed; returns how many.
@@ -198,15 +188,15 @@ void ThrowIfNoTileFinished(const std::string& city, const std::vector<TileOutcom
 }
 
 // The city's 3D Tiles; an export that fails does not undo the city.
-void ExportCityTiles3d(const RunOptions& options, const CityWork& work, json* stages, json* report,
+void ExportCityTiles3d(const RunOptions& options, const CityWork& work, json* stages, CityReport* report,
                        Progress& progress) {
   Stopwatch clock;
   try {
     const Tiles3dSummary t = Export3dTiles((work.city_dir / "scene").string(), (work.city_dir / "3dtiles").string(),
                                            options.exports.tiles3d_options, progress);
     stages->push_back(StageEntry("3dtiles", "ok", clock.Seconds()));
-    (*report)["tiles3d"] = {{"tileset", t.tileset_path}, {"tiles", t.tiles}, {"contents", t.contents},
-                            {"gaussians", t.gaussians}};
+    report->tiles3d = json{{"tileset", t.tileset_path}, {"tiles", t.tiles}, {"contents", t.contents},
+                           {"gaussians", t.gaussians}};
   } catch (const Error& e) {
     progress.Warn("[" + work.city + "] 3D Tiles export: " + e.what());
     stages->push_back(StageEntry("3dtiles", "failed", clock.Seconds(), e.what()));
@@ -237,7 +227,7 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
                        const std::vector<TileOutcome>& outcomes, const Stopwatch& total, Progress& progress) {
   CityOutcome outcome;
   outcome.city = work.city;
-  outcome.report_path = (work.city_dir / "run_report.json").string();
+  outcome.report_path = CityReportPath(work.city_dir).string();
   outcome.tiles_reset = work.tiles_reset;
   json stages = work.stages;
   json tile_list = json::array();
@@ -248,10 +238,11 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   }
   outcome.tiles_failed = failed;
   EmitTileEvents(work.city, tile_list, progress);
-  json report = {{"city", work.city}, {"options", json::parse(RunOptionsToJson(options))}, {"tiles", tile_list}};
-  json aoi_names = json::array();
-  for (const auto& a : aois) aoi_names.push_back(a.aoi);
-  report["aois"] = aoi_names;
+  CityReport report;
+  report.city = work.city;
+  report.options = json::parse(RunOptionsToJson(options));
+  report.tiles = tile_list;
+  for (const auto& a : aois) report.aois.push_back(a.aoi);
 
   Stopwatch clock;
   MergeSummary merged;
@@ -266,31 +257,31 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
     Emit(progress, "error", "merge", work.city, "", e.what());
     stages.push_back(StageEntry("merge", "failed", clock.Seconds(), e.what()));
     outcome.error = e.what();
-    report["stages"] = stages;
-    report["seconds"] = total.Seconds();
-    WriteFileAtomic(outcome.report_path, report.dump(2) + "\n");
+    report.stages = stages;
+    report.seconds = total.Seconds();
+    WriteCityReport(outcome.report_path, report);
     return outcome;
   }
   outcome.scene = true;
   CrashPoint("dsm");
   const AoiProducts products =
       WriteAoiProducts(options, aois, merged, work.tile_dirs, work.out_dir, &stages, &outcome, progress);
-  report["dsm"] = products.comparisons;
-  report["products"] = products.products;
-  report["city_products"] = products.city;
+  report.dsm = products.comparisons;
+  report.products = products.products;
+  report.city_products = products.city;
   if (options.exports.tiles3d) ExportCityTiles3d(options, work, &stages, &report, progress);
-  report["stages"] = stages;
-  report["merge"] = merged.report.metrics;
-  report["decisions"] = MergeDecisions(options, merged);
-  report["seam"] = {{"ratio", FiniteOrNull(merged.seam.ratio)},
-                    {"boundary_mean_step_m", FiniteOrNull(merged.seam.boundary_mean_step_m)},
-                    {"interior_mean_step_m", FiniteOrNull(merged.seam.interior_mean_step_m)}};
-  report["scene"] = merged.scene_path;
-  report["peak_tile_rss_mb"] = PeakChildRssMb();
-  report["seconds"] = total.Seconds();
-  report["inputs"] = work.inputs;  // what the next run compares to skip an unchanged city
+  report.stages = stages;
+  report.merge = merged.report.metrics;
+  report.decisions = MergeDecisions(options, merged);
+  report.seam = {{"ratio", FiniteOrNull(merged.seam.ratio)},
+                 {"boundary_mean_step_m", FiniteOrNull(merged.seam.boundary_mean_step_m)},
+                 {"interior_mean_step_m", FiniteOrNull(merged.seam.interior_mean_step_m)}};
+  report.scene = merged.scene_path;
+  report.peak_tile_rss_mb = PeakChildRssMb();
+  report.seconds = total.Seconds();
+  report.inputs = work.inputs;  // what the next run compares to skip an unchanged city
   CrashPoint("report");
-  WriteFileAtomic(outcome.report_path, report.dump(2) + "\n");
+  WriteCityReport(outcome.report_path, report);
   CrashPoint("stac");
   WriteCityStac({work.city, work.out_dir, aois, work.tile_dirs, (work.city_dir / "scene").string(),
                  outcome.report_path, UtcNowIso()});
@@ -307,7 +298,7 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
                            Progress& progress) {
   CityOutcome outcome;
   outcome.city = work.city;
-  outcome.report_path = (work.city_dir / "run_report.json").string();
+  outcome.report_path = CityReportPath(work.city_dir).string();
   outcome.tiles_reset = work.tiles_reset;
   SlurmCityJobs jobs;
   if (ReadSlurmJobs(work.city_dir.string(), &jobs) && !SlurmJobState(jobs.finish_job).empty()) {
@@ -357,14 +348,12 @@ CityOutcome RunCityOnSlurm(const RunOptions& options, const CityWork& work, cons
     Emit(progress, "error", "slurm", work.city, "", outcome.error);
     return outcome;
   }
-  try {
-    const json report = json::parse(ReadTextFile(outcome.report_path));
-    if (report.value("inputs", json()) == work.inputs && report.contains("scene")) {
-      outcome.scene = true;
-      for (const json& entry : report.value("dsm", json::array())) outcome.dsm_mae_m.push_back(entry.at("mae_m"));
-      return outcome;
-    }
-  } catch (const std::exception&) {
+  const std::optional<CityReport> report = ReadCityReport(outcome.report_path);
+  const std::optional<std::vector<double>> mae = report ? report->DsmMaesM() : std::nullopt;
+  if (report && report->scene && report->inputs == work.inputs && mae) {
+    outcome.scene = true;
+    outcome.dsm_mae_m = *mae;
+    return outcome;
   }
   outcome.error = "the Slurm finish job " + jobs.finish_job + " ended without a run report; see " + finish_log;
   progress.Warn("[" + work.city + "] " + outcome.error);
@@ -425,7 +414,7 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   work.inputs = CityInputsStamp(options, aois, image_stamps);
   CityOutcome unchanged;
   unchanged.city = plan.city;
-  unchanged.report_path = (work.city_dir / "run_report.json").string();
+  unchanged.report_path = CityReportPath(work.city_dir).string();
   if (UnchangedSinceLastRun(options.products, work.inputs, aois, out_dir, &unchanged)) {
     unchanged.scene = true;
     unchanged.unchanged = true;

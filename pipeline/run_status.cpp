@@ -7,6 +7,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "products/city_report.h"
 #include "pipeline/slurm.h"
 #include "pipeline/tile_report.h"
 
@@ -51,13 +52,9 @@ json CityStatus(const fs::path& city_dir, bool ask_scheduler) {
     tiles.push_back({{"tile", id}, {"state", state}, {"scheduler", scheduler}});
   }
   std::string city_state = "incomplete";
-  if (fs::exists(city_dir / "run_report.json")) {
-    try {
-      city_state = json::parse(ReadTextFile((city_dir / "run_report.json").string())).contains("scene") ? "done"
-                                                                                                       : "failed";
-    } catch (const std::exception&) {
-      city_state = "failed";
-    }
+  if (fs::exists(CityReportPath(city_dir))) {
+    const std::optional<CityReport> report = ReadCityReport(CityReportPath(city_dir).string());
+    city_state = report && report->scene ? "done" : "failed";
   }
   if (!finish_state.empty()) city_state = "running";
   json slurm_json = nullptr;

@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "products/city_report.h"
 #include "products/run_report.h"
 #include "products/stac.h"
 
@@ -32,10 +33,11 @@ img { max-width: 100%; border: 1px solid #ddd; } .pair { display: flex; gap: 1em
 .muted { color: #666; }
 )";
 
+std::string Fixed(double v, int decimals) { return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : "–"; }
+
 std::string Number(const json& j, const char* key, int decimals, double factor = 1.0) {
   if (!j.contains(key) || !j.at(key).is_number()) return "–";
-  const double v = j.at(key).get<double>() * factor;
-  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : "–";
+  return Fixed(j.at(key).get<double>() * factor, decimals);
 }
 
 std::string Cell(const std::string& text, bool numeric = false) {
@@ -59,12 +61,12 @@ std::string Link(const fs::path& target, const fs::path& out_dir, const std::str
   return "<a href=\"" + HtmlEscape(UrlPath(href)) + "\">" + HtmlEscape(text) + "</a> ";
 }
 
-std::string DsmTable(const json& report) {
+std::string DsmTable(const CityReport& report) {
   std::string html =
       "<table><tr><th>AOI</th><th>MAE [m]</th><th>RMSE [m]</th><th>median |e| [m]</th><th>NMAD [m]</th>"
       "<th>completeness</th><th>within 1 m</th><th>dense alone: MAE [m]</th><th>dense: completeness</th>"
       "<th>filled cells</th></tr>";
-  for (const json& d : report.value("dsm", json::array())) {
+  for (const json& d : report.dsm) {
     const json dense = d.value("dense", json::object());
     html += "<tr>" + Cell(HtmlEscape(d.value("aoi", "?"))) + Cell(Number(d, "mae_m", 2), true) +
             Cell(Number(d, "rmse_m", 2), true) + Cell(Number(d, "median_abs_m", 2), true) +
@@ -177,11 +179,11 @@ std::string StageWarnings(const json& tile) {
   return html;
 }
 
-std::string TileTable(const json& report, const fs::path& city_dir, const fs::path& out_dir) {
+std::string TileTable(const CityReport& report, const fs::path& city_dir, const fs::path& out_dir) {
   std::string html =
       "<table><tr><th>tile</th><th>status</th><th>time [s]</th><th>peak memory [MB]</th><th>decisions</th>"
       "<th>held-out views (PSNR)</th><th>warnings</th></tr>";
-  for (const json& t : report.value("tiles", json::array())) {
+  for (const json& t : report.tiles) {
     const std::string status = t.value("status", "failed");
     const std::string tile = t.value("tile", "?");
     html += "<tr>" + Cell(HtmlEscape(tile)) + "<td class=" + HtmlEscape(status) + ">" +
@@ -196,11 +198,11 @@ std::string TileTable(const json& report, const fs::path& city_dir, const fs::pa
 // Per AOI: the GIS products, their previews side by side (the orthophoto
 // beside the DSM and the quality layers), and their figures against the
 // truth (DTM on ground, nDSM on buildings, ortho against the nadir image).
-std::string ProductsSection(const json& report, const fs::path& out_dir) {
+std::string ProductsSection(const CityReport& report, const fs::path& out_dir) {
   std::map<std::string, json> truth;
-  for (const json& d : report.value("dsm", json::array())) truth[d.value("aoi", "")] = d;
+  for (const json& d : report.dsm) truth[d.value("aoi", "")] = d;
   std::string html;
-  for (const json& p : report.value("products", json::array())) {
+  for (const json& p : report.products) {
     const std::string aoi = p.value("aoi", "?");
     const fs::path dir = out_dir / aoi, previews = dir / "previews";
     html += "<h4>" + HtmlEscape(aoi) + ": GIS products</h4><p>Heights above the " +
@@ -235,9 +237,9 @@ std::string ProductsSection(const json& report, const fs::path& out_dir) {
   return html;
 }
 
-std::string StageTable(const json& report) {
+std::string StageTable(const CityReport& report) {
   std::string html = "<table><tr><th>stage</th><th>status</th><th>time [s]</th></tr>";
-  for (const json& s : report.value("stages", json::array())) {
+  for (const json& s : report.stages) {
     const std::string status = s.value("status", "?");
     html += "<tr>" + Cell(HtmlEscape(s.value("stage", "?"))) + "<td class=" + HtmlEscape(status) + ">" +
             HtmlEscape(status) + "</td>" + Cell(Number(s, "seconds", 1), true) + "</tr>";
@@ -245,22 +247,21 @@ std::string StageTable(const json& report) {
   return html + "</table>";
 }
 
-std::string CitySection(const json& report, const fs::path& out_dir, std::vector<ScenePoint>* points) {
-  const std::string city = report.value("city", "?");
+std::string CitySection(const CityReport& report, const fs::path& out_dir, std::vector<ScenePoint>* points) {
+  const std::string& city = report.city;
   const fs::path city_dir = out_dir / city;
   std::string html = "<h2 id=\"" + HtmlEscape(city) + "\">City " + HtmlEscape(city) + "</h2>";
-  html += fmt::format("<p>{} AOI(s), {} tile(s), {} s in all; peak tile memory {} MB.</p>",
-                      report.value("aois", json::array()).size(), report.value("tiles", json::array()).size(),
-                      Number(report, "seconds", 0), Number(report, "peak_tile_rss_mb", 0));
+  html += fmt::format("<p>{} AOI(s), {} tile(s), {} s in all; peak tile memory {} MB.</p>", report.aois.size(),
+                      report.tiles.size(), Fixed(report.seconds, 0), Fixed(report.peak_tile_rss_mb, 0));
   html += "<p>Products: " + Link(city_dir / "scene" / "scene.ply", out_dir, "scene (PLY)") +
           Link(city_dir / "scene" / "lod.json", out_dir, "LOD levels") +
           Link(city_dir / "scene" / "dsm_city.tif", out_dir, "city DSM") +
           Link(city_dir / "3dtiles" / "tileset.json", out_dir, "3D Tiles") +
           Link(city_dir / "collection.json", out_dir, "STAC collection") +
           Link(city_dir / "run_report.json", out_dir, "run report (JSON)") + "</p>";
-  if (!report.contains("scene")) html += "<p class=failed>No scene was made; see the stages below.</p>";
+  if (!report.scene) html += "<p class=failed>No scene was made; see the stages below.</p>";
   html += "<h3>DSM against the truth</h3>" + DsmTable(report);
-  for (const json& d : report.value("dsm", json::array())) {
+  for (const json& d : report.dsm) {
     const std::string aoi = d.value("aoi", "?");
     const fs::path compare = out_dir / aoi / "dsm_compare";
     html += "<h4>" + HtmlEscape(aoi) + "</h4><p>" + Link(out_dir / aoi / "dsm.tif", out_dir, "DSM (GeoTIFF)") +
@@ -275,11 +276,11 @@ std::string CitySection(const json& report, const fs::path& out_dir, std::vector
             EmbeddedPng(compare / "error_histogram.png", aoi + " error histogram") +
             "<figcaption>Error histogram</figcaption></figure></div>";
     const json dense = d.value("dense", json::object());
-    points->push_back({aoi, report.value("seconds", NAN), d.value("mae_m", NAN),
+    points->push_back({aoi, report.seconds, d.value("mae_m", NAN),
                        dense.is_object() ? dense.value("mae_m", NAN) : NAN, false});
   }
   html += "<h3>GIS products</h3>" + ProductsSection(report, out_dir);
-  html += "<h3>Automatic decisions of the city</h3><p>" + Decisions(report.value("decisions", json::object())) + "</p>";
+  html += "<h3>Automatic decisions of the city</h3><p>" + Decisions(report.decisions.is_object() ? report.decisions : json::object()) + "</p>";
   html += "<h3>Stages</h3>" + StageTable(report);
   html += "<h3>Tiles</h3>" + TileTable(report, city_dir, out_dir);
   return html;
@@ -355,16 +356,13 @@ std::string WriteRunReportPage(const std::string& out_dir) {
                   HtmlEscape(c.value("error", "no run report")) + "</p>";
       continue;
     }
-    json report;
-    try {
-      report = json::parse(ReadTextFile(report_path));
-    } catch (const json::exception& e) {
-      throw Error("report", report_path, std::string("not valid JSON: ") + e.what());
-    }
-    toc += "<li><a href=\"#" + HtmlEscape(report.value("city", "?")) + "\">" + HtmlEscape(report.value("city", "?")) +
+    std::string why;
+    const std::optional<CityReport> report = ReadCityReport(report_path, &why);
+    if (!report) throw Error("report", report_path, "is not a readable run report: " + why);
+    toc += "<li><a href=\"#" + HtmlEscape(report->city) + "\">" + HtmlEscape(report->city) +
            "</a>" + (c.value("unchanged", false) ? " <span class=muted>(unchanged since its last run)</span>" : "") +
            "</li>";
-    sections += CitySection(report, out, &points);
+    sections += CitySection(*report, out, &points);
   }
   std::string plot = "<p class=muted>(no AOI with truth: no error to plot)</p>";
   if (!points.empty()) {
