@@ -14,6 +14,8 @@
 #             drawK): scenes no setting was chosen on; their options are in
 #             the JSON and the Markdown table
 # Reruns resume: finished runs are reused, so adding a scene costs one run.
+# A full run (every fixed scene, 256 m, no extra arguments) also rewrites
+# README.md's results table (scripts/readme_results.py).
 # SKYFALL_BIN: the skyfall binary to measure (default build/bin/skyfall; copy
 # it elsewhere to keep building while the benchmark runs). SKYFALL_RUN_ARGS:
 # extra `skyfall run` arguments, e.g. "--set dense.fill_radius_m=10".
@@ -31,7 +33,7 @@ while [ $# -gt 0 ]; do
     --scenes) ONLY=",$2,"; shift 2 ;;
     --draw) DRAW=$2; shift 2 ;;
     --draw-from) DRAW_FROM=$2; shift 2 ;;
-    -h|--help) sed -n 2,17p "$0"; exit 0 ;;
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     *) OUT=$1; shift ;;
   esac
 done
@@ -291,3 +293,9 @@ print("\n".join(lines))
 PY
 "$B" -q report --scenes "$OUT/bench_accuracy.json" --out "$OUT"
 echo "bench_accuracy: $OUT/bench_accuracy.json, bench_accuracy.md, bench_accuracy.png" >&2
+# The README's results table is today's figures of the whole fixed set with
+# the defaults: only such a run rewrites it.
+if [ "$SIZE" = 256 ] && [ -z "$ONLY" ] && [ "$DRAW" = 0 ] && [ -z "${SKYFALL_RUN_ARGS:-}" ]; then
+  python3 scripts/readme_results.py "$OUT/bench_accuracy.json" README.md
+  echo "bench_accuracy: README.md's results table rewritten from this run" >&2
+fi
