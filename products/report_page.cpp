@@ -258,7 +258,7 @@ std::string CitySection(const CityReport& report, const fs::path& out_dir, std::
           Link(city_dir / "scene" / "dsm_city.tif", out_dir, "city DSM") +
           Link(city_dir / "3dtiles" / "tileset.json", out_dir, "3D Tiles") +
           Link(city_dir / "collection.json", out_dir, "STAC collection") +
-          Link(city_dir / "run_report.json", out_dir, "run report (JSON)") + "</p>";
+          Link(CityReportPath(city_dir), out_dir, "run report (JSON)") + "</p>";
   if (!report.scene) html += "<p class=failed>No scene was made; see the stages below.</p>";
   html += "<h3>DSM against the truth</h3>" + DsmTable(report);
   for (const json& d : report.dsm) {
