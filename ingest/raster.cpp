@@ -202,6 +202,23 @@ void WriteUnitPng(const std::string& path, int width_px, int height_px, int band
   WriteBytePng(path, width_px, height_px, bands, bytes.data(), compression);
 }
 
+namespace {
+
+// A paletted band: every code without an entry is black and transparent.
+void SetColourTable(GDALRasterBandH band, const std::map<int, std::array<std::uint8_t, 3>>& colours) {
+  GDALColorTableH table = GDALCreateColorTable(GPI_RGB);
+  for (int code = 0; code < 256; ++code) {
+    const auto it = colours.find(code);
+    GDALColorEntry entry{0, 0, 0, 0};
+    if (it != colours.end()) entry = {it->second[0], it->second[1], it->second[2], 255};
+    GDALSetColorEntry(table, code, &entry);
+  }
+  GDALSetRasterColorTable(band, table);
+  GDALDestroyColorTable(table);
+}
+
+}  // namespace
+
 void WriteCog(const std::string& path, int width_px, int height_px, SampleType type, const void* pixels,
               const NorthUpGrid& grid, const CogBands& bands) {
   const GDALDataType gdal_type = type == SampleType::kByte     ? GDT_Byte
@@ -228,9 +245,14 @@ void WriteCog(const std::string& path, int width_px, int height_px, SampleType t
           if (type == SampleType::kFloat32) GDALSetRasterNoDataValue(band, std::numeric_limits<double>::quiet_NaN());
           if (bands.colour && b < 3) GDALSetRasterColorInterpretation(band, static_cast<GDALColorInterp>(GCI_RedBand + b));
           if (bands.last_is_alpha && b == bands.count - 1) GDALSetRasterColorInterpretation(band, GCI_AlphaBand);
+          if (bands.byte_nodata) GDALSetRasterNoDataValue(band, *bands.byte_nodata);
         }
+        if (!bands.colour_table.empty()) SetColourTable(GDALGetRasterBand(ds, 1), bands.colour_table);
       },
-      {"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", "GEOTIFF_VERSION=1.1"});
+      bands.colour_table.empty()
+          ? std::vector<const char*>{"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", "GEOTIFF_VERSION=1.1"}
+          : std::vector<const char*>{"COMPRESS=DEFLATE", "BLOCKSIZE=256", "OVERVIEWS=AUTO", "GEOTIFF_VERSION=1.1",
+                                     "RESAMPLING=NEAREST"});
 }
 
 void WriteFloatCog(const std::string& path, int width_px, int height_px, const float* pixels,

@@ -1,6 +1,7 @@
 // Raster access through GDAL. The public interface speaks std types only.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -102,6 +103,10 @@ struct CogBands {
   bool last_is_alpha = false;
   bool colour = false;                            // the first three bands are red, green, blue
   std::map<std::string, std::string> metadata;   // default-domain items
+  // A class raster (one Byte band): its nodata code and a colour per code
+  // for GIS viewers; its overviews then take the nearest code, never a mean.
+  std::optional<int> byte_nodata;
+  std::map<int, std::array<std::uint8_t, 3>> colour_table;
 };
 void WriteCog(const std::string& path, int width_px, int height_px, SampleType type, const void* pixels,
               const NorthUpGrid& grid, const CogBands& bands);

@@ -18,6 +18,7 @@
 #include "products/dsm.h"
 #include "products/dsm_report.h"
 #include "products/gis_layers.h"
+#include "products/land_cover.h"
 #include "products/point_cloud.h"
 #include "splat/ply.h"
 
@@ -66,6 +67,7 @@ std::vector<std::string> AoiProductFiles(const ProductOptions& o, const AoiCatal
   if (o.terrain) files.push_back((dir / "dtm.tif").string()), files.push_back((dir / "ndsm.tif").string());
   if (o.quality) files.push_back((dir / "quality.tif").string());
   if (o.ortho) files.push_back((dir / "ortho.tif").string());
+  if (o.classes) files.push_back((dir / "classes.tif").string());
   if (o.points) files.push_back((dir / "points.las").string());
   return files;
 }
@@ -303,6 +305,50 @@ json WriteOrtho(const RunOptions& options, const AoiCatalog& a, const DsmGrid& d
   return entry;
 }
 
+json ClassJson(const ClassAgreement& a) {
+  return {{"iou", FiniteOrNull(a.iou)}, {"precision", FiniteOrNull(a.precision)}, {"recall", FiniteOrNull(a.recall)},
+          {"truth_cells", a.truth_cells}};
+}
+
+// classes.tif from the DSM, the DTM and the scene's own colours, and its
+// agreement with the truth's classes under the DSM comparison's shift.
+LandCoverMap WriteLandCover(const ProductOptions& po, const AoiCatalog& a, const DsmGrid& dsm, const DsmGrid& dtm,
+                            const std::vector<float>& rgb, const TruthDsm* truth, const DsmComparison& registration,
+                            const fs::path& aoi_dir, json* entry, json* comparison, Progress& progress) {
+  const LandCoverMap map = ClassifyLandCover(dsm, dtm, rgb, !Panchromatic(a), po.land_cover);
+  const std::string rule =
+      map.colour ? fmt::format("above ground: more than {} m over the DTM; vegetation: excess green above {:.4f} "
+                               "(the objects' median + {} robust sigmas) and more than {} m from a local plane, by "
+                               "majority within {} m; else building",
+                               po.land_cover.object_min_m, map.green_threshold, po.land_cover.green_sigmas,
+                               po.land_cover.min_roughness_m, po.land_cover.vote_radius_m)
+                 : fmt::format("above ground: more than {} m over the DTM; building and vegetation not told apart "
+                               "(panchromatic: no colour)", po.land_cover.object_min_m);
+  const std::string path = (aoi_dir / "classes.tif").string();
+  WriteLandCoverCog(path, dsm, map, {{"LAND_COVER_RULE", rule}});
+  *entry = {{"path", path},
+            {"rule", rule},
+            {"colour", map.colour},
+            {"cells", {{"ground", map.ground_cells},
+                       {"building", map.building_cells},
+                       {"vegetation", map.vegetation_cells},
+                       {"above_ground_untold", map.above_ground_cells}}}};
+  if (map.colour) (*entry)["green_threshold"] = map.green_threshold;
+  else (*entry)["left_out"] = "building vs vegetation (panchromatic: no colour tells a crown from a roof)";
+  if (!truth || truth->cls.empty()) return map;
+  const LandCoverAgreement agree = CompareLandCover(map, truth->cls, dsm.width_px, dsm.height_px,
+                                                    registration.shift_col_px, registration.shift_row_px);
+  (*comparison)["land_cover"] = {{"cells", agree.cells},
+                                 {"overall_accuracy", FiniteOrNull(agree.overall_accuracy)},
+                                 {"ground", ClassJson(agree.ground)},
+                                 {"building", ClassJson(agree.building)},
+                                 {"vegetation", ClassJson(agree.vegetation)}};
+  progress.Info(fmt::format("[{}] classes vs the truth's on {} cells: accuracy {:.3f}; IoU building {:.3f}, "
+                            "vegetation {:.3f}, ground {:.3f}", a.aoi, agree.cells, agree.overall_accuracy,
+                            agree.building.iou, agree.vegetation.iou, agree.ground.iou));
+  return map;
+}
+
 // A product the options now leave out goes, so that the catalog and the
 // report page, which list what exists, do not offer a previous run's file.
 void RemoveStale(const std::vector<fs::path>& files) {
@@ -319,7 +365,7 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
   const std::optional<TruthDsm> truth = a.truth ? std::optional<TruthDsm>(ReadTruthDsm(*a.truth)) : std::nullopt;
   DsmGrid pred = ProductGrid(a, po.gsd_m);
   std::vector<float> rgb;
-  RasterizeDsm(s.scene, s.enu_origin, options.dsm.export_options, &pred, po.ortho ? &rgb : nullptr);
+  RasterizeDsm(s.scene, s.enu_origin, options.dsm.export_options, &pred, po.ortho || po.classes ? &rgb : nullptr);
   WriteHeights((aoi_dir / "dsm.tif").string(), pred, po.vertical_datum);
   CrashPoint("dsm_written");
   json entry = {{"aoi", a.aoi}, {"dsm", (aoi_dir / "dsm.tif").string()},
@@ -355,6 +401,14 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
     left_out.push_back("quality.tif (products.quality off)");
     RemoveStale({aoi_dir / "quality.tif"});
   }
+  LandCoverMap land_cover;  // before the ortho's colour match: the classes take the scene's own colours
+  if (po.classes) {
+    land_cover = WriteLandCover(po, a, pred, dtm, rgb, truth ? &*truth : nullptr, c, aoi_dir, &entry["classes"],
+                                comparison, progress);
+  } else {
+    left_out.push_back("classes.tif (products.classes off)");
+    RemoveStale({aoi_dir / "classes.tif"});
+  }
   if (po.ortho) {
     entry["ortho"] = WriteOrtho(options, a, pred, &rgb, truth ? &*truth : nullptr, aoi_dir, progress);
     if (truth && entry["ortho"].contains("versus_nadir_image"))
@@ -367,7 +421,8 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
   }
   if (po.points) {
     const std::vector<LasPoint> points =
-        ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m);
+        ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m,
+                    land_cover.classes);
     WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true));
     entry["points"] = {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
   } else {
@@ -377,8 +432,11 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
   entry["left_out"] = left_out;
   // Previews for the report page (not products: PNGs without georeferencing).
   fs::create_directories(aoi_dir / "previews");
-  WriteProductPreviews((aoi_dir / "previews").string(), pred, rgb, po.quality ? layers.views : std::vector<float>(),
-                       po.quality ? layers.fill_rule : std::vector<float>());
+  PreviewLayers previews;
+  if (po.ortho) previews.rgb = std::move(rgb);
+  if (po.quality) previews.views = layers.views, previews.fill_rule = layers.fill_rule;
+  previews.classes = std::move(land_cover.classes);
+  WriteProductPreviews((aoi_dir / "previews").string(), pred, previews);
   entry["previews"] = (aoi_dir / "previews").string();
   if (truth) outcome->dsm_mae_m.push_back(c.mae_m);
   return entry;

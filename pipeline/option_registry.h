@@ -611,6 +611,19 @@ template <class IO> void Visit(IO& io, DsmOptions& o) {
   io("export", o.export_options);
   io("compare", o.compare);
 }
+template <class IO> void Visit(IO& io, LandCoverOptions& o) {
+  io("object_min_m", o.object_min_m,
+     "A cell standing more than this above the DTM is an object: a building or a tree");
+  io("green_sigmas", o.green_sigmas,
+     "An object cell votes vegetation when its excess green (2g - r - b) / (r + g + b) exceeds the AOI's objects' "
+     "median by this many robust sigmas (1.4826 x MAD) ...");
+  io("min_roughness_m", o.min_roughness_m,
+     "... and its surface departs by more than this (RMS) from the least-squares plane around it");
+  io("plane_half_window_m", o.plane_half_window_m,
+     "Half side of the window of that plane fit");
+  io("vote_radius_m", o.vote_radius_m,
+     "Half side of the window whose majority of object cells' votes decides building or vegetation");
+}
 template <class IO> void Visit(IO& io, ProductOptions& o) {
   io("vertical_datum", o.vertical_datum,
      "Heights of dsm.tif, dtm.tif and points.las: 'ellipsoid' (WGS84, as the RPCs and the DFC2019 LiDAR) or "
@@ -629,7 +642,11 @@ template <class IO> void Visit(IO& io, ProductOptions& o) {
      "The image whose date ortho.tif's colours take (a per-band gain and offset fitted on the cells it sees); empty "
      "= the image closest to nadir");
   io("points", o.points,
-     "Write points.las: the scene's Gaussians as a LAS 1.4 point cloud with colour and ground class");
+     "Write points.las: the scene's Gaussians as a LAS 1.4 point cloud with colour and classes");
+  io("classes", o.classes,
+     "Write classes.tif (ground, building, high vegetation in ASPRS codes) and give points.las those classes; a "
+     "panchromatic scene's objects stay class 1, as no colour tells a crown from a roof");
+  io("land_cover", o.land_cover);
   io("min_opacity", o.min_opacity,
      "Gaussians more transparent than this are left out of points.las and of quality.tif's height spread");
   io("ground_tolerance_m", o.ground_tolerance_m,

@@ -317,6 +317,7 @@ void ProductOptions::Check() const {
     throw Error("products", "min_opacity", FormatDouble(min_opacity) + " must be in [0, 1]");
   if (!(ground_tolerance_m >= 0))
     throw Error("products", "ground_tolerance_m", FormatDouble(ground_tolerance_m) + " must be >= 0");
+  land_cover.Check();
 }
 
 void RunOptions::Check() const {

@@ -15,6 +15,7 @@
 #include "products/dsm.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
+#include "products/land_cover.h"
 #include "products/tiles3d.h"
 #include "dense/dense.h"
 #include "sfm/sfm.h"
@@ -135,7 +136,7 @@ struct DsmOptions {
 };
 
 // The GIS products of each AOI beside its DSM (OUT/<AOI>/: dtm.tif,
-// ndsm.tif, quality.tif, ortho.tif, points.las) and the datum of every
+// ndsm.tif, quality.tif, ortho.tif, classes.tif, points.las) and the datum of every
 // height the run hands out.
 struct ProductOptions {
   // Heights of dsm.tif, dtm.tif and points.las: above the WGS84 ellipsoid
@@ -149,6 +150,8 @@ struct ProductOptions {
   int ortho_bits = 8;                // 8 or 16
   std::string ortho_image;           // the image whose date ortho.tif's colours take (empty: closest to nadir)
   bool points = true;                // points.las
+  bool classes = true;               // classes.tif, and building and vegetation classes in points.las
+  LandCoverOptions land_cover;       // how classes.tif tells buildings, trees and ground apart
   double min_opacity = 0.1;          // Gaussians more transparent are left out of points.las and the height spread
   double ground_tolerance_m = 1.0;   // a point this close above the DTM is ground (class 2)
   void Check() const;                // throws Error("products", field, ...)

@@ -17,6 +17,7 @@
 #include "ingest/raster.h"
 #include "ingest/vertical_datum.h"
 #include "products/dsm_breakdown.h"
+#include "products/land_cover.h"
 
 namespace skyfall {
 namespace {
@@ -263,8 +264,8 @@ std::uint8_t Ramp(float v, double lo, double hi) {
 
 }  // namespace
 
-void WriteProductPreviews(const std::string& dir, const DsmGrid& dsm, const std::vector<float>& rgb,
-                          const std::vector<float>& views, const std::vector<float>& fill_rule) {
+void WriteProductPreviews(const std::string& dir, const DsmGrid& dsm, const PreviewLayers& layers) {
+  const std::vector<float>&rgb = layers.rgb, &views = layers.views, &fill_rule = layers.fill_rule;
   std::vector<double> finite;
   for (float v : dsm.height_m)
     if (std::isfinite(v)) finite.push_back(v);
@@ -286,6 +287,11 @@ void WriteProductPreviews(const std::string& dir, const DsmGrid& dsm, const std:
       const float code = fill_rule[p];
       if (!std::isfinite(code) || code < 0 || code > 7) return;
       for (int b = 0; b < 3; ++b) out[b] = kRuleColours[static_cast<int>(code)][b];
+    });
+  if (!layers.classes.empty())
+    WritePreview(dir + "/classes.png", dsm, 3, [&](std::size_t p, std::uint8_t* out) {
+      const auto it = LandCoverColours().find(layers.classes[p]);
+      if (it != LandCoverColours().end()) std::copy(it->second.begin(), it->second.end(), out);
     });
 }
 
@@ -558,7 +564,17 @@ OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const 
 }
 
 std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmGrid& dtm,
-                                  HeightReference reference, double min_opacity, double ground_tolerance_m) {
+                                  HeightReference reference, double min_opacity, double ground_tolerance_m,
+                                  const std::vector<std::uint8_t>& land_cover) {
+  if (!land_cover.empty() && land_cover.size() != Pixels(dtm))
+    throw Error("products", "points", "the land cover must be on the DTM's grid");
+  constexpr std::uint8_t kUnclassified = 1, kVegetationClass = 5;
+  // The class of a point above ground: its cell's, when that names an object.
+  auto above_ground_class = [&](const Eigen::Vector2i& px) {
+    if (land_cover.empty()) return kUnclassified;
+    const std::uint8_t c = land_cover[static_cast<std::size_t>(px.y()) * dtm.width_px + px.x()];
+    return c == kBuildingClass || c == kVegetationClass ? c : kUnclassified;
+  };
   if (reference == HeightReference::kAboveTerrain)
     throw Error("products", "points", "a point cloud's heights need a datum (ellipsoid or egm96)");
   std::vector<LasPoint> points;
@@ -578,7 +594,9 @@ std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoin
                        p.green = level(1);
                        p.blue = level(2);
                        const float ground = dtm.At(px.x(), px.y());
-                       p.classification = std::isfinite(ground) && g.height_m - ground <= ground_tolerance_m ? 2 : 1;
+                       p.classification = std::isfinite(ground) && g.height_m - ground <= ground_tolerance_m
+                                              ? kGroundClass
+                                              : above_ground_class(px);
                        points.push_back(p);
                        lon_lat.emplace_back(g.lon_deg, g.lat_deg);
                      });

@@ -69,12 +69,15 @@ void WriteOrthoCog(const std::string& path, const DsmGrid& grid, const std::vect
 
 // PNG previews of the products for the report page, at most kPreviewPx on
 // a side: ortho.png, dsm.png (heights between their 2nd and 98th
-// percentiles, dark low), views.png (dark few) and fill_rule.png (one colour
-// per FillRule code; black where no cell) under `dir`. A missing layer
-// (empty vector) writes no file.
+// percentiles, dark low), views.png (dark few), fill_rule.png (one colour
+// per FillRule code; black where no cell) and classes.png (classes.tif's
+// colours) under `dir`. A missing layer (empty vector) writes no file.
 constexpr int kPreviewPx = 768;
-void WriteProductPreviews(const std::string& dir, const DsmGrid& dsm, const std::vector<float>& rgb,
-                          const std::vector<float>& views, const std::vector<float>& fill_rule);
+struct PreviewLayers {
+  std::vector<float> rgb, views, fill_rule;
+  std::vector<std::uint8_t> classes;  // LandCover codes
+};
+void WriteProductPreviews(const std::string& dir, const DsmGrid& dsm, const PreviewLayers& layers);
 
 // DTM error on the truth's ground cells and nDSM error on its buildings.
 // The truth's bare earth is the terrain model (TerrainModel) through its
@@ -128,10 +131,12 @@ OrthoAgreement CompareOrthoWithTruth(const std::vector<float>& ortho_rgb, const 
 
 // The scene's Gaussians of at least `min_opacity` on the DTM's grid (the
 // AOI) as points in its UTM zone, heights in `reference` (kEllipsoid or
-// kEgm96); ground (class 2)
-// within `ground_tolerance_m` of the DTM (ellipsoidal), else unclassified
-// above ground (class 1: buildings and trees are not told apart).
+// kEgm96); ground (class 2) within `ground_tolerance_m` of the DTM
+// (ellipsoidal); above it, the class `land_cover` gives the point's cell
+// when that is building (6) or high vegetation (5), else unclassified (1).
+// Without `land_cover` (empty) every point above ground is class 1.
 std::vector<LasPoint> ScenePoints(const GaussianCloud& scene, const GeodeticPoint& enu_origin, const DsmGrid& dtm,
-                                  HeightReference reference, double min_opacity, double ground_tolerance_m);
+                                  HeightReference reference, double min_opacity, double ground_tolerance_m,
+                                  const std::vector<std::uint8_t>& land_cover = {});
 
 }  // namespace skyfall

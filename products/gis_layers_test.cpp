@@ -352,5 +352,35 @@ TEST(GisLayers, ScenePointsAreClassifiedAgainstTheDtm) {
   EXPECT_THROW(ScenePoints(scene, kOrigin, dtm, HeightReference::kAboveTerrain, 0.5, 1.0), Error);
 }
 
+// Above ground, a point takes its cell's class when the land cover names
+// an object (building 6, high vegetation 5); ground stays ground whatever
+// the cell says, and a cell "above ground, untold" (1) gives class 1.
+TEST(GisLayers, ScenePointsTakeTheirCellsLandCover) {
+  DsmGrid dtm = GridAroundOrigin(40);
+  std::fill(dtm.height_m.begin(), dtm.height_m.end(), static_cast<float>(kOrigin.height_m));
+  const GaussianCloud scene =
+      Gaussians({{1.25f, 1.25f, 6.0f}, {-3.25f, -3.25f, 8.0f}, {4.25f, -4.25f, 5.0f}, {-1.25f, 2.25f, 0.1f}},
+                std::log(0.1f));
+  std::vector<std::uint8_t> cover(dtm.height_m.size(), 2);
+  // The pixel of a point at ENU (east, north): the grid's upper left corner
+  // is 10 m west and north of the origin, pixels 0.5 m (points sit at pixel
+  // centres, clear of the UTM grid's 0.3 degree convergence here).
+  auto cell = [&](double east_m, double north_m) -> std::uint8_t& {
+    const int col = static_cast<int>(std::floor((east_m + 10) / 0.5)), row = static_cast<int>(std::floor((10 - north_m) / 0.5));
+    return cover[static_cast<std::size_t>(row) * 40 + col];
+  };
+  cell(1.25, 1.25) = 6;
+  cell(-3.25, -3.25) = 5;
+  cell(4.25, -4.25) = 1;
+  cell(-1.25, 2.25) = 6;
+  const std::vector<LasPoint> p = ScenePoints(scene, kOrigin, dtm, HeightReference::kEllipsoid, 0.5, 1.0, cover);
+  ASSERT_EQ(p.size(), 4u);
+  EXPECT_EQ(p[0].classification, 6);
+  EXPECT_EQ(p[1].classification, 5);
+  EXPECT_EQ(p[2].classification, 1);
+  EXPECT_EQ(p[3].classification, 2);  // on the ground, under a roof's edge cell
+  EXPECT_THROW(ScenePoints(scene, kOrigin, dtm, HeightReference::kEllipsoid, 0.5, 1.0, {6, 6}), Error);
+}
+
 }  // namespace
 }  // namespace skyfall

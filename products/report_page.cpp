@@ -195,6 +195,17 @@ std::string TileTable(const CityReport& report, const fs::path& city_dir, const 
   return html + "</table>";
 }
 
+// The classes against the truth's: accuracy and each class's IoU.
+std::string ClassesTable(const json& comparison) {
+  const json lc = comparison.value("land_cover", json::object());
+  if (lc.empty()) return "";
+  auto iou = [&](const char* kind) { return Cell(Number(lc.value(kind, json::object()), "iou", 3), true); };
+  return "<table><tr><th>classes vs truth: accuracy</th><th>IoU building</th><th>IoU vegetation</th>"
+         "<th>IoU ground</th><th>cells</th></tr><tr>" +
+         Cell(Number(lc, "overall_accuracy", 3), true) + iou("building") + iou("vegetation") + iou("ground") +
+         Cell(Number(lc, "cells", 0), true) + "</tr></table>";
+}
+
 // Per AOI: the GIS products, their previews side by side (the orthophoto
 // beside the DSM and the quality layers), and their figures against the
 // truth (DTM on ground, nDSM on buildings, ortho against the nadir image).
@@ -209,9 +220,11 @@ std::string ProductsSection(const CityReport& report, const fs::path& out_dir) {
             HtmlEscape(p.value("vertical_datum_description", "?")) + ". " +
             Link(dir / "dsm.tif", out_dir, "DSM") + Link(dir / "dtm.tif", out_dir, "DTM") +
             Link(dir / "ndsm.tif", out_dir, "nDSM") + Link(dir / "quality.tif", out_dir, "quality layers") +
-            Link(dir / "ortho.tif", out_dir, "orthophoto") + Link(dir / "points.las", out_dir, "point cloud (LAS)") +
-            "</p>";
-    for (const json& why : p.value("left_out", json::array()))
+            Link(dir / "ortho.tif", out_dir, "orthophoto") + Link(dir / "classes.tif", out_dir, "classes") +
+            Link(dir / "points.las", out_dir, "point cloud (LAS)") + "</p>";
+    json left_out = p.value("left_out", json::array());
+    if (p.contains("classes") && p["classes"].contains("left_out")) left_out.push_back(p["classes"]["left_out"]);
+    for (const json& why : left_out)
       html += "<p class=muted>Left out: " + HtmlEscape(why.get<std::string>()) + "</p>";
     if (truth.count(aoi)) {
       const json terrain = truth[aoi].value("terrain", json::object()), ortho = truth[aoi].value("ortho", json::object());
@@ -221,13 +234,16 @@ std::string ProductsSection(const CityReport& report, const fs::path& out_dir) {
               Cell(Number(terrain, "dtm_mae_ground_m", 2), true) + Cell(Number(terrain, "dtm_bias_ground_m", 2), true) +
               Cell(Number(terrain, "ndsm_mae_building_m", 2), true) +
               Cell(Number(terrain, "ndsm_bias_building_m", 2), true) + Cell(Number(ortho, "psnr_db", 2), true) +
-              Cell(Number(ortho, "ssim", 3), true) + Cell(Number(ortho, "ground_cells", 0), true) + "</tr></table>";
+              Cell(Number(ortho, "ssim", 3), true) + Cell(Number(ortho, "ground_cells", 0), true) + "</tr></table>" +
+              ClassesTable(truth[aoi]);
     }
     html += "<div class=pair>";
     const char* figures[][2] = {{"ortho.png", "Orthophoto (nadir render, no lean)"},
                                 {"dsm.png", "DSM (dark low, light high)"},
                                 {"views.png", "Views that see each cell (dark few)"},
-                                {"fill_rule.png", "How each cell got its height (codes in docs/outputs.md)"}};
+                                {"fill_rule.png", "How each cell got its height (codes in docs/outputs.md)"},
+                                {"classes.png", "Classes: ground (tan), building (red), vegetation (green), above "
+                                                "ground untold (violet)"}};
     for (const auto& [file, caption] : figures)
       if (fs::exists(previews / file))
         html += "<figure>" + EmbeddedPng(previews / file, aoi + " " + caption) + "<figcaption>" + caption +

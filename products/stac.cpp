@@ -265,8 +265,12 @@ json AoiAssets(const AoiCatalog& a, const StacCity& city, const fs::path& doc_di
             "height spread [m]", "");
   AddRaster(&assets, "ortho", aoi_dir / "ortho.tif", doc_dir, {"data", "visual"},
             "True orthophoto: nadir render of the scene, alpha where empty", "");
+  AddRaster(&assets, "classes", aoi_dir / "classes.tif", doc_dir, {"data"},
+            "Classes (ASPRS codes, in the file's CLASS_CODES): 2 ground, 5 high vegetation, 6 building, 1 above "
+            "ground not told apart", "");
   AddIfExists(&assets, "points", aoi_dir / "points.las", doc_dir, kLas, {"data"},
-              "Point cloud: the scene's Gaussians, LAS 1.4 format 7, ground class 2, CRS in its WKT record");
+              "Point cloud: the scene's Gaussians, LAS 1.4 format 7, classes 2 ground, 5 high vegetation, 6 "
+              "building, 1 other, CRS in its WKT record");
   if (fs::exists(compare / "error_map.tif")) {
     json error = FileAsset(compare / "error_map.tif", doc_dir, kGeoTiff, {"data"}, "DSM minus truth");
     AddRasterFields(compare / "error_map.tif", "m", &error);

@@ -125,7 +125,7 @@ out, size = sys.argv[1], int(sys.argv[2])
 COG_CHECK = "/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_cloud_optimized_geotiff.py"
 def cogs_valid(products):
     # How many of the AOI's rasters GDAL's own COG validator accepts, of how many.
-    paths = [products.get(k) for k in ("dsm", "dtm", "ndsm", "quality")] + [(products.get("ortho") or {}).get("path")]
+    paths = [products.get(k) for k in ("dsm", "dtm", "ndsm", "quality")] + [(products.get(k) or {}).get("path") for k in ("ortho", "classes")]
     paths = [p for p in paths if p and os.path.isfile(p)]
     ok = sum(subprocess.run(["/usr/bin/python3", COG_CHECK, "-q", p]).returncode == 0 for p in paths)
     return [ok, len(paths)]
@@ -214,6 +214,10 @@ for name in sorted(os.listdir(out)):
         # The synthetic city's exact orthophoto (skyfall synth's _ORTHO.tif), every cell.
         "ortho_truth_psnr_db": (d.get("ortho_truth") or {}).get("psnr_db"),
         "ortho_truth_ssim": (d.get("ortho_truth") or {}).get("ssim"),
+        # classes.tif against the truth's classes (ground, building, high vegetation).
+        "classes_accuracy": (d.get("land_cover") or {}).get("overall_accuracy"),
+        "building_iou": ((d.get("land_cover") or {}).get("building") or {}).get("iou"),
+        "vegetation_iou": ((d.get("land_cover") or {}).get("vegetation") or {}).get("iou"),
         "products_cogs_valid": cogs_valid((report.get("products") or [{}])[0]),
         "stac_valid": stac_valid(os.path.join(out, name, "run")),
         "tuned_on": name in tuned,
@@ -267,14 +271,16 @@ for s in scenes:
     lines.append(f"| {s['scene']} | " + " | ".join(cells) + " |")
 lines += ["", "The GIS products against the truth: the DTM on ground cells, the nDSM on buildings (the",
           "truth less the terrain model through its ground cells), the orthophoto against the input closest",
-          "to nadir on the ground it sees, and (synthetic scenes) against the exact orthophoto everywhere.", "",
-          "| scene | DTM MAE (ground) | nDSM MAE (buildings) | ortho PSNR | ortho SSIM | vs exact ortho: PSNR | SSIM | valid COGs | STAC valid |",
-          "|---|---|---|---|---|---|---|---|---|"]
+          "to nadir on the ground it sees, and (synthetic scenes) against the exact orthophoto everywhere;",
+          "classes.tif against the truth's classes (accuracy, IoU of buildings and of high vegetation).", "",
+          "| scene | DTM MAE (ground) | nDSM MAE (buildings) | ortho PSNR | ortho SSIM | vs exact ortho: PSNR | SSIM | classes accuracy | IoU building | IoU vegetation | valid COGs | STAC valid |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for s in scenes:
     cogs = s["products_cogs_valid"]
     lines.append(f"| {s['scene']} | {fmt(s['dtm_mae_ground_m'], suffix=' m')} | {fmt(s['ndsm_mae_building_m'], suffix=' m')} | "
                  f"{fmt(s['ortho_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_ssim'], 3)} | "
                  f"{fmt(s['ortho_truth_psnr_db'], 1, 1, ' dB')} | {fmt(s['ortho_truth_ssim'], 3)} | "
+                 f"{fmt(s['classes_accuracy'], 3)} | {fmt(s['building_iou'], 3)} | {fmt(s['vegetation_iou'], 3)} | "
                  f"{cogs[0]}/{cogs[1]} | {'yes' if s['stac_valid'] else 'no'} |")
 described = [s for s in scenes if s["synth_options"]]
 if described:
