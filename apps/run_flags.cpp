@@ -19,7 +19,8 @@ CLI::Option* RunFlags::Add(const std::string& name, const std::string& path) {
   const OptionDescription d = DescribeRunOption(path);
   auto value = std::make_shared<std::string>();
   const std::string unit = d.unit.empty() ? "" : " [" + d.unit + "]";
-  CLI::Option* option = cmd_->add_option(name, *value, d.help + unit + " (" + path + ")");
+  const std::string range = d.range.Declared() ? ", " + d.range.Text() : "";
+  CLI::Option* option = cmd_->add_option(name, *value, d.help + unit + " (" + path + range + ")");
   const bool quoted = d.default_json.size() >= 2 && d.default_json.front() == '"';
   option->default_str(quoted ? d.default_json.substr(1, d.default_json.size() - 2) : d.default_json);
   option->type_name(d.type == "integer" ? "INT" : d.type == "number" ? "FLOAT" : "TEXT");

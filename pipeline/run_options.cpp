@@ -1,6 +1,8 @@
 #include "pipeline/run_options.h"
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <new>
@@ -31,7 +33,7 @@ class Writer {
  public:
   explicit Writer(json* out) : out_(out) {}
   template <class T>
-  void operator()(const char* key, const T& value, const char* /*help*/ = nullptr) {
+  void operator()(const char* key, const T& value, const char* /*help*/ = nullptr, const OptionRange& = {}) {
     if constexpr (std::is_same_v<T, Eigen::Vector3d>) {
       (*out_)[key] = {value.x(), value.y(), value.z()};
     } else if constexpr (std::is_enum_v<T>) {
@@ -62,7 +64,7 @@ class Reader {
     if (!in_.is_object()) Fail(path_.empty() ? "the document" : path_, "must be a JSON object");
   }
   template <class T>
-  void operator()(const char* key, T& value, const char* /*help*/ = nullptr) {
+  void operator()(const char* key, T& value, const char* /*help*/ = nullptr, const OptionRange& = {}) {
     seen_.insert(key);
     const auto it = in_.find(key);
     if (it == in_.end()) return;
@@ -128,7 +130,7 @@ class Coverage {
   Coverage(const unsigned char* base, std::vector<bool>* claimed, std::vector<std::string>* owner, std::string path)
       : base_(base), claimed_(claimed), owner_(owner), path_(std::move(path)) {}
   template <class T>
-  void operator()(const char* key, T& value, const char* /*help*/ = nullptr) {
+  void operator()(const char* key, T& value, const char* /*help*/ = nullptr, const OptionRange& = {}) {
     const std::string path = path_.empty() ? key : path_ + "." + key;
     if constexpr (kIsLeaf<T>) {
       Claim(value);
@@ -168,7 +170,7 @@ class Describer {
  public:
   Describer(std::vector<OptionDescription>* rows, std::string path) : rows_(rows), path_(std::move(path)) {}
   template <class T>
-  void operator()(const char* key, T& value, const char* help = nullptr) {
+  void operator()(const char* key, T& value, const char* help = nullptr, const OptionRange& range = {}) {
     const std::string path = path_.empty() ? key : path_ + "." + key;
     if constexpr (kIsLeaf<T>) {
       json holder = json::object();
@@ -176,7 +178,7 @@ class Describer {
       w(key, value);
       std::vector<std::string> choices;
       if constexpr (std::is_enum_v<T>) choices = EnumNameList<T>();
-      rows_->push_back({path, TypeName<T>(), holder[key].dump(), UnitOfKey(key), help ? help : "", choices});
+      rows_->push_back({path, TypeName<T>(), holder[key].dump(), UnitOfKey(key), help ? help : "", choices, range});
     } else {
       Describer inner(rows_, path);
       Visit(inner, value);
@@ -196,6 +198,33 @@ class Describer {
     else return "3 numbers";
   }
   std::vector<OptionDescription>* rows_;
+  std::string path_;
+};
+
+// Every numeric value against the range the registry declares for it.
+class RangeChecker {
+ public:
+  explicit RangeChecker(std::string path) : path_(std::move(path)) {}
+  template <class T>
+  void operator()(const char* key, T& value, const char* /*help*/ = nullptr, const OptionRange& range = {}) {
+    const std::string path = path_.empty() ? key : path_ + "." + key;
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      Need(path, static_cast<double>(value), range);
+    } else if constexpr (std::is_same_v<T, Eigen::Vector3d>) {
+      for (int k = 0; k < 3; ++k) Need(path + "[" + std::to_string(k) + "]", value[k], range);
+    } else if constexpr (!kIsLeaf<T>) {
+      RangeChecker inner(path);
+      Visit(inner, value);
+    }
+  }
+  template <class T>
+  void NotAnOption(const T&) {}
+
+ private:
+  static void Need(const std::string& path, double value, const OptionRange& range) {
+    if (range.Declared() && !range.Contains(value))
+      throw Error("run options", path, FormatDouble(value) + " must be " + range.Text());
+  }
   std::string path_;
 };
 
@@ -321,6 +350,8 @@ void ProductOptions::Check() const {
 }
 
 void RunOptions::Check() const {
+  RangeChecker ranges("");
+  Visit(ranges, const_cast<RunOptions&>(*this));
   CheckSection("ingest", [&] { ingest.Check(); });
   CheckSection("tiling", [&] { tiling.Check(); });
   CheckSection("sfm", [&] { sfm.Check(); });
@@ -408,6 +439,74 @@ std::string UnitOfKey(const std::string& key) {
   return "";
 }
 
+bool OptionRange::Declared() const {
+  return std::isfinite(min) || std::isfinite(max) || !values.empty() || odd;
+}
+
+bool OptionRange::Contains(double v) const {
+  if (!std::isfinite(v)) return false;
+  if (also && v == *also) return true;
+  if (!values.empty()) return std::find(values.begin(), values.end(), v) != values.end();
+  if (odd && std::fmod(std::abs(v), 2.0) != 1.0) return false;
+  return (min_open ? v > min : v >= min) && (max_open ? v < max : v <= max);
+}
+
+std::string OptionRange::Text() const {
+  std::string text;
+  if (!values.empty()) {
+    for (std::size_t k = 0; k < values.size(); ++k)
+      text += (k == 0 ? "" : k + 1 == values.size() ? " or " : ", ") + FormatDouble(values[k]);
+    return text;
+  }
+  if (odd) text = "odd, ";
+  if (std::isfinite(min) && std::isfinite(max)) {
+    text += "in " + std::string(min_open ? "(" : "[") + FormatDouble(min) + ", " + FormatDouble(max) +
+            (max_open ? ")" : "]");
+  } else if (std::isfinite(min)) {
+    text += (min_open ? "> " : ">= ") + FormatDouble(min);
+  } else if (std::isfinite(max)) {
+    text += (max_open ? "< " : "<= ") + FormatDouble(max);
+  } else {
+    text += "finite";
+  }
+  if (also) text += ", or " + FormatDouble(*also) + (also_means.empty() ? "" : " (" + also_means + ")");
+  return text;
+}
+
+namespace range {
+namespace {
+OptionRange Interval(double min, bool min_open, double max, bool max_open) {
+  OptionRange r;
+  r.min = min;
+  r.max = max;
+  r.min_open = min_open;
+  r.max_open = max_open;
+  return r;
+}
+}  // namespace
+constexpr double kInf = std::numeric_limits<double>::infinity();
+OptionRange AtLeast(double min) { return Interval(min, false, kInf, false); }
+OptionRange Above(double min) { return Interval(min, true, kInf, false); }
+OptionRange In(double min, double max) { return Interval(min, false, max, false); }
+OptionRange Inside(double min, double max) { return Interval(min, true, max, true); }
+OptionRange AboveUpTo(double min, double max) { return Interval(min, true, max, false); }
+OptionRange FromBelow(double min, double max) { return Interval(min, false, max, true); }
+OptionRange OneOf(std::vector<double> values) {
+  OptionRange r;
+  r.values = std::move(values);
+  return r;
+}
+OptionRange Odd(OptionRange r) {
+  r.odd = true;
+  return r;
+}
+OptionRange Or(OptionRange r, double also, const char* means) {
+  r.also = also;
+  r.also_means = means;
+  return r;
+}
+}  // namespace range
+
 std::vector<OptionDescription> DescribeRunOptions() {
   std::vector<OptionDescription> rows;
   RunOptions defaults;
@@ -429,7 +528,7 @@ std::string RunOptionsReferenceMarkdown() {
     if (top != section) {
       section = top;
       out += (out.empty() ? "" : "\n") + std::string("#### `") + section + "`\n\n" +
-             "| option | type | default | unit | meaning |\n|---|---|---|---|---|\n";
+             "| option | type | default | unit | range | meaning |\n|---|---|---|---|---|---|\n";
     }
     std::string help = row.help;
     for (std::size_t at = help.find('|'); at != std::string::npos; at = help.find('|', at + 2)) help.replace(at, 1, "\\|");
@@ -438,7 +537,9 @@ std::string RunOptionsReferenceMarkdown() {
       type = "one of ";
       for (std::size_t k = 0; k < row.choices.size(); ++k) type += (k ? ", `" : "`") + row.choices[k] + "`";
     }
-    out += "| `" + row.path + "` | " + type + " | `" + row.default_json + "` | " + row.unit + " | " + help + " |\n";
+    const std::string range = row.range.Declared() ? row.range.Text() : "";
+    out += "| `" + row.path + "` | " + type + " | `" + row.default_json + "` | " + row.unit + " | " + range + " | " +
+           help + " |\n";
   }
   return out;
 }

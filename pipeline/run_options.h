@@ -7,6 +7,8 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -230,9 +232,41 @@ std::string DenseOptionsJson(const DenseOptions& options);
 std::string IduEpisodesJson(const RunOptions& options);
 std::string SfmOptionsJson(const SfmOptions& options);
 
+// The values a numeric option takes, declared with it in the registry: an
+// interval whose ends may be open, or a set of values; optionally one more
+// value outside the interval (0 = automatic) and odd integers only. A
+// ranged value must also be finite. RunOptions::Check() checks every value
+// against its range, naming the option's dotted path, before the sections'
+// own checks (which keep what involves two fields).
+struct OptionRange {
+  double min = -std::numeric_limits<double>::infinity();
+  double max = std::numeric_limits<double>::infinity();
+  bool min_open = false, max_open = false;
+  std::vector<double> values;  // when not empty: exactly one of these
+  std::optional<double> also;  // accepted besides the interval
+  std::string also_means;      // what `also` stands for, e.g. "automatic"
+  bool odd = false;
+  bool Declared() const;  // false for the default: any value
+  bool Contains(double value) const;
+  std::string Text() const;  // ">= 1", "in (0, 1]", "8 or 16", "odd, >= 3", ">= 16, or 0 (automatic)"
+};
+// Ranges as the registry writes them.
+namespace range {
+OptionRange AtLeast(double min);                // [min, inf)
+OptionRange Above(double min);                  // (min, inf)
+OptionRange In(double min, double max);         // [min, max]
+OptionRange Inside(double min, double max);     // (min, max)
+OptionRange AboveUpTo(double min, double max);  // (min, max]
+OptionRange FromBelow(double min, double max);  // [min, max)
+OptionRange OneOf(std::vector<double> values);
+OptionRange Odd(OptionRange r);
+OptionRange Or(OptionRange r, double also, const char* means);
+}  // namespace range
+
 // The option registry (option_registry.h): every field of RunOptions, listed
-// once with its help; the JSON form, --set, --print-config, the flags of
-// `skyfall run` and the reference tables of docs/cli.md all come from it.
+// once with its help and range; the JSON form, --set, --print-config, the
+// flags of `skyfall run`, the range checks and the reference tables of
+// docs/cli.md all come from it.
 struct OptionDescription {
   std::string path;          // dotted, as --set takes it: "dense.sgm_p2"
   std::string type;          // bool, integer, number, string, 3 numbers
@@ -240,6 +274,7 @@ struct OptionDescription {
   std::string unit;          // from the name's suffix ("m" for *_m), empty when none
   std::string help;
   std::vector<std::string> choices;  // a mode's names; empty for other options
+  OptionRange range;                 // numbers and integers (each of 3 numbers); undeclared for the rest
 };
 std::vector<OptionDescription> DescribeRunOptions();
 // The description of one option; throws Error naming `path` when there is none.

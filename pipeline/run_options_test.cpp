@@ -5,11 +5,16 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <new>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/format.h"
 
 namespace skyfall {
 namespace {
@@ -213,6 +218,116 @@ TEST(OptionRegistry, EveryListedOptionIsReachableBySetAndKeepsItsDefault) {
     EXPECT_EQ(DescribeRunOption(row.path).default_json, row.default_json);
   }
   EXPECT_NE(ErrorOf([] { DescribeRunOption("dense.no_such_field"); }).find("dense.no_such_field"), std::string::npos);
+}
+
+// Numbers the registry gives no range: any value is meaningful.
+const std::set<std::string> kUnrangedNumbers = {"train.seed", "idu.seed"};
+// Options whose own checks also compare them with another option: an end
+// can be refused with the other at its default, so their ends are not
+// tried for acceptance (values outside still are).
+const std::set<std::string> kCrossChecked = {
+    "ingest.radiometry.low_percentile", "ingest.radiometry.high_percentile", "sfm.features.stretch_low",
+    "sfm.features.stretch_high", "tiling.overlap_m", "dense.min_pair_angle_deg", "dense.sgm_p1",
+    "dense.fill_radius_m", "train.raster.min_alpha", "train.raster.max_alpha", "dense.max_pair_angle_deg",
+    "dense.sgm_p2", "dense.max_fill_reach_m"};
+
+TEST(OptionRegistry, EveryNumberHasARange) {
+  for (const OptionDescription& row : DescribeRunOptions()) {
+    const bool numeric = row.type == "integer" || row.type == "number" || row.type == "3 numbers";
+    if (numeric && !kUnrangedNumbers.count(row.path)) EXPECT_TRUE(row.range.Declared()) << row.path;
+    if (!numeric) EXPECT_FALSE(row.range.Declared()) << row.path;
+  }
+}
+
+// The value `v` as --set takes it for the option (each of 3 numbers alike).
+std::string Assignment(const OptionDescription& row, double v) {
+  const std::string text = row.type == "integer" ? std::to_string(static_cast<long long>(v)) : FormatDouble(v);
+  return row.path + "=" + (row.type == "3 numbers" ? "[" + text + "," + text + "," + text + "]" : text);
+}
+
+// Values just inside and just outside each end of a range.
+struct RangeProbe {
+  std::vector<double> inside, outside;
+};
+RangeProbe Probe(const OptionRange& r, bool integer) {
+  RangeProbe p;
+  auto step = [&](double end) { return integer ? 1.0 : std::max(1e-9, 1e-6 * std::max(1.0, std::abs(end))); };
+  if (!r.values.empty()) {
+    p.inside = r.values;
+    p.outside = {*std::min_element(r.values.begin(), r.values.end()) - 1,
+                 *std::max_element(r.values.begin(), r.values.end()) + 1};
+    return p;
+  }
+  auto odd = [&](double v, double towards) { return r.odd && std::fmod(std::abs(v), 2.0) != 1.0 ? v + towards : v; };
+  if (std::isfinite(r.min)) {
+    p.inside.push_back(odd(r.min_open ? r.min + step(r.min) : r.min, 1));
+    p.outside.push_back(r.min_open ? r.min : r.min - step(r.min));
+  }
+  if (std::isfinite(r.max)) {
+    p.inside.push_back(odd(r.max_open ? r.max - step(r.max) : r.max, -1));
+    p.outside.push_back(r.max_open ? r.max : r.max + step(r.max));
+  }
+  if (r.odd) p.outside.push_back(p.inside.front() + 1);
+  if (r.also) {
+    p.inside.push_back(*r.also);
+    for (double& v : p.outside)
+      if (v == *r.also) v -= step(v);  // the extra value is allowed: go one step further
+  }
+  return p;
+}
+
+// The declared ranges are what the run accepts: a value just outside an
+// end is refused, naming the option, before any stage runs; an end itself
+// (or the nearest value inside an open one) passes every check, the
+// stages' own included, so no stage is stricter than what the
+// documentation says.
+TEST(OptionRegistry, EveryRangeIsWhatTheRunAccepts) {
+  int probed = 0;
+  for (const OptionDescription& row : DescribeRunOptions()) {
+    if (!row.range.Declared()) continue;
+    const RangeProbe p = Probe(row.range, row.type == "integer");
+    for (double v : p.outside) {
+      RunOptions o;
+      const std::string why = ErrorOf([&] {
+        SetRunOption(&o, Assignment(row, v));
+        o.Check();
+      });
+      EXPECT_NE(why.find(row.path), std::string::npos) << Assignment(row, v) << ": " << why;
+      ++probed;
+    }
+    if (kCrossChecked.count(row.path)) continue;
+    for (double v : p.inside) {
+      RunOptions o;
+      const std::string why = ErrorOf([&] {
+        SetRunOption(&o, Assignment(row, v));
+        o.Check();
+      });
+      EXPECT_EQ(why, "") << Assignment(row, v) << " is within " << row.range.Text();
+      ++probed;
+    }
+  }
+  EXPECT_GT(probed, 400);
+}
+
+TEST(OptionRegistry, RangesReadAsTheyAreMeant) {
+  EXPECT_EQ(range::AtLeast(1).Text(), ">= 1");
+  EXPECT_EQ(range::Above(0).Text(), "> 0");
+  EXPECT_EQ(range::AboveUpTo(0, 1).Text(), "in (0, 1]");
+  EXPECT_EQ(range::OneOf({8, 16}).Text(), "8 or 16");
+  EXPECT_EQ(range::Odd(range::AtLeast(3)).Text(), "odd, >= 3");
+  EXPECT_EQ(range::Or(range::AtLeast(16), 0, "automatic").Text(), ">= 16, or 0 (automatic)");
+  EXPECT_FALSE(range::AtLeast(0).Contains(std::numeric_limits<double>::infinity()));
+  EXPECT_FALSE(range::AtLeast(0).Contains(std::numeric_limits<double>::quiet_NaN()));
+  EXPECT_FALSE(range::Odd(range::AtLeast(3)).Contains(4));
+  EXPECT_TRUE(range::Odd(range::AtLeast(3)).Contains(5));
+  EXPECT_FALSE(OptionRange{}.Declared());
+  const std::string why = ErrorOf([] {
+    RunOptions o;
+    SetRunOption(&o, "sfm.pinhole.grid_cols=2");
+    o.Check();
+  });
+  EXPECT_NE(why.find("sfm.pinhole.grid_cols"), std::string::npos) << why;
+  EXPECT_NE(why.find(">= 3"), std::string::npos) << why;
 }
 
 TEST(OptionRegistry, EveryOptionSaysWhatItDoes) {
