@@ -471,7 +471,7 @@ MosaicLayers EmptyMosaic(const DsmGrid& grid, const ProductOptions& po) {
   m.dsm.height_m.assign(static_cast<std::size_t>(grid.width_px) * grid.height_px, kNanF);
   m.dsm.reference = HeightReference::kEllipsoid;  // RasterizeDsm's and SampleDenseLayers' heights
   const std::size_t n = m.dsm.height_m.size();
-  if (po.ortho) m.rgb.assign(3 * n, kNanF);
+  if (po.ortho || po.classes) m.rgb.assign(3 * n, kNanF);
   m.dense.dtm = m.dsm;
   m.dense.views.assign(n, kNanF);
   m.dense.fill_rule.assign(n, kNanF);
@@ -499,11 +499,12 @@ MosaicLayers RenderMosaic(const RunOptions& options, const DsmGrid& grid, const 
       PasteBlock(GaussianHeightSpreadM(part, enu_origin, b.grid, po.min_opacity), b.grid, b.col0, b.row0, 1, grid,
                  &m.spread_m);
   };
-  RasterizeDsmInBlocks(read, enu_origin, options.dsm.export_options, &m.dsm, po.ortho ? &m.rgb : nullptr, layers);
+  RasterizeDsmInBlocks(read, enu_origin, options.dsm.export_options, &m.dsm,
+                       po.ortho || po.classes ? &m.rgb : nullptr, layers);
   return m;
 }
 
-// ortho_city.tif, dtm_city.tif and quality_city.tif over all of a city's
+// ortho_city.tif, dtm_city.tif, quality_city.tif and classes_city.tif over all of a city's
 // AOIs, like scene/dsm_city.tif; a city of one AOI has its AOI's.
 json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& surface_path,
                       const GeodeticPoint& enu_origin, const std::vector<std::string>& tile_dirs,
@@ -528,6 +529,13 @@ json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& 
     const std::string path = (city_dir / "quality_city.tif").string();
     WriteQualityCog(path, m.dsm, m.dense, m.spread_m);
     files["quality"] = path;
+  }
+  if (po.classes) {
+    // One threshold for the whole city: its objects' median colour.
+    const std::string path = (city_dir / "classes_city.tif").string();
+    const LandCoverMap map = ClassifyLandCover(m.dsm, m.dense.dtm, m.rgb, !Panchromatic(aois.front()), po.land_cover);
+    WriteLandCoverCog(path, m.dsm, map, {{"LAND_COVER_RULE", "as each AOI's classes.tif, with the city's threshold"}});
+    files["classes"] = path;
   }
   return files;
 }

@@ -174,7 +174,7 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   // The city's mosaics span both AOIs and agree with each AOI's own layer
   // where they overlap: both are sampled from the same cells on grids that
   // share their pixel edges.
-  for (const char* name : {"ortho_city.tif", "dtm_city.tif", "quality_city.tif"})
+  for (const char* name : {"ortho_city.tif", "dtm_city.tif", "quality_city.tif", "classes_city.tif"})
     EXPECT_TRUE(fs::exists(city_dir / name)) << name;
   const DsmGrid city_dtm = ReadDsm((city_dir / "dtm_city.tif").string());
   EXPECT_EQ(city_dtm.width_px, 2 * 96 * 2);  // 192 m at 0.5 m
