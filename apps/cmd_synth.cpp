@@ -64,6 +64,10 @@ void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::
                   "one pass (ZY-3: --views 3 --views-per-date 3 --along-track-deg 22) [deg]")
       ->capture_default_str();
   drawn_option("--date-contrast", opts->date_contrast, "Radiometric change between dates (1 default, 3 strong)");
+  cmd->add_option("--haze", opts->haze,
+                  "Atmospheric haze: the share of each pixel's light that is path radiance, lowering contrast and "
+                  "colour (0 clear; 0.7 as grey as the DFC2019 crops' trees) [0, 0.9]")
+      ->capture_default_str();
 }
 
 int RunSynthCommand(SynthArgs& a) {

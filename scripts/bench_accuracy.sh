@@ -51,7 +51,9 @@ mkdir -p "$OUT"
 # The rows after syn_multidate are the real-sensor defect classes: a second
 # real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
 # mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair,
-# and a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km).
+# a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km), and
+# hazy imagery (path radiance 0.7: crowns barely greener than roofs, as in the
+# DFC2019 crops, and a third of the contrast).
 SCENES=(
   "jax068|true|dfc2019"
   "syn_default|true|"
@@ -68,6 +70,7 @@ SCENES=(
   "syn_biased|false|--rpc-bias-px 3 --rpc-bias-rotation-deg 0.01"
   "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
   "syn_zy3|false|--size-m 1512 --gsd-m 2.1 --views 3 --views-per-date 3 --along-track-deg 22"
+  "syn_haze|false|--haze 0.7"
 )
 if ! [[ "$DRAW" =~ ^[0-9]+$ && "$DRAW_FROM" =~ ^[1-9][0-9]*$ ]]; then
   echo "bench_accuracy: --draw needs a count >= 0 and --draw-from a number >= 1, got '$DRAW' and '$DRAW_FROM'" >&2
@@ -285,14 +288,14 @@ for s in scenes:
 described = [s for s in scenes if s["synth_options"]]
 if described:
     lines += ["", "The synthetic scenes' options (`skyfall synth`; drawn scenes: `--draw K`):", "",
-              "| scene | seed | lat, lon | off-nadir | views (per date) | bands x bits | relief | tallest | date contrast | ground (ellipsoidal) | RPC bias |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| scene | seed | lat, lon | off-nadir | views (per date) | bands x bits | relief | tallest | date contrast | haze | ground (ellipsoidal) | RPC bias |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in described:
         o = s["synth_options"]
         lines.append(f"| {s['scene']} | {o['seed']} | {o['lat_deg']:g}, {o['lon_deg']:g} | "
                      f"{o['min_off_nadir_deg']:g}-{o['max_off_nadir_deg']:g} deg | {o['views']} ({o['views_per_date']}) | "
                      f"{o['bands']} x {o['bit_depth']} | {o['relief_m']:g} m | {o['max_building_m']:g} m | "
-                     f"{o['date_contrast']:g} | {o.get('ground_height_m', -20):g} m | "
+                     f"{o['date_contrast']:g} | {o.get('haze', 0):g} | {o.get('ground_height_m', -20):g} m | "
                      f"{o.get('rpc_bias_px', 0):g} px, {o.get('rpc_bias_rotation_deg', 0):g} deg |")
 open(os.path.join(out, "bench_accuracy.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))

@@ -401,11 +401,15 @@ Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int
   return hit;
 }
 
-// A sensor's 8-bit value of a colour channel: tint, gain, and +-1 DN of
-// noise unless `noise` is off.
+// The colour of haze's path radiance (a bright sky's blue-grey).
+constexpr float kHazeColour[3] = {0.55f, 0.58f, 0.64f};
+
+// A sensor's 8-bit value of a colour channel: haze, tint, gain, and +-1 DN
+// of noise unless `noise` is off.
 std::uint8_t SensorValue(const Lighting& lighting, float colour, int channel, std::size_t pixel, bool noise) {
   const float dn = noise ? (Hash01(lighting.noise_seed + channel, pixel) - 0.5f) * 2.0f : 0.0f;
-  const float v = colour * lighting.tint[channel] * lighting.gain * 255.0f + dn;
+  const float seen = colour * (1.0f - lighting.haze) + lighting.haze * kHazeColour[channel];
+  const float v = seen * lighting.tint[channel] * lighting.gain * 255.0f + dn;
   return static_cast<std::uint8_t>(std::min(255.0f, std::max(0.0f, v) + 0.5f));
 }
 

@@ -40,6 +40,11 @@ struct Lighting {
   float ambient = 0.35f;                                  // sky light share
   float gain = 1.0f;                                      // sensor gain of the date
   Eigen::Vector3f tint = Eigen::Vector3f::Ones();         // atmosphere colour cast
+  // Path radiance: the share of each pixel's light that the haze between
+  // the ground and the sensor adds, the same bright blue-grey everywhere.
+  // It lowers contrast and pulls every colour towards grey, as a hazy
+  // satellite image's crowns are barely greener than its roofs.
+  float haze = 0.0f;
   std::uint64_t noise_seed = 0;                           // sensor noise pattern
   bool cast_shadows = true;                               // off only to test shadowing
   // A detector integrates the light over its pixel. Point-sampled at the

@@ -42,6 +42,7 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"max_building_m", o.max_building_m},
           {"relief_m", o.relief_m},
           {"date_contrast", o.date_contrast},
+          {"haze", o.haze},
           {"rpc_height_offset_m", o.rpc_height_offset_m},
           {"ground_height_m", o.ground_height_m},
           {"rpc_bias_px", o.rpc_bias_px},
@@ -399,6 +400,7 @@ void SynthOptions::Check() const {
   need(max_building_m >= 6 && max_building_m <= 600, "max_building_m", FormatDouble(max_building_m), "must be 6..600 m");
   need(relief_m >= 0 && relief_m <= 1000, "relief_m", FormatDouble(relief_m), "must be 0..1000 m");
   need(date_contrast >= 0 && date_contrast <= 4, "date_contrast", FormatDouble(date_contrast), "must be 0..4");
+  need(haze >= 0 && haze <= 0.9, "haze", FormatDouble(haze), "must be 0..0.9");
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
        FormatDouble(orbit_height_m), "must be 200..2000 km");
@@ -483,6 +485,7 @@ Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx
   light.tint = Eigen::Vector3f(1.0f + static_cast<float>(s * 0.05 * (Frac(date * 0.31) - 0.5)), 1.0f,
                                1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
   light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
+  light.haze = static_cast<float>(o.haze);
   return light;
 }
 

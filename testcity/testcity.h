@@ -42,6 +42,10 @@ struct SynthOptions {
   // Strength of the radiometric change between dates (sun gain and colour
   // tint); 1 is the default variety, 3 a strong one (gain 0.64-1.36).
   double date_contrast = 1.0;
+  // Atmospheric haze: the share of each pixel's light that is path radiance
+  // (0 clear; 0.7 leaves crowns about as little greener than roofs as in
+  // the DFC2019 WorldView-3 crops) [0, 0.9].
+  double haze = 0.0;
   // Shifts the RPCs' height normalization: the fit domain reaches this far
   // above (or below) the scene, so HEIGHT_OFF lies far from the ground, as in
   // a vendor RPC of a whole mountain scene seen from a valley AOI [m].

@@ -352,6 +352,60 @@ TEST(Synth, PixelsAverageOverTheirAreaSoRoofTilesDoNotAliasBetweenViews) {
   EXPECT_LT(point_sampled, integrated - 0.3) << "point sampling no longer aliases: is the test still testing?";
 }
 
+// Haze adds the same path radiance to every pixel: the crowns' excess
+// green falls towards a hazy WorldView-3 crop's (DFC2019's trees: about
+// 0.04), and the image's contrast falls by the clear share of the light.
+TEST(Synth, HazePullsColoursTowardsGreyAndLowersContrast) {
+  CityOptions co;
+  co.margin_m = 8;
+  const City city = GenerateCity(co);
+  constexpr double kGsdM = 0.5;
+  constexpr int kPx = 512;  // the city's 256 m
+  auto render = [&](float haze) {
+    Lighting light;
+    light.haze = haze;
+    return RenderOrtho(city, light, 0.0, co.height_m, kGsdM, kPx, kPx);
+  };
+  const std::vector<std::uint8_t> clear = render(0.0f), hazy = render(0.7f);
+  auto tree_green = [&](const std::vector<std::uint8_t>& rgb) {
+    double sum = 0;
+    int n = 0;
+    for (int row = 0; row < kPx; ++row)
+      for (int col = 0; col < kPx; ++col) {
+        const Eigen::Vector2i c = city.CellOf((col + 0.5) * kGsdM, co.height_m - (row + 0.5) * kGsdM);
+        if (!city.Inside(c.x(), c.y()) || city.material[city.Index(c.x(), c.y())] != Material::kTree) continue;
+        const std::size_t p = 3 * (static_cast<std::size_t>(row) * kPx + col);
+        const double r = rgb[p], g = rgb[p + 1], b = rgb[p + 2];
+        if (r + g + b > 0) sum += (2 * g - r - b) / (r + g + b), ++n;
+      }
+    EXPECT_GT(n, 50);
+    return sum / n;
+  };
+  auto spread = [](const std::vector<std::uint8_t>& rgb) {  // of the pixels' grey levels
+    double s = 0, s2 = 0;
+    const std::size_t n = rgb.size() / 3;
+    for (std::size_t p = 0; p < n; ++p) {
+      const double grey = rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2];
+      s += grey, s2 += grey * grey;
+    }
+    return std::sqrt(s2 / n - (s / n) * (s / n));
+  };
+  const double green_clear = tree_green(clear), green_hazy = tree_green(hazy);
+  EXPECT_GT(green_clear, 0.3);
+  EXPECT_LT(green_hazy, 0.12);
+  EXPECT_GT(green_hazy, 0.0);
+  // Path radiance is an offset: the spread scales by the clear share, 0.3,
+  // up to the 8-bit rounding.
+  EXPECT_NEAR(spread(hazy) / spread(clear), 0.3, 0.02);
+  EXPECT_THROW(
+      [] {
+        SynthOptions o;
+        o.haze = 0.95;
+        o.Check();
+      }(),
+      Error);
+}
+
 TEST(Synth, HillsAreSmoothTerrainWithoutStairsOrStripesOfShadow) {
   // 100 m of relief: slopes up to 31%. As flat-topped 0.25 m columns a
   // hill would be stairs of 7.5 cm risers whose shadows stripe the slopes.
