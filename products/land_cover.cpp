@@ -21,28 +21,35 @@ constexpr double kMinBrightness = 1e-3;
 
 std::uint8_t Code(LandCover c) { return static_cast<std::uint8_t>(c); }
 
-// Sums of a mask over a box of half side `r` at every cell (summed-area
-// table), so the vote takes O(1) per cell whatever the radius.
-class BoxSums {
+// Counts of a mask over a box of half side `r` around each cell, clipped at
+// the grid's edges: a row pass into 16-bit counts, then columns summed on
+// the fly, so memory is 2 bytes a cell whatever the radius.
+class WindowCounts {
  public:
-  BoxSums(const std::vector<std::uint8_t>& mask, int nx, int ny)
-      : nx_(nx), ny_(ny), sums_(static_cast<std::size_t>(nx + 1) * (ny + 1), 0) {
-    for (int row = 0; row < ny; ++row)
-      for (int col = 0; col < nx; ++col)
-        At(col + 1, row + 1) = mask[static_cast<std::size_t>(row) * nx + col] + At(col, row + 1) + At(col + 1, row) -
-                               At(col, row);
+  WindowCounts(const std::vector<std::uint8_t>& mask, int nx, int ny, int r)
+      : nx_(nx), ny_(ny), r_(r), rows_(mask.size(), 0) {
+    for (int row = 0; row < ny; ++row) {
+      const std::uint8_t* in = &mask[static_cast<std::size_t>(row) * nx];
+      std::uint16_t* out = &rows_[static_cast<std::size_t>(row) * nx];
+      int count = 0;
+      for (int col = 0; col < std::min(r, nx); ++col) count += in[col];
+      for (int col = 0; col < nx; ++col) {
+        if (col + r < nx) count += in[col + r];
+        if (col - r - 1 >= 0) count -= in[col - r - 1];
+        out[col] = static_cast<std::uint16_t>(count);
+      }
+    }
   }
-  std::int64_t Sum(int col, int row, int r) const {
-    const int c0 = std::max(col - r, 0), c1 = std::min(col + r + 1, nx_);
-    const int r0 = std::max(row - r, 0), r1 = std::min(row + r + 1, ny_);
-    return Get(c1, r1) - Get(c0, r1) - Get(c1, r0) + Get(c0, r0);
+  int At(int col, int row) const {
+    int count = 0;
+    for (int q = std::max(row - r_, 0); q <= std::min(row + r_, ny_ - 1); ++q)
+      count += rows_[static_cast<std::size_t>(q) * nx_ + col];
+    return count;
   }
 
  private:
-  std::int64_t& At(int col, int row) { return sums_[static_cast<std::size_t>(row) * (nx_ + 1) + col]; }
-  std::int64_t Get(int col, int row) const { return sums_[static_cast<std::size_t>(row) * (nx_ + 1) + col]; }
-  int nx_, ny_;
-  std::vector<std::int64_t> sums_;
+  int nx_, ny_, r_;
+  std::vector<std::uint16_t> rows_;
 };
 
 // The threshold of the vegetation vote: the objects' median excess green
@@ -166,13 +173,13 @@ LandCoverMap ClassifyLandCover(const DsmGrid& dsm, const DsmGrid& dtm, const std
     vote[p] = object[p] && green[p] > map.green_threshold && rough_m[p] > options.min_roughness_m;
   // A majority of the object cells around decides, so that a roof's rough
   // rim or a lone green pixel does not flip a cell.
-  const BoxSums votes(vote, nx, ny), objects(object, nx, ny);
   const int vote_px = static_cast<int>(std::lround(options.vote_radius_m / dsm.gsd_m));
+  const WindowCounts votes(vote, nx, ny, vote_px), objects(object, nx, ny, vote_px);
   for (int row = 0; row < ny; ++row)
     for (int col = 0; col < nx; ++col) {
       const std::size_t p = static_cast<std::size_t>(row) * nx + col;
       if (!object[p]) continue;
-      const bool vegetation = 2 * votes.Sum(col, row, vote_px) > objects.Sum(col, row, vote_px);
+      const bool vegetation = 2 * votes.At(col, row) > objects.At(col, row);
       map.classes[p] = Code(vegetation ? LandCover::kHighVegetation : LandCover::kBuilding);
     }
   Count(&map);
