@@ -428,6 +428,12 @@ std::string IduEpisodesJson(const RunOptions& o) {
 
 std::string SfmOptionsJson(const SfmOptions& options) { return ToJson(options).dump(); }
 
+std::string TrainCheckpointJson(const TrainStageOptions& options) {
+  json train = ToJson(options);
+  for (const char* when : {"checkpoint_interval", "eval_interval", "keep_snapshots"}) train.erase(when);
+  return train.dump();
+}
+
 std::string UnitOfKey(const std::string& key) {
   static const std::pair<const char*, const char*> kSuffixes[] = {
       {"_m2", "m²"}, {"_px2", "px²"}, {"_m", "m"}, {"_px", "px"}, {"_deg", "deg"}, {"_s", "s"},

@@ -231,6 +231,10 @@ std::string DenseOptionsJson(const DenseOptions& options);
 // only under the same value.
 std::string IduEpisodesJson(const RunOptions& options);
 std::string SfmOptionsJson(const SfmOptions& options);
+// What a training checkpoint depends on: every training option except those
+// that only say when to checkpoint, evaluate or keep snapshots. A checkpoint
+// written under other values is set aside, not resumed.
+std::string TrainCheckpointJson(const TrainStageOptions& options);
 
 // The values a numeric option takes, declared with it in the registry: an
 // interval whose ends may be open, or a set of values; optionally one more

@@ -165,6 +165,21 @@ TEST(RunOptions, TileOptionsFollowWhatDecidesATilesProducts) {
   EXPECT_EQ(json::parse(DenseOptionsJson(base.dense))["cell_m"], base.dense.cell_m);
 }
 
+TEST(RunOptions, TrainCheckpointStampHoldsEveryTrainingOption) {
+  // A training option missing from the checkpoint's stamp would let a rerun
+  // under another value resume the old run's checkpoint.
+  const RunOptions base;
+  RunOptions rate = base, weight = base, when = base;
+  rate.train.optimizer.lr_mean_initial *= 0.25;
+  weight.train.optimizer.lambda_surface_height = 0;
+  when.train.optimizer.checkpoint_interval = 7;
+  when.train.optimizer.eval_interval = 3;
+  when.train.optimizer.keep_snapshots = true;
+  EXPECT_NE(TrainCheckpointJson(rate.train), TrainCheckpointJson(base.train));
+  EXPECT_NE(TrainCheckpointJson(weight.train), TrainCheckpointJson(base.train));
+  EXPECT_EQ(TrainCheckpointJson(when.train), TrainCheckpointJson(base.train));  // when to save or score: no state
+}
+
 TEST(OptionRegistry, ListsEveryFieldOfTheRunOptions) {
   // A field added to an options struct but not to its Visit() would be left
   // out of the JSON form, --set, the docs and the resume stamps.

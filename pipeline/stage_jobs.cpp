@@ -16,6 +16,7 @@
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/sha256.h"
 #include "core/simd.h"
 #include "pipeline/city_entries.h"
 #include "dense/dense_cells.h"
@@ -74,6 +75,10 @@ void WriteHeldOutImages(const std::vector<HeldOutRender>& renders, const fs::pat
   }
 }
 
+// Centres closer than this are one point for any DSM or render at the
+// product's 0.5 m cells: the report counts them (CoincidentGaussians).
+constexpr double kCoincidentWithinM = 0.01;
+
 std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int downscale, std::size_t views,
                             const std::string& appearance_reason) {
   nlohmann::json series = nlohmann::json::array();
@@ -93,6 +98,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"lambda_dssim", o.lambda_dssim},
       {"lambda_opacity", o.lambda_opacity},
       {"gaussians", r.cloud.size()},
+      {"coincident_gaussians", {{"within_m", kCoincidentWithinM}, {"count", CoincidentGaussians(r.cloud, kCoincidentWithinM)}}},
       {"seconds_this_run", r.report.seconds},
       {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
                    {"densification", o.density.from_step <= o.density.until_step},
@@ -140,6 +146,19 @@ void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings
   WriteFileIfChanged(settings_path.string(), settings.dump(2) + "\n");
 }
 
+
+// The contents a training run starts from and holds to (tie points, dense
+// heights, cameras): a checkpoint of other contents is not resumed.
+nlohmann::json TrainInputsSha256(const std::string& sfm_dir, bool dense_start) {
+  nlohmann::json out = nlohmann::json::object();
+  std::vector<std::string> names = {"points.ply", "cameras.json"};
+  if (dense_start) names.push_back("dense.ply");
+  for (const std::string& name : names) {
+    const fs::path path = fs::path(sfm_dir) / name;
+    out[name] = fs::exists(path) ? nlohmann::json(Sha256FileHex(path.string())) : nlohmann::json(nullptr);
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -339,7 +358,9 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                             decided.appearance_reason));
   const fs::path checkpoints = fs::path(out_dir) / "checkpoints";
   SetAsideStaleCheckpoint(checkpoints,
-                          {{"appearance_model", options.appearance.enabled},
+                          {{"options", nlohmann::json::parse(TrainCheckpointJson(stage))},
+                           {"inputs", TrainInputsSha256(sfm_dir, decided.dense_start)},
+                           {"appearance_model", options.appearance.enabled},
                            {"resolution_downscale", stage.downscale},
                            {"depth_prior", stage.depth_prior},
                            {"seed", options.seed},

@@ -194,6 +194,11 @@ GaussianCloud InitializeFromPoints(const std::vector<Eigen::Vector3f>& points,
 // there are any), which the appearance model's gradient is built from.
 std::size_t DropNonFiniteGradients(GaussianGradients<float>* g);
 
+// How many Gaussians have their centre within `within_m` of another one's:
+// Gaussians that training drew onto one point add cost but no geometry (the
+// train report's coincident_gaussians, at 1 cm).
+std::size_t CoincidentGaussians(const GaussianCloud& cloud, double within_m);
+
 // Trains `cloud` on the views. With a non-empty `checkpoint_dir`, state is
 // saved there every checkpoint_interval iterations and a matching checkpoint
 // is resumed from.

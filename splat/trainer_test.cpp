@@ -166,6 +166,19 @@ TEST(Trainer, DropNonFiniteGradientsZeroesOnlyTheAffectedGaussians) {
   EXPECT_EQ(DropNonFiniteGradients(&gradients), 1u);
 }
 
+TEST(Trainer, CoincidentGaussiansCountsCentresWithinTheRadius) {
+  GaussianCloud c;
+  c.resize(6);
+  c.means = {{0, 0, 0}, {0.004f, 0.003f, 0}, {1, 1, 1},  // the first two are 5 mm apart
+             {2.009f, 0, 0}, {2.0f, 0, 0},              // 9 mm, across a cube's face at 2.00
+             {5, 5, 0.02f}};                            // alone (2 cm from nothing)
+  EXPECT_EQ(CoincidentGaussians(c, 0.01), 4u);
+  EXPECT_EQ(CoincidentGaussians(c, 0.004), 0u);  // 5 and 9 mm are not within 4 mm
+  EXPECT_EQ(CoincidentGaussians(c, 2.0), 5u);    // all but the far one (1.73 m and 1.41 m apart)
+  EXPECT_EQ(CoincidentGaussians(GaussianCloud{}, 0.01), 0u);
+  EXPECT_THROW(CoincidentGaussians(c, 0.0), Error);
+}
+
 TEST(Trainer, KilledRunResumesBitIdentically) {
   const Fixture f = MakeFixture(4);
   NullProgress progress;

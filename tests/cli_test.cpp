@@ -274,6 +274,21 @@ TEST(Cli, SynthIngestSfmChain) {
   EXPECT_NE(bad_densify.exit_code, 0);  // refused while parsing (a CLI11 exit code), before any stage
   EXPECT_FALSE(fs::exists(dir / "splat_bad"));
   EXPECT_NE(bad_densify.err.find("--densify"), std::string::npos) << bad_densify.err;
+  // A checkpoint resumes only under the same training options: a rerun that
+  // only checkpoints at other steps resumes, one with another loss weight
+  // (an option the checkpoint's stamp once left out) starts again.
+  const fs::path rerun = dir / "splat_rerun";
+  fs::copy(splat, rerun, fs::copy_options::recursive);
+  const std::string retrain = Skyfall() + " splat train --sfm " + (dir / "sfm").string() + " --out " + rerun.string() +
+                              " --iterations 30 --resolution 2 --init-max-scale 0";
+  const CommandResult same = RunCommand(retrain + " --checkpoint-every 10", dir);
+  ASSERT_EQ(same.exit_code, 0) << same.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(rerun / "train_report.json"))["resumed_from_iteration"], 30);
+  const CommandResult other = RunCommand(retrain + " --lambda-opacity 5", dir);
+  ASSERT_EQ(other.exit_code, 0) << other.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(rerun / "train_report.json"))["resumed_from_iteration"], 0);
+  EXPECT_NE(other.err.find("other settings"), std::string::npos) << other.err;
+  EXPECT_TRUE(fs::exists(rerun / "checkpoints" / "checkpoint.bin.stale"));
   const CommandResult render = RunCommand(Skyfall() + " splat render --scene " + splat + "/scene.ply --cameras " +
                                               (dir / "sfm" / "cameras.json").string() + " --out " +
                                               (dir / "render").string() + " --resolution 2", dir);
