@@ -36,6 +36,8 @@ void DenseOptions::Check() const {
     throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
   if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
   if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
+  if (!(range_probe_min_gsd_m >= 0))
+    throw Error("dense", "range_probe_min_gsd_m", "must be >= 0 m, got " + FormatDouble(range_probe_min_gsd_m));
   if (!(range_probe_above_m >= 0 && range_probe_above_m <= 5000))
     throw Error("dense", "range_probe_above_m", "must be 0..5000 m (0 = off), got " + FormatDouble(range_probe_above_m));
   if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
@@ -73,13 +75,22 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector
   return kept;
 }
 
-double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m) {
+namespace {
+
+// The finest view's GSD at a point [m]: its depth over its focal length.
+double FinestGsdM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m) {
   double finest_m = std::numeric_limits<double>::infinity();
   for (const DenseView& v : views) {
     const double depth_m = v.camera.Depth(centre_enu_m);
     if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(v.camera.fx * v.camera.fy));
   }
-  return DenseCellForGsdM(finest_m);
+  return finest_m;
+}
+
+}  // namespace
+
+double AutomaticCellM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m) {
+  return DenseCellForGsdM(FinestGsdM(views, centre_enu_m));
 }
 
 namespace {
@@ -104,6 +115,8 @@ struct SweepPlan {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // mean of the tie points inside
   double z_lo = 0, z_hi = 0;
   double tie_points_z_hi = 0;          // z_hi before the probe raised it
+  double finest_gsd_m = 0;             // of the views, at the tie points' centre
+  bool probe_ran = false;
   std::optional<double> probe_top_m;   // the highest surface the probe found, if it ran and found one
   double step_m = 0;  // height_step_m, or coarser where the range needs more than max_heights
   int nh = 0;
@@ -147,7 +160,8 @@ SweepPlan PlanSweep(const DenseOptions& given, const std::vector<DenseView>& vie
     hi = hi.cwiseMin(extent->max_m);
   }
   plan.centre /= static_cast<double>(z.size());
-  if (given.cell_m == 0) o->cell_m = AutomaticCellM(views, plan.centre);
+  plan.finest_gsd_m = FinestGsdM(views, plan.centre);
+  if (given.cell_m == 0) o->cell_m = DenseCellForGsdM(plan.finest_gsd_m);
   plan.z_lo = Quantile(z, o->height_percentile) - o->height_margin_m;
   plan.z_hi = Quantile(z, 1.0 - o->height_percentile) + o->height_margin_m;
   SetHeightSteps(*o, "tie points", &plan);
@@ -204,7 +218,8 @@ ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, 
 void RaiseRangeToProbe(const DenseOptions& o, const HeightGrid& g, const ViewSlots& v,
                        const std::vector<DensePair>& pairs, Progress& progress, SweepPlan* plan) {
   plan->tie_points_z_hi = plan->z_hi;
-  if (o.range_probe_above_m <= 0) return;
+  if (o.range_probe_above_m <= 0 || plan->finest_gsd_m < o.range_probe_min_gsd_m) return;
+  plan->probe_ran = true;
   const Sweep from_tie_points{o, g, plan->z_lo, plan->step_m, plan->nh, pairs, v.slot, v.grey, v.projection};
   plan->probe_top_m =
       dense_detail::ProbeTopHeight(from_tie_points, v.coarse, plan->z_hi + o.range_probe_above_m, progress);
@@ -361,6 +376,8 @@ void ReportMetrics(const DenseOptions& o, const SweepPlan& plan, const ViewSlots
   r->metrics["height_min_m"] = plan.z_lo;
   r->metrics["height_max_m"] = plan.z_hi;
   r->metrics["tie_points_height_max_m"] = plan.tie_points_z_hi;
+  r->metrics["finest_gsd_m"] = plan.finest_gsd_m;
+  r->metrics["range_probe_ran"] = plan.probe_ran ? 1.0 : 0.0;
   if (plan.probe_top_m) r->metrics["probe_top_m"] = *plan.probe_top_m;
   r->metrics["pairs"] = static_cast<double>(pairs);
   r->metrics["views"] = static_cast<double>(v.used.size());

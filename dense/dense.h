@@ -35,6 +35,10 @@ struct DenseOptions {
   // surfaces that hold no tie point (a tower at a coarse GSD) and raises
   // the sweep's range to them (RaiseRangeToProbe). 0 = off.
   double range_probe_above_m = 200.0;
+  // The probe runs only for imagery whose finest GSD is at least this: at
+  // sub-metre GSD the tie points reach the tall roofs, and with few pairs
+  // the probe's chance matches only raised the range (decision D-122).
+  double range_probe_min_gsd_m = 1.0;
   int max_heights = 600;            // longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)
   int window_cells = 5;             // NCC window side [cells], odd
   int max_pairs = 200;              // pairs kept, most verified tie points first

@@ -354,8 +354,8 @@ TEST(Dense, ARangeBeyondMaxHeightsIsSweptInCoarserSteps) {
 
 // A roof that holds no tie point (coarse imagery, a tower): every tie
 // point lies on the ground, so their range ends 30 m below the roof. The
-// probe finds the roof and the sweep measures it; without the probe the
-// roof cannot be in the range.
+// probe, run as it is for a coarse sensor, finds the roof and the sweep
+// measures it; without the probe the roof cannot be in the range.
 TEST(Dense, ARoofAboveEveryTiePointIsFoundByTheRangeProbe) {
   NullProgress progress;
   constexpr double kRoofM = 30.0, kRoofHalfM = 14.0;
@@ -370,8 +370,18 @@ TEST(Dense, ARoofAboveEveryTiePointIsFoundByTheRangeProbe) {
   ASSERT_EQ(without.report.status, StageStatus::kOk) << without.report.message;
   EXPECT_LT(without.report.metrics.at("height_max_m"), 1.0 + off.height_margin_m + 1e-9);
   EXPECT_EQ(without.report.metrics.count("probe_top_m"), 0u);
-  const DenseResult with = RunDenseHeights(DenseOptions{}, views, pairs, ground_only, progress);
+  // These views are sub-metre: by default the probe is left out for them
+  // (range_probe_min_gsd_m), and the report says so.
+  const DenseResult by_default = RunDenseHeights(DenseOptions{}, views, pairs, ground_only, progress);
+  ASSERT_EQ(by_default.report.status, StageStatus::kOk) << by_default.report.message;
+  EXPECT_LT(by_default.report.metrics.at("finest_gsd_m"), DenseOptions{}.range_probe_min_gsd_m);
+  EXPECT_EQ(by_default.report.metrics.at("range_probe_ran"), 0.0);
+  EXPECT_DOUBLE_EQ(by_default.report.metrics.at("height_max_m"), without.report.metrics.at("height_max_m"));
+  DenseOptions probing;  // as for a coarse sensor
+  probing.range_probe_min_gsd_m = 0;
+  const DenseResult with = RunDenseHeights(probing, views, pairs, ground_only, progress);
   ASSERT_EQ(with.report.status, StageStatus::kOk) << with.report.message;
+  EXPECT_EQ(with.report.metrics.at("range_probe_ran"), 1.0);
   // The probe's step is half a coarse cell (0.75 m here): its top is the roof within a step.
   EXPECT_NEAR(with.report.metrics.at("probe_top_m"), kRoofM, 0.75);
   EXPECT_DOUBLE_EQ(with.report.metrics.at("tie_points_height_max_m"), without.report.metrics.at("height_max_m"));

@@ -158,6 +158,9 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("range_probe_above_m", o.range_probe_above_m,
      "A coarse sweep up to this far above the tie points' height range looks for surfaces without tie points (a "
      "tower in coarse imagery) and raises the sweep's range to them; 0 = off", range::In(0, 5000));
+  io("range_probe_min_gsd_m", o.range_probe_min_gsd_m,
+     "The range probe runs only for imagery whose finest GSD is at least this (sub-metre imagery has tie points on "
+     "its tall roofs)", range::AtLeast(0));
   io("window_cells", o.window_cells,
      "Side of the NCC window, odd", range::Odd(range::AtLeast(3)));
   io("max_pairs", o.max_pairs,
