@@ -357,24 +357,15 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   progress.Info(fmt::format("splat train: appearance model {} ({})", decided.appearance ? "on" : "off",
                             decided.appearance_reason));
   const fs::path checkpoints = fs::path(out_dir) / "checkpoints";
+  // Every option is in the stamp's "options"; beside it, what was decided
+  // from the options and the inputs.
   SetAsideStaleCheckpoint(checkpoints,
                           {{"options", nlohmann::json::parse(TrainCheckpointJson(stage))},
                            {"inputs", TrainInputsSha256(sfm_dir, decided.dense_start)},
                            {"appearance_model", options.appearance.enabled},
-                           {"resolution_downscale", stage.downscale},
-                           {"depth_prior", stage.depth_prior},
-                           {"seed", options.seed},
-                           {"init_max_scale_m", stage.init_max_scale_m},
-                           {"init_pieces", stage.init_pieces},
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
-                           {"init_spacing_m", stage.init_spacing_m},
-                           {"mask_beyond_reconstruction", stage.mask_beyond_reconstruction},
                            {"densify", decided.densify},
-                           {"surface_anchor", decided.surface_anchor ? nlohmann::json({options.lambda_surface_depth,
-                                                                                      options.lambda_surface_alpha,
-                                                                                      options.surface_huber_m,
-                                                                                      options.surface_nadir_interval})
-                                                                     : nlohmann::json(nullptr)}},
+                           {"surface_anchor", decided.surface_anchor}},
                           progress);
   const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
   GaussianCloud init = InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
