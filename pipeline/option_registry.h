@@ -396,6 +396,14 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
      "Gaussians larger than this are pruned", range::Above(0));
   io("max_gaussians", t.density.max_gaussians,
      "Densification adds no Gaussians beyond this count", range::AtLeast(1));
+  io("merge_within_m", t.density.merge_within_m,
+     "Gaussians whose centres are closer than this and whose shapes are alike are merged into one, every "
+     "merge_interval steps (0 = off)", range::AtLeast(0));
+  io("merge_interval", t.density.merge_interval_steps,
+     "Steps between merges of coincident Gaussians; none on the last step", range::AtLeast(1));
+  io("merge_max_shape_difference", t.density.merge_max_shape_difference,
+     "Coincident Gaussians merge only when their covariances differ by at most this fraction (relative Frobenius "
+     "norm)", range::AtLeast(0));
   io("eval_interval", t.eval_interval,
      "Steps between held-out PSNR evaluations, recorded in the report", range::AtLeast(1));
   io("checkpoint_interval", t.checkpoint_interval,

@@ -1,8 +1,10 @@
 #include "splat/density_control.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -40,6 +42,23 @@ void DensityControlOptions::Check() const {
   need(grad_threshold > 0, "densify_grad_threshold", grad_threshold);
   need(min_opacity >= 0 && min_opacity < 1, "min_opacity", min_opacity);
   need(max_scale_m > 0, "max_scale_m", max_scale_m);
+  need(merge_within_m >= 0 && std::isfinite(merge_within_m), "merge_within_m", merge_within_m);
+  need(merge_interval_steps >= 1, "merge_interval", merge_interval_steps);
+  need(merge_max_shape_difference >= 0, "merge_max_shape_difference", merge_max_shape_difference);
+}
+
+CentreGrid::CentreGrid(const GaussianCloud& cloud, double within_m) : cloud_(cloud), within_m_(within_m) {
+  if (!(within_m > 0) || !std::isfinite(within_m))
+    throw Error("splat", "coincident radius", FormatDouble(within_m) + " m must be finite and > 0");
+  for (std::size_t i = 0; i < cloud.size(); ++i) cubes_[KeyOf(cloud.means[i])].push_back(static_cast<std::uint32_t>(i));
+}
+
+CentreGrid::Key CentreGrid::KeyOf(const Eigen::Vector3f& p) const {
+  // A non-finite centre goes to one cube of its own, far from every other.
+  if (!p.allFinite()) return Key{std::numeric_limits<std::int64_t>::min(), 0, 0};
+  return Key{static_cast<std::int64_t>(std::floor(p.x() / within_m_)),
+             static_cast<std::int64_t>(std::floor(p.y() / within_m_)),
+             static_cast<std::int64_t>(std::floor(p.z() / within_m_))};
 }
 
 void DensityControl::Accumulate(const std::vector<int>& radius_px, const std::vector<float>& mean2d_norm,
@@ -107,6 +126,99 @@ std::vector<std::size_t> DensityControl::Densify(int step, GaussianCloud* cloud,
   for (std::size_t k = 0; k < order.size(); ++k) ordered_source[k] = source[order[k]];
   stats_.Reset(cloud->size());
   return ordered_source;
+}
+
+bool DensityControl::MergeDue(int step, int iterations) const {
+  return o_.merge_within_m > 0 && step % o_.merge_interval_steps == 0 && step < iterations;
+}
+
+namespace {
+
+// A Gaussian's covariance [m^2], in double.
+Eigen::Matrix3d CovarianceOf(const GaussianCloud& c, std::size_t i) {
+  const Eigen::Matrix3d R = RotationOf(c.rotations[i]).cast<double>();
+  const Eigen::Vector3d s2 = (2.0 * c.log_scales[i].cast<double>()).array().exp();
+  return R * s2.asDiagonal() * R.transpose();
+}
+
+// The Gaussian that stands for `members` of `c` (see MergeCoincident).
+void MergeInto(const GaussianCloud& c, const std::vector<std::size_t>& members, GaussianCloud* out) {
+  double transmittance = 1, weight_sum = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::array<double, 3 * kShCoeffsPerChannel> sh{};
+  for (std::size_t k : members) {
+    const double opacity = OpacityOfLogit(c.opacity_logits[k]);
+    transmittance *= 1 - opacity;
+    weight_sum += opacity;
+    mean += opacity * c.means[k].cast<double>();
+    for (std::size_t q = 0; q < sh.size(); ++q) sh[q] += opacity * c.sh[k][q];
+  }
+  // Opacities are sigmoids, so each is > 0 and the sum is too.
+  mean /= weight_sum;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::size_t k : members) {
+    const Eigen::Vector3d d = c.means[k].cast<double>() - mean;
+    cov += OpacityOfLogit(c.opacity_logits[k]) / weight_sum * (CovarianceOf(c, k) + d * d.transpose());
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Eigen::Matrix3d R = eig.eigenvectors();
+  if (R.determinant() < 0) R.col(0) = -R.col(0);
+  const Eigen::Quaterniond q(R);
+  // An opacity of 1 has no finite logit; 1 - 1e-6 renders the same.
+  const double opacity = std::min(1 - transmittance, 1 - 1e-6);
+  out->means.push_back(mean.cast<float>());
+  out->log_scales.push_back((0.5 * eig.eigenvalues().cwiseMax(1e-20).array().log()).matrix().cast<float>());
+  out->rotations.push_back(Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()));
+  out->opacity_logits.push_back(static_cast<float>(std::log(opacity / (1 - opacity))));
+  std::array<float, 3 * kShCoeffsPerChannel> sh_f;
+  for (std::size_t q2 = 0; q2 < sh.size(); ++q2) sh_f[q2] = static_cast<float>(sh[q2] / weight_sum);
+  out->sh.push_back(sh_f);
+}
+
+}  // namespace
+
+std::vector<std::size_t> DensityControl::MergeCoincident(GaussianCloud* cloud, GaussianCloud* moment1,
+                                                         GaussianCloud* moment2) {
+  const GaussianCloud& c = *cloud;
+  const CentreGrid grid(c, o_.merge_within_m);
+  std::vector<char> taken(c.size(), 0);
+  GaussianCloud out, m, v;
+  DensifyStats stats;
+  std::vector<std::size_t> source;
+  std::vector<std::size_t> members;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    if (taken[i]) continue;
+    members.assign(1, i);
+    if (c.means[i].allFinite()) {
+      // Members are alike in shape to the first one, not merely near it.
+      const Eigen::Matrix3d cov_i = CovarianceOf(c, i);
+      const double limit = o_.merge_max_shape_difference * cov_i.norm();
+      grid.ForEachNear(i, [&](std::size_t j) {
+        if (!taken[j] && j > i && (CovarianceOf(c, j) - cov_i).norm() <= limit) members.push_back(j);
+        return true;
+      });
+    }
+    std::size_t keeper = i;
+    for (std::size_t k : members) {
+      taken[k] = 1;
+      if (c.opacity_logits[k] > c.opacity_logits[keeper]) keeper = k;
+    }
+    if (members.size() == 1) {
+      out.Append(c, i);
+    } else {
+      MergeInto(c, members, &out);
+    }
+    m.Append(*moment1, keeper);
+    v.Append(*moment2, keeper);
+    stats.grad_sum.push_back(stats_.grad_sum.empty() ? 0.0f : stats_.grad_sum[keeper]);
+    stats.seen.push_back(stats_.seen.empty() ? 0 : stats_.seen[keeper]);
+    source.push_back(keeper);
+  }
+  *cloud = std::move(out);
+  *moment1 = std::move(m);
+  *moment2 = std::move(v);
+  stats_ = std::move(stats);
+  return source;
 }
 
 // The Gaussians in the order of a Morton (Z-order) curve through their

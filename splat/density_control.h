@@ -4,7 +4,10 @@
 // after each backward pass and each step.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <cstdint>
+#include <map>
 #include <random>
 #include <vector>
 
@@ -24,6 +27,15 @@ struct DensityControlOptions {
   double min_opacity = 0.005;   // pruned below
   double max_scale_m = 20.0;    // pruned above (paper: max covariance > 20)
   int max_gaussians = 2000000;
+  // Coincident Gaussians: centres closer than `merge_within_m` whose
+  // covariances differ by at most `merge_max_shape_difference` (relative
+  // Frobenius norm) are merged into one every `merge_interval_steps` steps,
+  // except on the last step, whatever densification does. Without it a
+  // third of a dense start's Gaussians end up as copies of a neighbour
+  // (decisions D-123, D-124). 0 = off.
+  double merge_within_m = 0.01;
+  int merge_interval_steps = 100;
+  double merge_max_shape_difference = 0.25;
   void Check() const;  // throws Error("train", field, ...)
 };
 
@@ -56,6 +68,17 @@ class DensityControl {
   std::vector<std::size_t> Densify(int step, GaussianCloud* cloud, GaussianCloud* m, GaussianCloud* v,
                                    std::mt19937_64& rng);
 
+  // Whether step `step` of `iterations` merges coincident Gaussians.
+  bool MergeDue(int step, int iterations) const;
+
+  // Merges coincident Gaussians (see DensityControlOptions) in `cloud`:
+  // each group becomes one Gaussian at the group's opacity-weighted centre,
+  // with its opacity 1 - prod(1 - opacity), the opacity-weighted colour and
+  // the moment-matched covariance, in the first member's place. The
+  // optimizer's moments and the gradient statistics are the most opaque
+  // member's. Returns the source of each Gaussian kept (that member).
+  std::vector<std::size_t> MergeCoincident(GaussianCloud* cloud, GaussianCloud* m, GaussianCloud* v);
+
   DensifyStats& stats() { return stats_; }
   const DensifyStats& stats() const { return stats_; }
 
@@ -64,6 +87,38 @@ class DensityControl {
   double extent_m_;
   DensifyStats stats_;
 };
+
+// Centres hashed to cubes of a radius, to find the centres within it of a
+// point: such a centre lies in one of the 27 cubes around the point's own.
+class CentreGrid {
+ public:
+  CentreGrid(const GaussianCloud& cloud, double within_m);
+  // Calls fn(j) for each Gaussian j != i whose centre is closer than the
+  // radius to Gaussian i's; stops when fn returns false.
+  template <typename Fn>
+  void ForEachNear(std::size_t i, Fn&& fn) const;
+
+ private:
+  using Key = std::array<std::int64_t, 3>;
+  Key KeyOf(const Eigen::Vector3f& p) const;
+  const GaussianCloud& cloud_;
+  double within_m_;
+  std::map<Key, std::vector<std::uint32_t>> cubes_;
+};
+
+template <typename Fn>
+void CentreGrid::ForEachNear(std::size_t i, Fn&& fn) const {
+  const Key k = KeyOf(cloud_.means[i]);
+  const double within2 = within_m_ * within_m_;
+  for (std::int64_t dx = -1; dx <= 1; ++dx)
+    for (std::int64_t dy = -1; dy <= 1; ++dy)
+      for (std::int64_t dz = -1; dz <= 1; ++dz) {
+        const auto it = cubes_.find(Key{k[0] + dx, k[1] + dy, k[2] + dz});
+        if (it == cubes_.end()) continue;
+        for (std::uint32_t j : it->second)
+          if (j != i && (cloud_.means[j] - cloud_.means[i]).cast<double>().squaredNorm() < within2 && !fn(j)) return;
+      }
+}
 
 // The Gaussians in the order of a Morton (Z-order) curve through their
 // centres' x and y, as indices into `cloud`.

@@ -150,32 +150,11 @@ double TrainingPsnr(const GaussianCloud& c, const std::vector<TrainView>& views,
 
 std::size_t CoincidentGaussians(const GaussianCloud& cloud, double within_m) {
   if (!(within_m > 0)) throw Error("splat", "coincident radius", FormatDouble(within_m) + " m must be > 0");
-  // Centres hashed to cubes of the radius: a neighbour within it lies in
-  // one of the 27 cubes around a centre's own.
-  using Key = std::array<std::int64_t, 3>;
-  auto key_of = [within_m](const Eigen::Vector3f& p) {
-    return Key{static_cast<std::int64_t>(std::floor(p.x() / within_m)),
-               static_cast<std::int64_t>(std::floor(p.y() / within_m)),
-               static_cast<std::int64_t>(std::floor(p.z() / within_m))};
-  };
-  std::map<Key, std::vector<std::uint32_t>> cubes;
-  for (std::size_t i = 0; i < cloud.size(); ++i) cubes[key_of(cloud.means[i])].push_back(static_cast<std::uint32_t>(i));
-  const double within2 = within_m * within_m;
+  const CentreGrid grid(cloud, within_m);
   std::size_t coincident = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const Key k = key_of(cloud.means[i]);
     bool found = false;
-    for (std::int64_t dx = -1; dx <= 1 && !found; ++dx)
-      for (std::int64_t dy = -1; dy <= 1 && !found; ++dy)
-        for (std::int64_t dz = -1; dz <= 1 && !found; ++dz) {
-          const auto it = cubes.find(Key{k[0] + dx, k[1] + dy, k[2] + dz});
-          if (it == cubes.end()) continue;
-          for (std::uint32_t j : it->second)
-            if (j != i && (cloud.means[j] - cloud.means[i]).cast<double>().squaredNorm() < within2) {
-              found = true;
-              break;
-            }
-        }
+    grid.ForEachNear(i, [&found](std::size_t) { return !(found = true); });
     coincident += found;
   }
   return coincident;

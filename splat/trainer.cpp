@@ -442,17 +442,20 @@ class TrainingRun {
     ++loss_count_;
     Optimize(it, &s);
     phase_.Lap(kOptimizer);
-    if (density_.Due(it)) {
-      const std::vector<std::size_t> source = density_.Densify(it, &cloud_, &adam_.m, &adam_.v, rng_);
-      if (appearance_.enabled) {
-        for (AppearanceModel* a : {&appearance_.model, &appearance_.m, &appearance_.v}) a->GatherGaussians(source);
-      }
-    }
+    if (density_.Due(it)) FollowGaussians(density_.Densify(it, &cloud_, &adam_.m, &adam_.v, rng_));
+    if (density_.MergeDue(it, o_.iterations)) FollowGaussians(density_.MergeCoincident(&cloud_, &adam_.m, &adam_.v));
     phase_.Lap(kDensify);
     if (it % o_.eval_interval == 0 || it == o_.iterations) RecordSample(it);
     phase_.Lap(kEvaluation);
     if (!ck_path.empty() && (it % o_.checkpoint_interval == 0 || it == o_.iterations))
       SaveState(it, checkpoint_dir, ck_path, fused_view);
+  }
+
+  // Per-Gaussian state kept outside the cloud follows a densification or a
+  // merge: `source` names the Gaussian each one comes from.
+  void FollowGaussians(const std::vector<std::size_t>& source) {
+    if (!appearance_.enabled) return;
+    for (AppearanceModel* a : {&appearance_.model, &appearance_.m, &appearance_.v}) a->GatherGaussians(source);
   }
 
   // The exported cloud and the report's figures.
