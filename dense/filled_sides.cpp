@@ -13,56 +13,41 @@
 namespace skyfall::dense_detail {
 namespace {
 
-// One candidate height of one cell scored with adaptive support weights:
-// every view that sees the point (all views without `seen_above`) is
-// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
-// cell weighs exp(-|grey - centre grey| / sigma - distance / R) in the first
-// view of `nadir_first` that sees it with the whole window inside the
-// image; each pair scores 1 - weighted NCC (truncated, the truncation where
-// a window is too plain), averaged as the masked sweep does. NaN when no
-// view can serve as the reference.
+// Scratch buffers of SupportWeightedCost, one per thread.
 struct SupportScratch {
   std::vector<float> samples, weights, weighted, mean, inv_std;
   std::vector<std::uint8_t> usable;
 };
 
-float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
-                          const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
+// Samples view v's grey values on the window of cells around (i, j) lifted
+// to `height_m` into `out` (row-major); false when a sample falls outside
+// the image or is not finite.
+bool SampleSupportWindow(const Sweep& s, std::size_t v, int i, int j, double height_m, float* out) {
   const HeightGrid& g = s.grid;
+  const int r = s.o.support_radius_cells, w = 2 * r + 1;
+  const GreyImage& image = s.grey[v];
+  for (int b = -r; b <= r; ++b)
+    for (int a = -r; a <= r; ++a) {
+      const Eigen::Vector3d h = s.projection[v] * Eigen::Vector4d(g.x0_m + (i + a) * g.cell_m,
+                                                                  g.y0_m + (j + b) * g.cell_m, height_m, 1.0);
+      const double x = h.x() / h.z(), y = h.y() / h.z();
+      const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+      if (!(h.z() > 0) || x0 < 0 || y0 < 0 || x0 + 1 >= image.width || y0 + 1 >= image.height) return false;
+      const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+      const float* p = image.values.data() + static_cast<std::size_t>(y0) * image.width + x0;
+      const float top = p[0] + fx * (p[1] - p[0]);
+      const float bottom = p[image.width] + fx * (p[image.width + 1] - p[image.width]);
+      const float value = top + fy * (bottom - top);
+      if (!std::isfinite(value)) return false;
+      out[(b + r) * w + (a + r)] = value;
+    }
+  return true;
+}
+
+// The window's support weights from the reference view's samples `ref`
+// (see above) into t.weights; returns their sum.
+float SupportWeights(const Sweep& s, const float* ref, SupportScratch& t) {
   const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
-  const std::size_t views = s.grey.size();
-  const std::size_t centre_cell = g.Index(i, j);
-  t.samples.resize(views * n);
-  t.weights.resize(n);
-  t.usable.assign(views, 0);
-  for (std::size_t v = 0; v < views; ++v) {
-    if (seen_above && height_m < (*seen_above)[v][centre_cell]) continue;
-    const GreyImage& image = s.grey[v];
-    float* out = t.samples.data() + v * n;
-    bool inside = true;
-    for (int b = -r; b <= r && inside; ++b)
-      for (int a = -r; a <= r && inside; ++a) {
-        const Eigen::Vector3d h = s.projection[v] * Eigen::Vector4d(g.x0_m + (i + a) * g.cell_m,
-                                                                    g.y0_m + (j + b) * g.cell_m, height_m, 1.0);
-        const double x = h.x() / h.z(), y = h.y() / h.z();
-        const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-        if (!(h.z() > 0) || x0 < 0 || y0 < 0 || x0 + 1 >= image.width || y0 + 1 >= image.height) {
-          inside = false;
-          break;
-        }
-        const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-        const float* p = image.values.data() + static_cast<std::size_t>(y0) * image.width + x0;
-        const float top = p[0] + fx * (p[1] - p[0]);
-        const float bottom = p[image.width] + fx * (p[image.width + 1] - p[image.width]);
-        const float value = top + fy * (bottom - top);
-        inside = std::isfinite(value);
-        out[(b + r) * w + (a + r)] = value;
-      }
-    t.usable[v] = inside ? 1 : 0;
-  }
-  const auto reference = std::find_if(nadir_first.begin(), nadir_first.end(), [&](int v) { return t.usable[v]; });
-  if (reference == nadir_first.end()) return kNan;
-  const float* ref = t.samples.data() + static_cast<std::size_t>(*reference) * n;
   const float centre = ref[r * w + r];
   const float inv_sigma = static_cast<float>(1.0 / s.o.support_grey_sigma);
   for (int b = -r; b <= r; ++b)
@@ -73,14 +58,18 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
     }
   float weight_sum = 0;
   for (int q = 0; q < n; ++q) weight_sum += t.weights[q];
-  const float inv_weight = 1.0f / weight_sum;
-  const float trunc = static_cast<float>(s.o.cost_truncation);
+  return weight_sum;
+}
+
+// Per usable view: its weighted samples (w x) and weighted mean and
+// inverse standard deviation (0 where too plain to correlate), so that per
+// pair only the weighted product remains.
+void WeightedViewStatistics(const Sweep& s, int n, float inv_weight, SupportScratch& t) {
+  const std::size_t views = s.grey.size();
   const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
-  // Per view: its weighted samples (w x) and weighted mean and variance;
-  // per pair only the weighted product remains.
   t.weighted.resize(views * n);
   t.mean.assign(views, 0.0f);
-  t.inv_std.assign(views, 0.0f);  // 0: too plain to correlate
+  t.inv_std.assign(views, 0.0f);
   for (std::size_t v = 0; v < views; ++v) {
     if (!t.usable[v]) continue;
     const float* x = t.samples.data() + v * n;
@@ -95,6 +84,33 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
     t.mean[v] = mean;
     if (var > min_var) t.inv_std[v] = 1.0f / std::sqrt(var);
   }
+}
+
+// One candidate height of one cell scored with adaptive support weights:
+// every view that sees the point (all views without `seen_above`) is
+// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
+// cell weighs exp(-|grey - centre grey| / sigma - distance / R) in the first
+// view of `nadir_first` that sees it with the whole window inside the
+// image; each pair scores 1 - weighted NCC (truncated, the truncation where
+// a window is too plain), averaged as the masked sweep does. NaN when no
+// view can serve as the reference.
+float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
+                          const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
+  const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
+  const std::size_t views = s.grey.size();
+  const std::size_t centre_cell = s.grid.Index(i, j);
+  t.samples.resize(views * n);
+  t.weights.resize(n);
+  t.usable.assign(views, 0);
+  for (std::size_t v = 0; v < views; ++v) {
+    if (seen_above && height_m < (*seen_above)[v][centre_cell]) continue;
+    t.usable[v] = SampleSupportWindow(s, v, i, j, height_m, t.samples.data() + v * n) ? 1 : 0;
+  }
+  const auto reference = std::find_if(nadir_first.begin(), nadir_first.end(), [&](int v) { return t.usable[v]; });
+  if (reference == nadir_first.end()) return kNan;
+  const float inv_weight = 1.0f / SupportWeights(s, t.samples.data() + static_cast<std::size_t>(*reference) * n, t);
+  WeightedViewStatistics(s, n, inv_weight, t);
+  const float trunc = static_cast<float>(s.o.cost_truncation);
   float sum = 0, count = 0;
   for (const DensePair& p : s.pairs) {
     const int va = s.slot[p.a], vb = s.slot[p.b];

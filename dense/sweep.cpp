@@ -237,6 +237,68 @@ Projection ProjectionOf(const PinholeCamera& c) {
   return c.K() * rt;
 }
 
+namespace {
+
+// One strip of one height's costs: the strip's rows [j0, j1) and the rows
+// their windows reach, [s0, s1), swept as a grid of their own: its first
+// and last r rows are border there, but those are the neighbouring strips'
+// rows (or the grid's own border), and only [j0, j1) is written to `out`
+// (the height's slice of cells). See CostVolume.
+void StripCosts(const Sweep& s, const std::vector<std::vector<float>>* seen_above, const DenseKernels& kernels,
+                double height, int j0, SweepScratch& t, float* out) {
+  const HeightGrid& g = s.grid;
+  const std::size_t views = s.grey.size();
+  const int r = s.o.window_cells / 2;
+  const float trunc = static_cast<float>(s.o.cost_truncation);
+  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  const int j1 = std::min(g.ny, j0 + kStripRows);
+  const int s0 = std::max(0, j0 - r), s1 = std::min(g.ny, j1 + r);
+  const int rows = s1 - s0;
+  const std::size_t first = static_cast<std::size_t>(s0) * g.nx;
+  const std::size_t n = static_cast<std::size_t>(rows) * g.nx;
+  for (std::size_t v = 0; v < views; ++v) {
+    WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, s0, s1, t.warped.data(), t.warp_scratch);
+    kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, t.stats[v].values.data(), t.stats[v].mean.data(),
+                         t.stats[v].inv_std.data(), t.scratch.data());
+  }
+  std::fill(t.sum.begin(), t.sum.begin() + n, 0.0f);
+  if (seen_above) {
+    for (std::size_t v = 0; v < views; ++v) {
+      const float* seen = (*seen_above)[v].data() + first;
+      for (std::size_t k = 0; k < n; ++k) t.visible[v][k] = height >= seen[k] ? 1.0f : 0.0f;
+    }
+    std::fill(t.count.begin(), t.count.begin() + n, 0.0f);
+  }
+  for (const DensePair& p : s.pairs) {
+    const int ia = s.slot[p.a], ib = s.slot[p.b];
+    const WindowStats& a = t.stats[ia];
+    const WindowStats& b = t.stats[ib];
+    if (seen_above)
+      kernels.pair_cost_masked(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                               b.inv_std.data(), t.visible[ia].data(), t.visible[ib].data(), g.nx, rows, r, trunc,
+                               t.sum.data(), t.count.data(), t.ring.data());
+    else
+      kernels.pair_cost(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
+                        b.inv_std.data(), nullptr, nullptr, g.nx, rows, r, trunc, t.sum.data(), nullptr,
+                        t.ring.data());
+  }
+  const float prior = static_cast<float>(s.o.visibility_prior_pairs);
+  const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
+  const std::size_t keep = static_cast<std::size_t>(j0 - s0) * g.nx;
+  const std::size_t keep_n = static_cast<std::size_t>(j1 - j0) * g.nx;
+  float* dst = out + static_cast<std::size_t>(j0) * g.nx;
+  for (std::size_t k = 0; k < keep_n; ++k) {
+    if (!seen_above) {
+      dst[k] = t.sum[keep + k] * inv_pairs;
+    } else {
+      const float m = t.count[keep + k] + prior;
+      dst[k] = m > 0 ? (t.sum[keep + k] + prior * trunc) / m : trunc;
+    }
+  }
+}
+
+}  // namespace
+
 // The cost volume, cell-major so SGM reads each cell's heights
 // contiguously: per cell and height, the mean truncated pair cost. With
 // `seen_above` (per view slot and cell, the height above which the view
@@ -258,66 +320,14 @@ std::vector<float> CostVolume(const Sweep& s, const std::vector<std::vector<floa
   std::vector<float> cost(cells * nh);
   progress.Begin(label, nh);
   std::atomic<int> done{0};
-  const float trunc = static_cast<float>(s.o.cost_truncation);
-  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
-  const float prior = static_cast<float>(s.o.visibility_prior_pairs);
-  const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
   tbb::enumerable_thread_specific<SweepScratch> scratch;
   tbb::parallel_for(0, blocks, [&](int block) {
     SweepScratch& t = scratch.local();
     t.Resize(strip_cells, cells, views, g.nx, r, block_heights, seen_above != nullptr);
     const int d0 = block * block_heights, d1 = std::min(nh, d0 + block_heights);
     for (int d = d0; d < d1; ++d) {
-      const double height = s.Height(d);
       float* out = t.block.data() + static_cast<std::size_t>(d - d0) * cells;
-      for (int j0 = 0; j0 < g.ny; j0 += kStripRows) {
-        // The strip's rows [j0, j1) and the rows their windows reach,
-        // [s0, s1), swept as a grid of their own: its first and last r rows
-        // are border there, but those are the neighbouring strips' rows
-        // (or the grid's own border), and only [j0, j1) is kept.
-        const int j1 = std::min(g.ny, j0 + kStripRows);
-        const int s0 = std::max(0, j0 - r), s1 = std::min(g.ny, j1 + r);
-        const int rows = s1 - s0;
-        const std::size_t first = static_cast<std::size_t>(s0) * g.nx;
-        const std::size_t n = static_cast<std::size_t>(rows) * g.nx;
-        for (std::size_t v = 0; v < views; ++v) {
-          WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, s0, s1, t.warped.data(), t.warp_scratch);
-          kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, t.stats[v].values.data(),
-                               t.stats[v].mean.data(), t.stats[v].inv_std.data(), t.scratch.data());
-        }
-        std::fill(t.sum.begin(), t.sum.begin() + n, 0.0f);
-        if (seen_above) {
-          for (std::size_t v = 0; v < views; ++v) {
-            const float* seen = (*seen_above)[v].data() + first;
-            for (std::size_t k = 0; k < n; ++k) t.visible[v][k] = height >= seen[k] ? 1.0f : 0.0f;
-          }
-          std::fill(t.count.begin(), t.count.begin() + n, 0.0f);
-        }
-        for (const DensePair& p : s.pairs) {
-          const int ia = s.slot[p.a], ib = s.slot[p.b];
-          const WindowStats& a = t.stats[ia];
-          const WindowStats& b = t.stats[ib];
-          if (seen_above)
-            kernels.pair_cost_masked(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
-                                     b.inv_std.data(), t.visible[ia].data(), t.visible[ib].data(), g.nx, rows, r,
-                                     trunc, t.sum.data(), t.count.data(), t.ring.data());
-          else
-            kernels.pair_cost(a.values.data(), b.values.data(), a.mean.data(), b.mean.data(), a.inv_std.data(),
-                              b.inv_std.data(), nullptr, nullptr, g.nx, rows, r, trunc, t.sum.data(), nullptr,
-                              t.ring.data());
-        }
-        const std::size_t keep = static_cast<std::size_t>(j0 - s0) * g.nx;
-        const std::size_t keep_n = static_cast<std::size_t>(j1 - j0) * g.nx;
-        float* dst = out + static_cast<std::size_t>(j0) * g.nx;
-        for (std::size_t k = 0; k < keep_n; ++k) {
-          if (!seen_above) {
-            dst[k] = t.sum[keep + k] * inv_pairs;
-          } else {
-            const float m = t.count[keep + k] + prior;
-            dst[k] = m > 0 ? (t.sum[keep + k] + prior * trunc) / m : trunc;
-          }
-        }
-      }
+      for (int j0 = 0; j0 < g.ny; j0 += kStripRows) StripCosts(s, seen_above, kernels, s.Height(d), j0, t, out);
       progress.Advance(++done, "");
     }
     for (std::size_t k = 0; k < cells; ++k)

@@ -356,6 +356,32 @@ void RemoveStale(const std::vector<fs::path>& files) {
   for (const fs::path& f : files) fs::remove(f, ignored);
 }
 
+// dtm.tif and ndsm.tif, and with the truth's classes their comparison.
+void WriteTerrain(const ProductOptions& po, const AoiCatalog& a, const DsmGrid& pred, const DsmGrid& dtm,
+                  const TruthDsm* truth, const DsmComparison& c, const fs::path& aoi_dir, json* entry,
+                  json* comparison, Progress& progress) {
+  const DsmGrid ndsm = HeightAboveTerrain(pred, dtm);
+  WriteHeights((aoi_dir / "dtm.tif").string(), dtm, po.vertical_datum);
+  WriteDsm((aoi_dir / "ndsm.tif").string(), ndsm);
+  (*entry)["dtm"] = (aoi_dir / "dtm.tif").string();
+  (*entry)["ndsm"] = (aoi_dir / "ndsm.tif").string();
+  if (!truth || truth->cls.empty()) return;
+  const TerrainComparison t =
+      CompareTerrain(dtm, ndsm, truth->dsm, truth->cls, c.shift_col_px, c.shift_row_px, c.z_offset_m);
+  (*comparison)["terrain"] = TerrainJson(t);
+  progress.Info(fmt::format("[{}] DTM on ground cells: MAE {:.2f} m; nDSM on buildings: MAE {:.2f} m", a.aoi,
+                            t.dtm_mae_ground_m, t.ndsm_mae_building_m));
+}
+
+// points.las: the scene's Gaussians as classified points; returns its entry.
+json WritePoints(const ProductOptions& po, const AoiCatalog& a, const AoiScene& s, const DsmGrid& dtm,
+                 const std::vector<std::uint8_t>& classes, const fs::path& aoi_dir) {
+  const std::vector<LasPoint> points =
+      ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m, classes);
+  WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true));
+  return {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
+}
+
 // One AOI: the products on its grid, compared with its truth when it has
 // one. Returns its products entry; `comparison` receives the truth entry.
 json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene& s, const DenseClouds& dense,
@@ -377,18 +403,7 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
   const DenseLayers layers = SampleDenseLayers(s.dense_tiles, s.enu_origin, pred);
   const DsmGrid& dtm = layers.dtm;
   if (po.terrain) {
-    const DsmGrid ndsm = HeightAboveTerrain(pred, dtm);
-    WriteHeights((aoi_dir / "dtm.tif").string(), dtm, po.vertical_datum);
-    WriteDsm((aoi_dir / "ndsm.tif").string(), ndsm);
-    entry["dtm"] = (aoi_dir / "dtm.tif").string();
-    entry["ndsm"] = (aoi_dir / "ndsm.tif").string();
-    if (truth && !truth->cls.empty()) {
-      const TerrainComparison t =
-          CompareTerrain(dtm, ndsm, truth->dsm, truth->cls, c.shift_col_px, c.shift_row_px, c.z_offset_m);
-      (*comparison)["terrain"] = TerrainJson(t);
-      progress.Info(fmt::format("[{}] DTM on ground cells: MAE {:.2f} m; nDSM on buildings: MAE {:.2f} m", a.aoi,
-                                t.dtm_mae_ground_m, t.ndsm_mae_building_m));
-    }
+    WriteTerrain(po, a, pred, dtm, truth ? &*truth : nullptr, c, aoi_dir, &entry, comparison, progress);
   } else {
     left_out.push_back("dtm.tif and ndsm.tif (products.terrain off)");
     RemoveStale({aoi_dir / "dtm.tif", aoi_dir / "ndsm.tif"});
@@ -420,11 +435,7 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
     RemoveStale({aoi_dir / "ortho.tif"});
   }
   if (po.points) {
-    const std::vector<LasPoint> points =
-        ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m,
-                    land_cover.classes);
-    WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true));
-    entry["points"] = {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
+    entry["points"] = WritePoints(po, a, s, dtm, land_cover.classes, aoi_dir);
   } else {
     left_out.push_back("points.las (products.points off)");
     RemoveStale({aoi_dir / "points.las"});

@@ -99,50 +99,95 @@ double MaskedSsim(const std::vector<float>& a, const std::vector<float>& b, cons
   return n ? sum / n : NAN;
 }
 
-ViewComparison CompareViews(const std::string& cameras_json, const std::string& truth_dir,
-                            const std::vector<std::string>& render_dirs, const std::string& out_dir, Progress& progress) {
-  const json cams = json::parse(ReadTextFile(cameras_json));
-  ViewComparison result;
+namespace {
+
+// The first view of each elevation's images: its renders, then its truth.
+using GalleryRows = std::map<double, std::vector<std::vector<float>>>;
+
+// One view's scores against its truth image and mask; its images (renders,
+// then the truth) go to `row`, their size to w x h.
+ViewScores ScoreView(const json& image, const std::string& truth_dir, const std::vector<std::string>& render_dirs,
+                     std::vector<std::vector<float>>* row, int* w, int* h) {
+  ViewScores s;
+  s.name = image.at("name").get<std::string>();
+  s.elevation_deg = std::round(10.0 * image.value("elevation_deg", 0.0)) / 10.0;
+  const std::vector<float> truth = ReadRgb01((fs::path(truth_dir) / (s.name + ".png")).string(), w, h);
+  const FloatBand mask_band = ReadFloatBand((fs::path(truth_dir) / (s.name + "_mask.png")).string());
+  std::vector<std::uint8_t> mask(mask_band.values.size());
+  for (std::size_t p = 0; p < mask.size(); ++p) mask[p] = mask_band.values[p] > 127;
+  for (const std::string& dir : render_dirs) {
+    int rw = 0, rh = 0;
+    const fs::path path = fs::path(dir) / (s.name + "_rgb.png");
+    const std::vector<float> render = ReadRgb01(path.string(), &rw, &rh);
+    if (rw != *w || rh != *h) throw Error("compare", path.string(), "differs in size from its truth image");
+    s.psnr_db.push_back(MaskedPsnr(render, truth, mask));
+    s.ssim.push_back(MaskedSsim(render, truth, mask, *w, *h));
+    row->push_back(render);
+  }
+  row->push_back(truth);
+  return s;
+}
+
+// Per elevation, the mean PSNR and SSIM of each render directory over the
+// views where it is finite (NaN where none is).
+void AveragePerElevation(ViewComparison* result, std::size_t renders) {
   std::map<double, std::vector<int>> count;
-  // Gallery: the first view of each elevation, renders then truth, side by side.
-  std::map<double, std::vector<std::vector<float>>> row_images;
-  int W = 0, H = 0;
-  progress.Begin("compare views", cams.at("images").size());
-  std::size_t done = 0;
-  for (const json& im : cams.at("images")) {
-    ViewScores s;
-    s.name = im.at("name").get<std::string>();
-    s.elevation_deg = std::round(10.0 * im.value("elevation_deg", 0.0)) / 10.0;
-    int w = 0, h = 0;
-    const std::vector<float> truth = ReadRgb01((fs::path(truth_dir) / (s.name + ".png")).string(), &w, &h);
-    const FloatBand mask_band = ReadFloatBand((fs::path(truth_dir) / (s.name + "_mask.png")).string());
-    std::vector<std::uint8_t> mask(mask_band.values.size());
-    for (std::size_t p = 0; p < mask.size(); ++p) mask[p] = mask_band.values[p] > 127;
-    std::vector<std::vector<float>> row;
-    for (const std::string& dir : render_dirs) {
-      int rw = 0, rh = 0;
-      const fs::path path = fs::path(dir) / (s.name + "_rgb.png");
-      const std::vector<float> render = ReadRgb01(path.string(), &rw, &rh);
-      if (rw != w || rh != h) throw Error("compare", path.string(), "differs in size from its truth image");
-      s.psnr_db.push_back(MaskedPsnr(render, truth, mask));
-      s.ssim.push_back(MaskedSsim(render, truth, mask, w, h));
-      row.push_back(render);
-    }
-    row.push_back(truth);
-    auto& psnr = result.psnr_db[s.elevation_deg];
-    auto& ssim = result.ssim[s.elevation_deg];
+  for (const ViewScores& s : result->views) {
+    auto& psnr = result->psnr_db[s.elevation_deg];
+    auto& ssim = result->ssim[s.elevation_deg];
     auto& k = count[s.elevation_deg];
-    psnr.resize(render_dirs.size(), 0.0);
-    ssim.resize(render_dirs.size(), 0.0);
-    k.resize(render_dirs.size(), 0);
-    for (std::size_t d = 0; d < render_dirs.size(); ++d) {
+    psnr.resize(renders, 0.0);
+    ssim.resize(renders, 0.0);
+    k.resize(renders, 0);
+    for (std::size_t d = 0; d < renders; ++d) {
       if (!std::isfinite(s.psnr_db[d])) continue;
       psnr[d] += s.psnr_db[d];
       ssim[d] += s.ssim[d];
       ++k[d];
     }
+  }
+  for (auto& [el, v] : result->psnr_db)
+    for (std::size_t d = 0; d < v.size(); ++d) {
+      v[d] = count[el][d] ? v[d] / count[el][d] : NAN;
+      result->ssim[el][d] = count[el][d] ? result->ssim[el][d] / count[el][d] : NAN;
+    }
+}
+
+// The gallery: rows from high to low elevation, each view's images of w x h side by side.
+void WriteGallery(const GalleryRows& rows_by_elevation, int cols, int W, int H, const std::string& path) {
+  const int rows = static_cast<int>(rows_by_elevation.size());
+  const int GW = cols * W, GH = rows * H;
+  std::vector<std::uint8_t> gallery(3 * static_cast<std::size_t>(GW) * GH, 0);
+  int r = 0;
+  for (auto it = rows_by_elevation.rbegin(); it != rows_by_elevation.rend(); ++it, ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const std::vector<float>& img = it->second[c];
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          for (int ch = 0; ch < 3; ++ch)
+            gallery[3 * ((static_cast<std::size_t>(r) * H + y) * GW + c * W + x) + ch] = static_cast<std::uint8_t>(
+                std::clamp(img[3 * (static_cast<std::size_t>(y) * W + x) + ch], 0.0f, 1.0f) * 255.0f + 0.5f);
+    }
+  }
+  WriteBytePng(path, GW, GH, 3, gallery.data());
+}
+
+}  // namespace
+
+ViewComparison CompareViews(const std::string& cameras_json, const std::string& truth_dir,
+                            const std::vector<std::string>& render_dirs, const std::string& out_dir, Progress& progress) {
+  const json cams = json::parse(ReadTextFile(cameras_json));
+  ViewComparison result;
+  GalleryRows row_images;
+  int W = 0, H = 0;
+  progress.Begin("compare views", cams.at("images").size());
+  std::size_t done = 0;
+  for (const json& im : cams.at("images")) {
+    std::vector<std::vector<float>> row;
+    int w = 0, h = 0;
+    ViewScores s = ScoreView(im, truth_dir, render_dirs, &row, &w, &h);
     if (!row_images.count(s.elevation_deg)) {
-      row_images[s.elevation_deg] = row;
+      row_images[s.elevation_deg] = std::move(row);
       W = w;
       H = h;
     }
@@ -150,11 +195,7 @@ ViewComparison CompareViews(const std::string& cameras_json, const std::string& 
     progress.Advance(++done, result.views.back().name);
   }
   progress.End();
-  for (auto& [el, v] : result.psnr_db)
-    for (std::size_t d = 0; d < v.size(); ++d) {
-      v[d] = count[el][d] ? v[d] / count[el][d] : NAN;
-      result.ssim[el][d] = count[el][d] ? result.ssim[el][d] / count[el][d] : NAN;
-    }
+  AveragePerElevation(&result, render_dirs.size());
   fs::create_directories(out_dir);
   json views = json::array();
   for (const ViewScores& s : result.views) views.push_back({{"name", s.name}, {"elevation_deg", s.elevation_deg},
@@ -163,24 +204,8 @@ ViewComparison CompareViews(const std::string& cameras_json, const std::string& 
   for (const auto& [el, v] : result.psnr_db) per.push_back({{"elevation_deg", el}, {"psnr_db", v}, {"ssim", result.ssim[el]}});
   WriteFileAtomic((fs::path(out_dir) / "compare.json").string(),
                   json({{"renders", render_dirs}, {"truth", truth_dir}, {"per_elevation", per}, {"views", views}}).dump(2) + "\n");
-  // Gallery: rows from high to low elevation.
-  if (!row_images.empty()) {
-    const int cols = static_cast<int>(render_dirs.size()) + 1, rows = static_cast<int>(row_images.size());
-    const int GW = cols * W, GH = rows * H;
-    std::vector<std::uint8_t> gallery(3 * static_cast<std::size_t>(GW) * GH, 0);
-    int r = 0;
-    for (auto it = row_images.rbegin(); it != row_images.rend(); ++it, ++r) {
-      for (int c = 0; c < cols; ++c) {
-        const std::vector<float>& img = it->second[c];
-        for (int y = 0; y < H; ++y)
-          for (int x = 0; x < W; ++x)
-            for (int ch = 0; ch < 3; ++ch)
-              gallery[3 * ((static_cast<std::size_t>(r) * H + y) * GW + c * W + x) + ch] = static_cast<std::uint8_t>(
-                  std::clamp(img[3 * (static_cast<std::size_t>(y) * W + x) + ch], 0.0f, 1.0f) * 255.0f + 0.5f);
-      }
-    }
-    WriteBytePng((fs::path(out_dir) / "gallery.png").string(), GW, GH, 3, gallery.data());
-  }
+  if (!row_images.empty())
+    WriteGallery(row_images, static_cast<int>(render_dirs.size()) + 1, W, H, (fs::path(out_dir) / "gallery.png").string());
   return result;
 }
 

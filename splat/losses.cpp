@@ -117,6 +117,44 @@ class RowRing {
 // 384-row view keep 2 cores busy.
 constexpr int kSsimBandRows = 128;
 
+// SSIM's row planes. Statistic planes: a, a^2, then b, b^2, ab of each
+// target. Gradient planes: the mu_a and var_a terms summed over targets
+// (they are blurred alike), then each target's cov term (its blur is
+// multiplied by that target's b).
+enum { kA, kAA };
+enum { kGMu, kDVar };
+constexpr int BPlane(int s, int k) { return 2 + 3 * s + k; }  // target s; k: 0 b, 1 b^2, 2 ab
+
+// One row's SSIM terms from its blurred statistics (the planes above):
+// writes each target's cov gradient term and sums the mu_a and var_a terms
+// into `g` (zeroed here); returns the row's SSIM summed over the targets.
+template <typename T>
+double SsimRowTerms(const T* blurred, int S, int w, T inv, T c1, T c2, T* row_ssim, T* g) {
+  const T* mu_a = &blurred[kA * w];
+  const T* e_aa = &blurred[kAA * w];
+  std::fill(g, g + static_cast<std::size_t>(2 + S) * w, T(0));
+  double total = 0;
+  for (int s = 0; s < S; ++s) {
+    const T* mu_b = &blurred[BPlane(s, 0) * w];
+    const T* e_bb = &blurred[BPlane(s, 1) * w];
+    const T* e_ab = &blurred[BPlane(s, 2) * w];
+    for (int p = 0; p < w; ++p) {
+      const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
+      const T cov = e_ab[p] - mu_a[p] * mu_b[p];
+      const SsimTerms<T> t = SsimAtPixel(mu_a[p], mu_b[p], va, vb, cov, c1, c2);
+      row_ssim[p] = t.ssim;
+      // var_a = E[a^2] - mu_a^2 and cov = E[ab] - mu_a mu_b chained to mu_a.
+      const T dvar = inv * t.d_var_a, dcov = inv * t.d_cov;
+      const T dmu = inv * t.d_mu_a;
+      g[kDVar * w + p] += dvar;
+      g[(2 + s) * w + p] = dcov;
+      g[kGMu * w + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;
+    }
+    for (int p = 0; p < w; ++p) total += row_ssim[p];  // summed after the row: the pixel loop vectorizes
+  }
+  return total;
+}
+
 // One channel's SSIM over rows [y0, y1), streamed: each input row's
 // statistics (a, a^2, and b, b^2, ab per target) are blurred horizontally
 // into a ring of 11 rows, the vertical pass gives a row of blurred
@@ -134,14 +172,7 @@ void SsimBand(const std::vector<T>& x, const std::vector<const std::vector<T>*>&
   const T inv = T(1.0 / static_cast<double>(n * channels * S));
   const T c1 = T(kC1), c2 = T(kC2);
   const std::array<T, kWindow> win = Window<T>();
-  // Statistic planes: a, a^2, then b, b^2, ab of each target. Gradient
-  // planes: the mu_a and var_a terms summed over targets (they are blurred
-  // alike), then each target's cov term (its blur is multiplied by that
-  // target's b).
-  enum { kA, kAA };
-  enum { kGMu, kDVar };
   const int stats_planes = 2 + 3 * S, grad_planes = 2 + S;
-  auto b_plane = [](int s, int k) { return 2 + 3 * s + k; };  // k: 0 b, 1 b^2, 2 ab
   RowRing<T> stats(stats_planes, w), terms(grad_planes, w);
   std::vector<T> padded(static_cast<std::size_t>(w) + 2 * r, T(0)), zeros(static_cast<std::size_t>(w), T(0));
   std::vector<T> blurred(static_cast<std::size_t>(stats_planes) * w), g(static_cast<std::size_t>(grad_planes) * w);
@@ -159,9 +190,9 @@ void SsimBand(const std::vector<T>& x, const std::vector<const std::vector<T>*>&
     blur_row(stats, kAA, y, [&](int px) { const T a = pixel(x, y, px); return a * a; });
     for (int s = 0; s < S; ++s) {
       const std::vector<T>& t = *targets[s];
-      blur_row(stats, b_plane(s, 0), y, [&](int px) { return pixel(t, y, px); });
-      blur_row(stats, b_plane(s, 1), y, [&](int px) { const T b = pixel(t, y, px); return b * b; });
-      blur_row(stats, b_plane(s, 2), y, [&](int px) { return pixel(x, y, px) * pixel(t, y, px); });
+      blur_row(stats, BPlane(s, 0), y, [&](int px) { return pixel(t, y, px); });
+      blur_row(stats, BPlane(s, 1), y, [&](int px) { const T b = pixel(t, y, px); return b * b; });
+      blur_row(stats, BPlane(s, 2), y, [&](int px) { return pixel(x, y, px) * pixel(t, y, px); });
     }
   };
   // The gradient at row y of the band, once the terms of rows up to y + r are in their ring.
@@ -181,28 +212,7 @@ void SsimBand(const std::vector<T>& x, const std::vector<const std::vector<T>*>&
   for (int y = t0; y < t1; ++y) {
     for (; next_input <= std::min(h - 1, y + r); ++next_input) add_input_row(next_input);
     for (int k = 0; k < stats_planes; ++k) stats.Blur(k, y, h, win, zeros.data(), &blurred[k * w]);
-    const T* mu_a = &blurred[kA * w];
-    const T* e_aa = &blurred[kAA * w];
-    std::fill(g.begin(), g.end(), T(0));
-    double total = 0;
-    for (int s = 0; s < S; ++s) {
-      const T* mu_b = &blurred[b_plane(s, 0) * w];
-      const T* e_bb = &blurred[b_plane(s, 1) * w];
-      const T* e_ab = &blurred[b_plane(s, 2) * w];
-      for (int p = 0; p < w; ++p) {
-        const T va = e_aa[p] - mu_a[p] * mu_a[p], vb = e_bb[p] - mu_b[p] * mu_b[p];
-        const T cov = e_ab[p] - mu_a[p] * mu_b[p];
-        const SsimTerms<T> t = SsimAtPixel(mu_a[p], mu_b[p], va, vb, cov, c1, c2);
-        row_ssim[p] = t.ssim;
-        // var_a = E[a^2] - mu_a^2 and cov = E[ab] - mu_a mu_b chained to mu_a.
-        const T dvar = inv * t.d_var_a, dcov = inv * t.d_cov;
-        const T dmu = inv * t.d_mu_a;
-        g[kDVar * w + p] += dvar;
-        g[(2 + s) * w + p] = dcov;
-        g[kGMu * w + p] += dmu - 2 * mu_a[p] * dvar - mu_b[p] * dcov;
-      }
-      for (T v : row_ssim) total += v;  // summed after the row: the pixel loop vectorizes
-    }
+    const double total = SsimRowTerms<T>(blurred.data(), S, w, inv, c1, c2, row_ssim.data(), g.data());
     if (y >= y0 && y < y1) (*row_total)[static_cast<std::size_t>(c) * h + y] = total;
     if (!grad) continue;
     for (int k = 0; k < grad_planes; ++k) blur_row(terms, k, y, [&](int px) { return g[k * w + px]; });
