@@ -1,6 +1,5 @@
 #include "merge/lod.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
@@ -10,6 +9,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/gaussian_moments.h"
 #include "splat/ply.h"
 
 namespace skyfall {
@@ -24,13 +24,6 @@ constexpr double kMinOpacity = 1e-6;
 constexpr double kMinSigmaM = 1e-4;
 
 double Sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
-
-Eigen::Matrix3d Covariance(const GaussianCloud& cloud, std::size_t i) {
-  const Eigen::Vector4f& q = cloud.rotations[i];
-  const Eigen::Matrix3d r = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
-  const Eigen::Vector3d s = cloud.log_scales[i].cast<double>().array().exp();
-  return r * s.array().square().matrix().asDiagonal() * r.transpose();
-}
 
 }  // namespace
 
@@ -51,37 +44,12 @@ bool MergeGaussians(const GaussianCloud& cloud, const std::vector<std::size_t>& 
     out->Append(cloud, members[0]);
     return true;
   }
-  double mass = 0;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  std::array<double, 3 * kShCoeffsPerChannel> sh{};
-  for (std::size_t i : members) {
-    const double m = GaussianMass(cloud, i);
-    mass += m;
-    mean += m * cloud.means[i].cast<double>();
-    for (std::size_t k = 0; k < sh.size(); ++k) sh[k] += m * cloud.sh[i][k];
-  }
-  mean /= mass;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::size_t i : members) {
-    const Eigen::Vector3d d = cloud.means[i].cast<double>() - mean;
-    cov += GaussianMass(cloud, i) * (Covariance(cloud, i) + d * d.transpose());
-  }
-  cov /= mass;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Eigen::Matrix3d axes = eig.eigenvectors();
-  if (axes.determinant() < 0) axes.col(0) = -axes.col(0);  // a rotation, not a reflection
-  const Eigen::Vector3d sigma = eig.eigenvalues().cwiseMax(kMinSigmaM * kMinSigmaM).cwiseSqrt();
-  const double wanted_opacity = mass / sigma.prod();
-  const double opacity = std::clamp(wanted_opacity, kMinOpacity, kMaxOpacity);
-
-  const Eigen::Quaterniond q(axes);
-  out->means.push_back(mean.cast<float>());
-  out->log_scales.push_back(sigma.array().log().matrix().cast<float>());
-  out->rotations.push_back(Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()));
-  out->opacity_logits.push_back(static_cast<float>(std::log(opacity / (1.0 - opacity))));
-  std::array<float, 3 * kShCoeffsPerChannel> shf{};
-  for (std::size_t k = 0; k < sh.size(); ++k) shf[k] = static_cast<float>(sh[k] / mass);
-  out->sh.push_back(shf);
+  const GaussianMoments m = WeightedMoments(cloud, members, [&](std::size_t i) { return GaussianMass(cloud, i); });
+  Eigen::Quaterniond rotation;
+  Eigen::Vector3d sigma;
+  CovarianceAxes(m.covariance, kMinSigmaM, &rotation, &sigma);
+  const double wanted_opacity = m.weight / sigma.prod();
+  AppendGaussian(m, rotation, sigma, std::clamp(wanted_opacity, kMinOpacity, kMaxOpacity), out);
   return wanted_opacity <= kMaxOpacity;
 }
 

@@ -1,6 +1,5 @@
 #include "splat/density_control.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -12,6 +11,7 @@
 #include <utility>
 
 #include "core/error.h"
+#include "core/gaussian_moments.h"
 #include "core/format.h"
 
 namespace skyfall {
@@ -128,51 +128,26 @@ std::vector<std::size_t> DensityControl::Densify(int step, GaussianCloud* cloud,
   return ordered_source;
 }
 
+// [m] smallest standard deviation of a merged Gaussian.
+constexpr double kMinMergedSigmaM = 1e-6;
+
 bool DensityControl::MergeDue(int step, int iterations) const {
   return o_.merge_within_m > 0 && step % o_.merge_interval_steps == 0 && step < iterations;
 }
 
 namespace {
 
-// A Gaussian's covariance [m^2], in double.
-Eigen::Matrix3d CovarianceOf(const GaussianCloud& c, std::size_t i) {
-  const Eigen::Matrix3d R = RotationOf(c.rotations[i]).cast<double>();
-  const Eigen::Vector3d s2 = (2.0 * c.log_scales[i].cast<double>()).array().exp();
-  return R * s2.asDiagonal() * R.transpose();
-}
-
 // The Gaussian that stands for `members` of `c` (see MergeCoincident).
 void MergeInto(const GaussianCloud& c, const std::vector<std::size_t>& members, GaussianCloud* out) {
-  double transmittance = 1, weight_sum = 0;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  std::array<double, 3 * kShCoeffsPerChannel> sh{};
-  for (std::size_t k : members) {
-    const double opacity = OpacityOfLogit(c.opacity_logits[k]);
-    transmittance *= 1 - opacity;
-    weight_sum += opacity;
-    mean += opacity * c.means[k].cast<double>();
-    for (std::size_t q = 0; q < sh.size(); ++q) sh[q] += opacity * c.sh[k][q];
-  }
-  // Opacities are sigmoids, so each is > 0 and the sum is too.
-  mean /= weight_sum;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::size_t k : members) {
-    const Eigen::Vector3d d = c.means[k].cast<double>() - mean;
-    cov += OpacityOfLogit(c.opacity_logits[k]) / weight_sum * (CovarianceOf(c, k) + d * d.transpose());
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Eigen::Matrix3d R = eig.eigenvectors();
-  if (R.determinant() < 0) R.col(0) = -R.col(0);
-  const Eigen::Quaterniond q(R);
+  double transmittance = 1;
+  for (std::size_t k : members) transmittance *= 1 - OpacityOfLogit(c.opacity_logits[k]);
+  // Opacities are sigmoids, so each weight is > 0.
+  const GaussianMoments m = WeightedMoments(c, members, [&](std::size_t k) { return OpacityOfLogit(c.opacity_logits[k]); });
+  Eigen::Quaterniond rotation;
+  Eigen::Vector3d sigma;
+  CovarianceAxes(m.covariance, kMinMergedSigmaM, &rotation, &sigma);
   // An opacity of 1 has no finite logit; 1 - 1e-6 renders the same.
-  const double opacity = std::min(1 - transmittance, 1 - 1e-6);
-  out->means.push_back(mean.cast<float>());
-  out->log_scales.push_back((0.5 * eig.eigenvalues().cwiseMax(1e-20).array().log()).matrix().cast<float>());
-  out->rotations.push_back(Eigen::Vector4f(q.w(), q.x(), q.y(), q.z()));
-  out->opacity_logits.push_back(static_cast<float>(std::log(opacity / (1 - opacity))));
-  std::array<float, 3 * kShCoeffsPerChannel> sh_f;
-  for (std::size_t q2 = 0; q2 < sh.size(); ++q2) sh_f[q2] = static_cast<float>(sh[q2] / weight_sum);
-  out->sh.push_back(sh_f);
+  AppendGaussian(m, rotation, sigma, std::min(1 - transmittance, 1 - 1e-6), out);
 }
 
 }  // namespace
@@ -191,10 +166,10 @@ std::vector<std::size_t> DensityControl::MergeCoincident(GaussianCloud* cloud, G
     members.assign(1, i);
     if (c.means[i].allFinite()) {
       // Members are alike in shape to the first one, not merely near it.
-      const Eigen::Matrix3d cov_i = CovarianceOf(c, i);
+      const Eigen::Matrix3d cov_i = GaussianCovariance(c, i);
       const double limit = o_.merge_max_shape_difference * cov_i.norm();
       grid.ForEachNear(i, [&](std::size_t j) {
-        if (!taken[j] && j > i && (CovarianceOf(c, j) - cov_i).norm() <= limit) members.push_back(j);
+        if (!taken[j] && j > i && (GaussianCovariance(c, j) - cov_i).norm() <= limit) members.push_back(j);
         return true;
       });
     }
