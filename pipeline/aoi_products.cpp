@@ -68,7 +68,7 @@ std::vector<std::string> AoiProductFiles(const ProductOptions& o, const AoiCatal
   if (o.quality) files.push_back((dir / "quality.tif").string());
   if (o.ortho) files.push_back((dir / "ortho.tif").string());
   if (o.classes) files.push_back((dir / "classes.tif").string());
-  if (o.points) files.push_back((dir / "points.las").string());
+  if (o.points) files.push_back((dir / PointCloudFileName(o.points_format)).string());
   return files;
 }
 
@@ -373,13 +373,30 @@ void WriteTerrain(const ProductOptions& po, const AoiCatalog& a, const DsmGrid& 
                             t.dtm_mae_ground_m, t.ndsm_mae_building_m));
 }
 
-// points.las: the scene's Gaussians as classified points; returns its entry.
+// The point cloud files of every encoding but `keep`: an earlier run's, in
+// another encoding, would otherwise linger beside the new one.
+std::vector<fs::path> OtherPointClouds(const fs::path& aoi_dir, std::optional<PointCloudEncoding> keep) {
+  std::vector<fs::path> paths;
+  for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
+    if (encoding != keep) paths.push_back(aoi_dir / PointCloudFileName(encoding));
+  }
+  return paths;
+}
+
+// points.laz (or .las, .copc.laz): the scene's Gaussians as classified
+// points; returns its entry.
 json WritePoints(const ProductOptions& po, const AoiCatalog& a, const AoiScene& s, const DsmGrid& dtm,
                  const std::vector<std::uint8_t>& classes, const fs::path& aoi_dir) {
   const std::vector<LasPoint> points =
       ScenePoints(s.scene, s.enu_origin, dtm, po.vertical_datum, po.min_opacity, po.ground_tolerance_m, classes);
-  WriteLas((aoi_dir / "points.las").string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true));
-  return {{"path", (aoi_dir / "points.las").string()}, {"count", points.size()}, {"format", "LAS 1.4"}};
+  const fs::path path = aoi_dir / PointCloudFileName(po.points_format);
+  WriteLas(path.string(), points, HeightCrsWkt(a.epsg, po.vertical_datum, /*wkt1=*/true), po.points_format);
+  RemoveStale(OtherPointClouds(aoi_dir, po.points_format));
+  return {{"path", path.string()},
+          {"count", points.size()},
+          {"encoding", EnumName(po.points_format)},
+          {"bytes", fs::file_size(path)},
+          {"format", "LAS 1.4, point format 7"}};
 }
 
 // One AOI: the products on its grid, compared with its truth when it has
@@ -437,8 +454,8 @@ json WriteOneAoi(const RunOptions& options, const AoiCatalog& a, const AoiScene&
   if (po.points) {
     entry["points"] = WritePoints(po, a, s, dtm, land_cover.classes, aoi_dir);
   } else {
-    left_out.push_back("points.las (products.points off)");
-    RemoveStale({aoi_dir / "points.las"});
+    left_out.push_back("point cloud (products.points off)");
+    RemoveStale(OtherPointClouds(aoi_dir, std::nullopt));
   }
   entry["left_out"] = left_out;
   // Previews for the report page (not products: PNGs without georeferencing).

@@ -663,7 +663,7 @@ template <class IO> void Visit(IO& io, LandCoverOptions& o) {
 }
 template <class IO> void Visit(IO& io, ProductOptions& o) {
   io("vertical_datum", o.vertical_datum,
-     "Heights of dsm.tif, dtm.tif and points.las: 'ellipsoid' (WGS84, as the RPCs and the DFC2019 LiDAR) or "
+     "Heights of dsm.tif, dtm.tif and the point cloud: 'ellipsoid' (WGS84, as the RPCs and the DFC2019 LiDAR) or "
      "'egm96' (above the EGM96 geoid); comparisons run on ellipsoidal heights either way");
   io("gsd_m", o.gsd_m,
      "Pixel size of the products of an AOI without truth (an AOI with truth uses the truth's grid)", range::Above(0));
@@ -679,13 +679,16 @@ template <class IO> void Visit(IO& io, ProductOptions& o) {
      "The image whose date ortho.tif's colours take (a per-band gain and offset fitted on the cells it sees); empty "
      "= the image closest to nadir");
   io("points", o.points,
-     "Write points.las: the scene's Gaussians as a LAS 1.4 point cloud with colour and classes");
+     "Write the point cloud: the scene's Gaussians as LAS 1.4 points (format 7) with colour and classes");
+  io("points_format", o.points_format,
+     "Its encoding: 'laz' (points.laz, LAZ-compressed), 'copc' (points.copc.laz, a Cloud Optimized Point Cloud "
+     "that viewers stream by octree node) or 'las' (points.las, uncompressed)");
   io("classes", o.classes,
-     "Write classes.tif (ground, building, high vegetation in ASPRS codes) and give points.las those classes; a "
+     "Write classes.tif (ground, building, high vegetation in ASPRS codes) and give the point cloud those classes; a "
      "panchromatic scene's objects stay class 1, as no colour tells a crown from a roof");
   io("land_cover", o.land_cover);
   io("min_opacity", o.min_opacity,
-     "Gaussians more transparent than this are left out of points.las and of quality.tif's height spread",
+     "Gaussians more transparent than this are left out of the point cloud and of quality.tif's height spread",
      range::In(0, 1));
   io("ground_tolerance_m", o.ground_tolerance_m,
      "A point at most this far above the DTM is ground (LAS class 2)", range::AtLeast(0));

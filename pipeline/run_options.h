@@ -18,6 +18,7 @@
 #include "merge/lod.h"
 #include "merge/stitch.h"
 #include "products/land_cover.h"
+#include "products/point_cloud.h"
 #include "products/tiles3d.h"
 #include "dense/dense.h"
 #include "sfm/sfm.h"
@@ -138,10 +139,10 @@ struct DsmOptions {
 };
 
 // The GIS products of each AOI beside its DSM (OUT/<AOI>/: dtm.tif,
-// ndsm.tif, quality.tif, ortho.tif, classes.tif, points.las) and the datum of every
+// ndsm.tif, quality.tif, ortho.tif, classes.tif, points.laz) and the datum of every
 // height the run hands out.
 struct ProductOptions {
-  // Heights of dsm.tif, dtm.tif and points.las: above the WGS84 ellipsoid
+  // Heights of dsm.tif, dtm.tif and the point cloud: above the WGS84 ellipsoid
   // (the frame of the RPCs and of the DFC2019 LiDAR) or above the EGM96
   // geoid (orthometric). Comparisons always run on ellipsoidal heights.
   HeightReference vertical_datum = HeightReference::kEllipsoid;
@@ -151,10 +152,11 @@ struct ProductOptions {
   bool ortho = true;                 // ortho.tif
   int ortho_bits = 8;                // 8 or 16
   std::string ortho_image;           // the image whose date ortho.tif's colours take (empty: closest to nadir)
-  bool points = true;                // points.las
-  bool classes = true;               // classes.tif, and building and vegetation classes in points.las
+  bool points = true;                // the point cloud
+  PointCloudEncoding points_format = PointCloudEncoding::kLaz;  // points.laz; also points.las or points.copc.laz
+  bool classes = true;               // classes.tif, and building and vegetation classes in the point cloud
   LandCoverOptions land_cover;       // how classes.tif tells buildings, trees and ground apart
-  double min_opacity = 0.1;          // Gaussians more transparent are left out of points.las and the height spread
+  double min_opacity = 0.1;          // Gaussians more transparent are left out of the point cloud and the height spread
   double ground_tolerance_m = 1.0;   // a point this close above the DTM is ground (class 2)
   void Check() const;                // throws Error("products", field, ...)
 };

@@ -12,6 +12,8 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "products/copc.h"
+#include "products/laz_encoder.h"
 
 namespace skyfall {
 namespace {
@@ -31,8 +33,6 @@ void PutLe(std::string* out, T value) {
   static_assert(std::is_unsigned_v<T>);
   for (std::size_t b = 0; b < sizeof(T); ++b) out->push_back(static_cast<char>((value >> (8 * b)) & 0xff));
 }
-
-void PutLe(std::string* out, std::int32_t value) { PutLe(out, static_cast<std::uint32_t>(value)); }
 
 void PutLe(std::string* out, double value) {
   std::uint64_t bits;
@@ -97,7 +97,17 @@ Quantized Quantize(const std::string& path, const std::vector<LasPoint>& points)
   return q;
 }
 
-void PutHeader(std::string* out, const Quantized& q, std::uint64_t count, std::uint32_t point_offset) {
+// Where the header's pointers lead: the point records (or LAZ chunks), how
+// many VLRs precede them, and the EVLRs after them.
+struct Layout {
+  std::uint32_t point_offset = 0;
+  std::uint32_t vlr_count = 0;
+  std::uint8_t point_format = kPointFormat;  // with kLazFormatBit when compressed
+  std::uint64_t first_evlr = 0;
+  std::uint32_t evlr_count = 0;
+};
+
+void PutHeader(std::string* out, const Quantized& q, std::uint64_t count, const Layout& layout) {
   const std::time_t now = std::time(nullptr);
   std::tm utc{};
   gmtime_r(&now, &utc);
@@ -112,9 +122,9 @@ void PutHeader(std::string* out, const Quantized& q, std::uint64_t count, std::u
   PutLe(out, static_cast<std::uint16_t>(utc.tm_yday + 1));
   PutLe(out, static_cast<std::uint16_t>(utc.tm_year + 1900));
   PutLe(out, kHeaderBytes);
-  PutLe(out, point_offset);
-  PutLe<std::uint32_t>(out, 1);  // VLRs
-  out->push_back(static_cast<char>(kPointFormat));
+  PutLe(out, layout.point_offset);
+  PutLe(out, layout.vlr_count);
+  out->push_back(static_cast<char>(layout.point_format));
   PutLe(out, kPointBytes);
   // Legacy point counts (4 + 5 x 4 bytes): R15 wants them zero for formats 6 and up.
   out->append(24, '\0');
@@ -125,36 +135,183 @@ void PutHeader(std::string* out, const Quantized& q, std::uint64_t count, std::u
     PutLe(out, q.min[a]);
   }
   PutLe<std::uint64_t>(out, 0);  // waveform data packets: none
-  PutLe<std::uint64_t>(out, 0);  // first EVLR: none
-  PutLe<std::uint32_t>(out, 0);  // EVLRs
+  PutLe(out, layout.first_evlr);
+  PutLe(out, layout.evlr_count);
   PutLe(out, count);
   PutLe(out, count);  // every point is return 1 of 1
   out->append(14 * 8, '\0');
 }
 
-void PutWktVlr(std::string* out, const std::string& crs_wkt) {
+void PutVlr(std::string* out, const std::string& user_id, std::uint16_t record_id, const std::string& description,
+            const std::string& payload) {
   PutLe<std::uint16_t>(out, 0);  // reserved
-  PutText(out, kProjectionUserId, 16);
-  PutLe(out, kWktRecordId);
-  PutLe(out, static_cast<std::uint16_t>(crs_wkt.size() + 1));
-  PutText(out, "OGC coordinate system WKT", 32);
-  out->append(crs_wkt);
-  out->push_back('\0');
+  PutText(out, user_id, 16);
+  PutLe(out, record_id);
+  PutLe(out, static_cast<std::uint16_t>(payload.size()));
+  PutText(out, description, 32);
+  out->append(payload);
 }
 
-void PutPoint(std::string* out, const std::array<std::int32_t, 3>& xyz, const LasPoint& p) {
-  for (int a = 0; a < 3; ++a) PutLe(out, xyz[a]);
-  PutLe<std::uint16_t>(out, 0);  // intensity: none from imagery
-  out->push_back(0x11);          // return 1 of 1
-  out->push_back(0);             // classification flags, scanner channel, scan direction, edge of flight line
-  out->push_back(static_cast<char>(p.classification));
-  out->push_back(0);             // user data
-  PutLe<std::uint16_t>(out, 0);  // scan angle
-  PutLe<std::uint16_t>(out, 0);  // point source ID
-  PutLe(out, 0.0);               // GPS time
-  PutLe(out, p.red);
-  PutLe(out, p.green);
-  PutLe(out, p.blue);
+void PutWktVlr(std::string* out, const std::string& crs_wkt) {
+  PutVlr(out, kProjectionUserId, kWktRecordId, "OGC coordinate system WKT", crs_wkt + std::string(1, '\0'));
+}
+
+void PutLaszipVlr(std::string* out, std::uint32_t chunk_points) {
+  PutVlr(out, kLaszipUserId, kLaszipRecordId, "skyfall LAZ 1.4 layered chunks", LaszipVlrPayload(chunk_points));
+}
+
+constexpr std::size_t kEvlrHeaderBytes = 60;
+constexpr char kCopcUserId[] = "copc";
+constexpr std::uint16_t kCopcInfoRecordId = 1;
+constexpr std::uint16_t kCopcHierarchyRecordId = 1000;
+constexpr std::size_t kCopcInfoBytes = 160;
+constexpr std::size_t kCopcEntryBytes = 32;
+
+// COPC's info VLR: the octree's cube, the root's point spacing and where the
+// hierarchy page lies (known once the chunks are laid out).
+std::string CopcInfoPayload(const CopcCube& cube, std::uint64_t hierarchy_offset, std::uint64_t hierarchy_bytes) {
+  std::string out;
+  for (int a = 0; a < 3; ++a) PutLe(&out, cube.center[a]);
+  PutLe(&out, cube.halfsize);
+  PutLe(&out, 2 * cube.halfsize / kCopcGridCells);  // spacing of the root node
+  PutLe(&out, hierarchy_offset);
+  PutLe(&out, hierarchy_bytes);
+  PutLe(&out, 0.0);  // GPS time range: none recorded
+  PutLe(&out, 0.0);
+  out.append(11 * 8, '\0');  // reserved
+  return out;
+}
+
+LazRecord Record(const std::array<std::int32_t, 3>& xyz, const LasPoint& p) {
+  LazRecord r;
+  r.xyz = xyz;
+  r.classification = p.classification;
+  r.rgb = {p.red, p.green, p.blue};
+  return r;
+}
+
+void CheckCrs(const std::string& path, const std::string& crs_wkt) {
+  if (crs_wkt.empty()) throw Error("las", path, "no CRS WKT given");
+  if (crs_wkt.size() + 1 > std::numeric_limits<std::uint16_t>::max()) {
+    throw Error("las", path, "CRS WKT of " + std::to_string(crs_wkt.size()) + " bytes does not fit a VLR");
+  }
+}
+
+std::string LasBytes(const std::string& crs_wkt, const Quantized& q, const std::vector<LasPoint>& points) {
+  Layout layout;
+  layout.point_offset = static_cast<std::uint32_t>(kHeaderBytes + kVlrHeaderBytes + crs_wkt.size() + 1);
+  layout.vlr_count = 1;
+  std::string out;
+  out.reserve(layout.point_offset + points.size() * kPointBytes);
+  PutHeader(&out, q, points.size(), layout);
+  PutWktVlr(&out, crs_wkt);
+  for (std::size_t i = 0; i < points.size(); ++i) out += RawRecord7(Record(q.xyz[i], points[i]));
+  return out;
+}
+
+// The points as LAZ chunks laid out from `start` (the byte after the chunk
+// table's 8-byte pointer), one chunk per group; returns the chunks' bytes
+// and fills `table`.
+std::string LazChunks(const Quantized& q, const std::vector<LasPoint>& points,
+                      const std::vector<std::vector<std::uint32_t>>& groups, std::vector<LazChunkEntry>* table) {
+  std::string out;
+  for (const auto& group : groups) {
+    std::vector<LazRecord> records;
+    records.reserve(group.size());
+    for (std::uint32_t i : group) records.push_back(Record(q.xyz[i], points[i]));
+    const std::string chunk = EncodeLazChunk(records);
+    table->push_back({static_cast<std::uint32_t>(group.size()), static_cast<std::uint32_t>(chunk.size())});
+    out += chunk;
+  }
+  return out;
+}
+
+std::vector<std::array<double, 3>> StoredCoordinates(const Quantized& q) {
+  std::vector<std::array<double, 3>> xyz(q.xyz.size());
+  for (std::size_t i = 0; i < xyz.size(); ++i) {
+    for (int a = 0; a < 3; ++a) xyz[i][a] = q.xyz[i][a] * kLasScaleM + q.offset[a];
+  }
+  return xyz;
+}
+
+// Plain LAZ: fixed chunks of LASzip's default 50,000 points, taken along a
+// Morton curve over the cloud's cube so that neighbours share a chunk.
+std::string LazBytes(const std::string& crs_wkt, const Quantized& q, const std::vector<LasPoint>& points) {
+  constexpr std::size_t kChunkPoints = kLazFixedChunkPoints;
+  const auto xyz = StoredCoordinates(q);
+  const std::vector<std::uint32_t> order = MortonOrder(xyz, CopcCubeAround(xyz, kLasScaleM));
+  std::vector<std::vector<std::uint32_t>> groups;
+  for (std::size_t start = 0; start < order.size(); start += kChunkPoints) {
+    groups.emplace_back(order.begin() + start, order.begin() + std::min(order.size(), start + kChunkPoints));
+  }
+  Layout layout;
+  layout.point_offset = static_cast<std::uint32_t>(kHeaderBytes + 2 * kVlrHeaderBytes + crs_wkt.size() + 1 +
+                                                   LaszipVlrPayload(kChunkPoints).size());
+  layout.vlr_count = 2;
+  layout.point_format = kPointFormat | kLazFormatBit;
+  std::string out;
+  PutHeader(&out, q, points.size(), layout);
+  PutWktVlr(&out, crs_wkt);
+  PutLaszipVlr(&out, kChunkPoints);
+  std::vector<LazChunkEntry> table;
+  const std::string chunks = LazChunks(q, points, groups, &table);
+  PutLe<std::uint64_t>(&out, layout.point_offset + 8 + chunks.size());  // where the chunk table starts
+  out += chunks;
+  out += EncodeLazChunkTable(table, /*variable_size=*/false);
+  return out;
+}
+
+// COPC: the LAZ file above with one chunk per octree node, the info VLR
+// first, and the hierarchy (one page, every node) as an EVLR after the chunk
+// table.
+std::string CopcBytes(const std::string& crs_wkt, const Quantized& q, const std::vector<LasPoint>& points) {
+  const auto xyz = StoredCoordinates(q);
+  const CopcCube cube = CopcCubeAround(xyz, kLasScaleM);
+  const std::vector<CopcNode> nodes = BuildCopcOctree(xyz, cube);
+  std::vector<std::vector<std::uint32_t>> groups;
+  for (const CopcNode& node : nodes) groups.push_back(node.points);
+
+  Layout layout;
+  layout.point_offset = static_cast<std::uint32_t>(kHeaderBytes + 3 * kVlrHeaderBytes + kCopcInfoBytes +
+                                                   LaszipVlrPayload(kLazVariableChunks).size() + crs_wkt.size() + 1);
+  layout.vlr_count = 3;
+  layout.point_format = kPointFormat | kLazFormatBit;
+  std::vector<LazChunkEntry> table;
+  const std::string chunks = LazChunks(q, points, groups, &table);
+  const std::uint64_t chunks_start = layout.point_offset + 8;
+  const std::string chunk_table = EncodeLazChunkTable(table, /*variable_size=*/true);
+  layout.first_evlr = chunks_start + chunks.size() + chunk_table.size();
+  layout.evlr_count = 1;
+
+  std::string page;
+  if (nodes.empty()) {  // an empty cloud: the root, with no points, so that the page is not empty
+    page.append(4 * 4 + 8 + 4 + 4, '\0');
+  }
+  std::uint64_t at = chunks_start;
+  for (std::size_t n = 0; n < nodes.size(); ++n) {
+    for (int k = 0; k < 4; ++k) PutLe(&page, static_cast<std::uint32_t>(nodes[n].key[k]));
+    PutLe(&page, at);
+    PutLe(&page, table[n].bytes);
+    PutLe(&page, table[n].points);
+    at += table[n].bytes;
+  }
+
+  std::string out;
+  PutHeader(&out, q, points.size(), layout);
+  PutVlr(&out, kCopcUserId, kCopcInfoRecordId, "COPC info",
+         CopcInfoPayload(cube, layout.first_evlr + kEvlrHeaderBytes, page.size()));
+  PutLaszipVlr(&out, kLazVariableChunks);
+  PutWktVlr(&out, crs_wkt);
+  PutLe<std::uint64_t>(&out, layout.first_evlr - chunk_table.size());  // where the chunk table starts
+  out += chunks;
+  out += chunk_table;
+  PutLe<std::uint16_t>(&out, 0);  // EVLR: reserved
+  PutText(&out, kCopcUserId, 16);
+  PutLe(&out, kCopcHierarchyRecordId);
+  PutLe(&out, static_cast<std::uint64_t>(page.size()));
+  PutText(&out, "COPC hierarchy", 32);
+  out += page;
+  return out;
 }
 
 // --- Reading (shares nothing with the writing above) -------------------------
@@ -199,19 +356,39 @@ constexpr std::array<std::uint16_t, 11> kMinRecordBytes = {20, 28, 26, 34, 57, 6
 
 }  // namespace
 
-void WriteLas(const std::string& path, const std::vector<LasPoint>& points, const std::string& crs_wkt) {
-  if (crs_wkt.empty()) throw Error("las", path, "no CRS WKT given");
-  if (crs_wkt.size() + 1 > std::numeric_limits<std::uint16_t>::max()) {
-    throw Error("las", path, "CRS WKT of " + std::to_string(crs_wkt.size()) + " bytes does not fit a VLR");
-  }
+void WriteLas(const std::string& path, const std::vector<LasPoint>& points, const std::string& crs_wkt,
+              PointCloudEncoding encoding) {
+  CheckCrs(path, crs_wkt);
   const Quantized q = Quantize(path, points);
-  const auto point_offset = static_cast<std::uint32_t>(kHeaderBytes + kVlrHeaderBytes + crs_wkt.size() + 1);
-  std::string out;
-  out.reserve(point_offset + points.size() * kPointBytes);
-  PutHeader(&out, q, points.size(), point_offset);
-  PutWktVlr(&out, crs_wkt);
-  for (std::size_t i = 0; i < points.size(); ++i) PutPoint(&out, q.xyz[i], points[i]);
-  WriteFileAtomic(path, out);
+  switch (encoding) {
+    case PointCloudEncoding::kLas:
+      WriteFileAtomic(path, LasBytes(crs_wkt, q, points));
+      return;
+    case PointCloudEncoding::kLaz:
+      WriteFileAtomic(path, LazBytes(crs_wkt, q, points));
+      return;
+    case PointCloudEncoding::kCopc:
+      WriteFileAtomic(path, CopcBytes(crs_wkt, q, points));
+      return;
+  }
+}
+
+std::string PointCloudFileName(PointCloudEncoding encoding) {
+  switch (encoding) {
+    case PointCloudEncoding::kLas: return "points.las";
+    case PointCloudEncoding::kLaz: return "points.laz";
+    case PointCloudEncoding::kCopc: return "points.copc.laz";
+  }
+  return "points.las";
+}
+
+std::string PointCloudMediaType(PointCloudEncoding encoding) {
+  switch (encoding) {
+    case PointCloudEncoding::kLas: return "application/vnd.las";
+    case PointCloudEncoding::kLaz: return "application/vnd.laszip";
+    case PointCloudEncoding::kCopc: return "application/vnd.laszip+copc";
+  }
+  return "application/vnd.las";
 }
 
 LasHeaderInfo ReadLasHeader(const std::string& path) {
@@ -230,7 +407,10 @@ LasHeaderInfo ReadLasHeader(const std::string& path) {
   bytes.Need(header_size, "the public header block");
   const auto point_offset = bytes.Get<std::uint32_t>(96);
   const auto vlr_count = bytes.Get<std::uint32_t>(100);
-  info.point_format = bytes.Get<std::uint8_t>(104);
+  const auto format_byte = bytes.Get<std::uint8_t>(104);
+  // LASzip marks compressed records with bit 7 (and some writers bit 6).
+  info.point_format = format_byte & 0x3f;
+  const bool laz_bit = (format_byte & 0x80) != 0;
   const auto record_bytes = bytes.Get<std::uint16_t>(105);
   if (info.point_format >= static_cast<int>(kMinRecordBytes.size())) {
     throw Error("las", path, "point data record format " + std::to_string(info.point_format) + " is not known");
@@ -251,12 +431,21 @@ LasHeaderInfo ReadLasHeader(const std::string& path) {
     bytes.Need(at + kVlrHeaderBytes, "VLR " + std::to_string(v));
     const auto length = bytes.Get<std::uint16_t>(at + 20);
     bytes.Need(at + kVlrHeaderBytes + length, "VLR " + std::to_string(v));
-    if (bytes.GetText(at + 2, 16) == kProjectionUserId && bytes.Get<std::uint16_t>(at + 18) == kWktRecordId) {
+    const std::string user_id = bytes.GetText(at + 2, 16);
+    const auto record_id = bytes.Get<std::uint16_t>(at + 18);
+    if (user_id == kProjectionUserId && record_id == kWktRecordId) {
       info.crs_wkt = bytes.GetText(at + kVlrHeaderBytes, length);
     }
+    if (user_id == kLaszipUserId && record_id == kLaszipRecordId) info.compressed = true;
+    if (v == 0 && user_id == kCopcUserId && record_id == kCopcInfoRecordId) info.copc = true;
     at += kVlrHeaderBytes + length;
   }
 
+  if (laz_bit != info.compressed) {
+    throw Error("las", path, laz_bit ? "point format marked compressed but no \"laszip encoded\" VLR"
+                                     : "a \"laszip encoded\" VLR but the point format is not marked compressed");
+  }
+  if (info.compressed) return info;  // records are LAZ chunks: for a LAZ decoder
   // Compared by division: a corrupt count must not overflow the product.
   if (point_offset > bytes.size() || info.point_count > (bytes.size() - point_offset) / record_bytes) {
     throw Error("las", path, "truncated: " + std::to_string(info.point_count) + " point records of " +

@@ -1,13 +1,14 @@
-// Georeferenced point clouds as LAS 1.4 (ASPRS, R15), the format GIS and
-// point-cloud tools read without a plug-in. Uncompressed LAS rather than
-// LAZ/COPC because neither Debian bookworm (no liblaszip, no PDAL) nor npm
-// (laz-perf's JS build only decodes) offers a LAZ encoder.
+// Georeferenced point clouds as LAS 1.4 (ASPRS, R15), plain, LAZ-compressed
+// (products/laz_encoder.h) or as a Cloud Optimized Point Cloud (COPC 1.0,
+// products/copc.h): the formats GIS and point-cloud tools read.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "core/enum_codec.h"
 
 namespace skyfall {
 
@@ -26,8 +27,26 @@ struct LasHeaderInfo {
   int point_format = 0;
   int version_major = 0, version_minor = 0;
   std::string crs_wkt;  // from the OGC WKT VLR (LASF_Projection, record 2112); empty when there is none
-  std::array<std::uint64_t, 16> points_by_class{};  // count per classification 0..15 (from reading all records)
+  std::array<std::uint64_t, 16> points_by_class{};  // count per classification 0..15 (uncompressed files only)
+  bool compressed = false;  // LAZ: point format with bit 7 set and a "laszip encoded" VLR
+  bool copc = false;        // the first VLR is COPC's info VLR
 };
+
+enum class PointCloudEncoding {
+  kLas,   // uncompressed records
+  kLaz,   // LAZ chunks of 50,000 points along a Morton curve
+  kCopc,  // LAZ with one chunk per octree node and COPC's info VLR and hierarchy
+};
+template <>
+struct EnumNames<PointCloudEncoding> {
+  static constexpr std::array<std::pair<PointCloudEncoding, const char*>, 3> kNames = {
+      {{PointCloudEncoding::kLas, "las"}, {PointCloudEncoding::kLaz, "laz"}, {PointCloudEncoding::kCopc, "copc"}}};
+};
+
+// The product's file name for each encoding (points.las, points.laz,
+// points.copc.laz, COPC's own suffix) and its media type.
+std::string PointCloudFileName(PointCloudEncoding encoding);
+std::string PointCloudMediaType(PointCloudEncoding encoding);
 
 // Scale of the stored integer coordinates on all axes: millimetres, finer
 // than any photogrammetric height.
@@ -42,12 +61,16 @@ constexpr double kLasScaleM = 0.001;
 // The file is built in memory and written atomically. Throws Error naming the
 // path when `crs_wkt` is empty or too long for a VLR, or naming the path and
 // the point's index when a coordinate is not finite or out of int32 range.
-void WriteLas(const std::string& path, const std::vector<LasPoint>& points, const std::string& crs_wkt);
+// LAZ and COPC hold the same records, reordered along the space-filling
+// curve their compression wants.
+void WriteLas(const std::string& path, const std::vector<LasPoint>& points, const std::string& crs_wkt,
+              PointCloudEncoding encoding = PointCloudEncoding::kLas);
 
-// Reads the header, the WKT VLR and all point records back: a parse of its
-// own, sharing nothing with the writer but the structs. Throws Error naming
-// the path when the file is not LAS ("LASF"), is truncated, or has a point
-// format this reader does not know.
+// Reads the header, the WKT VLR and (uncompressed files) all point records
+// back: a parse of its own, sharing nothing with the writer but the structs;
+// LAZ records are left to LAZ decoders. Throws Error naming the path when the
+// file is not LAS ("LASF"), is truncated, or has a point format this reader
+// does not know.
 LasHeaderInfo ReadLasHeader(const std::string& path);
 
 }  // namespace skyfall

@@ -12,6 +12,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "products/city_report.h"
+#include "products/point_cloud.h"
 #include "products/run_report.h"
 #include "products/stac.h"
 
@@ -59,6 +60,15 @@ std::string Link(const fs::path& target, const fs::path& out_dir, const std::str
   if (!fs::exists(target)) return "";
   const std::string href = fs::relative(fs::absolute(target), fs::absolute(out_dir)).generic_string();
   return "<a href=\"" + HtmlEscape(UrlPath(href)) + "\">" + HtmlEscape(text) + "</a> ";
+}
+
+// The AOI's point cloud in whichever encoding the run wrote.
+std::string PointCloudLinks(const fs::path& aoi_dir, const fs::path& out_dir) {
+  std::string html;
+  for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
+    html += Link(aoi_dir / PointCloudFileName(encoding), out_dir, std::string("point cloud (") + name + ")");
+  }
+  return html;
 }
 
 std::string DsmTable(const CityReport& report) {
@@ -221,7 +231,7 @@ std::string ProductsSection(const CityReport& report, const fs::path& out_dir) {
             Link(dir / "dsm.tif", out_dir, "DSM") + Link(dir / "dtm.tif", out_dir, "DTM") +
             Link(dir / "ndsm.tif", out_dir, "nDSM") + Link(dir / "quality.tif", out_dir, "quality layers") +
             Link(dir / "ortho.tif", out_dir, "orthophoto") + Link(dir / "classes.tif", out_dir, "classes") +
-            Link(dir / "points.las", out_dir, "point cloud (LAS)") + "</p>";
+            PointCloudLinks(dir, out_dir) + "</p>";
     json left_out = p.value("left_out", json::array());
     if (p.contains("classes") && p["classes"].contains("left_out")) left_out.push_back(p["classes"]["left_out"]);
     for (const json& why : left_out)

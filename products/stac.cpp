@@ -1,6 +1,7 @@
 #include "products/stac.h"
 
 #include <gdal.h>
+#include <cpl_conv.h>
 #include <ogr_srs_api.h>
 
 #include <algorithm>
@@ -18,6 +19,7 @@
 #include "ingest/gdal_util.h"
 #include "ingest/geo.h"
 #include "ingest/vertical_datum.h"
+#include "products/point_cloud.h"
 
 namespace skyfall {
 namespace {
@@ -27,7 +29,6 @@ using json = nlohmann::json;
 
 constexpr const char* kGeoTiff = "image/tiff; application=geotiff";
 constexpr const char* kCog = "image/tiff; application=geotiff; profile=cloud-optimized";
-constexpr const char* kLas = "application/vnd.las";
 constexpr const char* kPng = "image/png";
 constexpr const char* kJson = "application/json";
 constexpr const char* kGeoJson = "application/geo+json";
@@ -140,6 +141,44 @@ void AddRasterFields(const fs::path& path, const std::string& unit, json* asset)
 void AddIfExists(json* assets, const std::string& key, const fs::path& path, const fs::path& doc_dir,
                  const std::string& media_type, const std::vector<std::string>& roles, const std::string& title) {
   if (fs::exists(path)) (*assets)[key] = FileAsset(path, doc_dir, media_type, roles, title);
+}
+
+// The AOI's point cloud in whichever encoding the run wrote, with its CRS
+// (read from the file's WKT record) and 3D bounds.
+void AddPointCloud(json* assets, const fs::path& aoi_dir, const fs::path& doc_dir) {
+  for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
+    const fs::path path = aoi_dir / PointCloudFileName(encoding);
+    if (!fs::exists(path)) continue;
+    json asset = FileAsset(path, doc_dir, PointCloudMediaType(encoding), {"data"},
+                           "Point cloud (" + std::string(name) +
+                               "): the scene's Gaussians, LAS 1.4 format 7, classes 2 ground, 5 high vegetation, "
+                               "6 building, 1 other");
+    const LasHeaderInfo las = ReadLasHeader(path.string());
+    OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+    char* wkt_in = const_cast<char*>(las.crs_wkt.c_str());
+    if (OSRImportFromWkt(srs, &wkt_in) == OGRERR_NONE) {
+      // The horizontal CRS's code: the compound CRS's PROJCS node, or, for an
+      // ellipsoidal height (read back as a 3D CRS without a code), the zone's.
+      OGRSpatialReferenceH zone = OSRClone(srs);
+      if (OSRIsCompound(zone)) {
+        OSRStripVertical(zone);
+      } else {
+        OSRDemoteTo2D(zone, nullptr);
+        OSRAutoIdentifyEPSG(zone);
+      }
+      const char* code = OSRGetAuthorityCode(zone, nullptr);
+      const char* authority = OSRGetAuthorityName(zone, nullptr);
+      asset["proj:code"] = code && authority ? json(std::string(authority) + ":" + code) : json(nullptr);
+      OSRDestroySpatialReference(zone);
+      char* wkt2 = nullptr;
+      const char* options[] = {"FORMAT=WKT2_2019", nullptr};
+      if (OSRExportToWktEx(srs, &wkt2, options) == OGRERR_NONE && wkt2) asset["proj:wkt2"] = wkt2;
+      CPLFree(wkt2);
+    }
+    OSRDestroySpatialReference(srs);
+    asset["proj:bbox"] = {las.min_x, las.min_y, las.min_z, las.max_x, las.max_y, las.max_z};
+    (*assets)["points"] = asset;
+  }
 }
 
 struct TimeRange {
@@ -268,9 +307,7 @@ json AoiAssets(const AoiCatalog& a, const StacCity& city, const fs::path& doc_di
   AddRaster(&assets, "classes", aoi_dir / "classes.tif", doc_dir, {"data"},
             "Classes (ASPRS codes, in the file's CLASS_CODES): 2 ground, 5 high vegetation, 6 building, 1 above "
             "ground not told apart", "");
-  AddIfExists(&assets, "points", aoi_dir / "points.las", doc_dir, kLas, {"data"},
-              "Point cloud: the scene's Gaussians, LAS 1.4 format 7, classes 2 ground, 5 high vegetation, 6 "
-              "building, 1 other, CRS in its WKT record");
+  AddPointCloud(&assets, aoi_dir, doc_dir);
   if (fs::exists(compare / "error_map.tif")) {
     json error = FileAsset(compare / "error_map.tif", doc_dir, kGeoTiff, {"data"}, "DSM minus truth");
     AddRasterFields(compare / "error_map.tif", "m", &error);

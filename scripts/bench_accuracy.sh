@@ -137,6 +137,21 @@ def stac_valid(run_dir):
     result = subprocess.run(["/usr/bin/python3", "tests/stac_validate.py", os.path.join(run_dir, "catalog.json"),
                              "../shared/schemas"], capture_output=True, text=True)
     return result.returncode == 0
+def points_check(products):
+    # The point cloud decoded by npm's LAZ decoders (web/check_points.mjs):
+    # the records decoded against the count the run reported, its size, and
+    # whether its WKT record is there.
+    entry = products.get("points") or {}
+    path = entry.get("path")
+    if not path or not os.path.isfile(path):
+        return None
+    result = subprocess.run(["node", "web/check_points.mjs", path], capture_output=True, text=True)
+    if result.returncode != 0:
+        return {"encoding": entry.get("encoding"), "decoded": None, "error": result.stderr.strip()[-300:]}
+    decoded = json.loads(result.stdout)
+    return {"encoding": entry.get("encoding"), "count": entry.get("count"), "decoded": decoded["decoded"],
+            "bytes": os.path.getsize(path), "bytes_per_point": os.path.getsize(path) / max(1, decoded["decoded"]),
+            "crs": bool(decoded["crs_wkt"]), "outside_node": decoded.get("outside")}
 tuned = set(filter(None, sys.argv[3].split(",")))
 scenes = []
 def synth_options(name):
@@ -223,6 +238,7 @@ for name in sorted(os.listdir(out)):
         "vegetation_iou": ((d.get("land_cover") or {}).get("vegetation") or {}).get("iou"),
         "products_cogs_valid": cogs_valid((report.get("products") or [{}])[0]),
         "stac_valid": stac_valid(os.path.join(out, name, "run")),
+        "points": points_check((report.get("products") or [{}])[0]),
         "tuned_on": name in tuned,
         "synthetic_size_m": (synth_options(name) or {}).get("size_m"),
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.

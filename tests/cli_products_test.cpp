@@ -45,7 +45,7 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
   const CommandResult first = RunCommand(run, dir);
   ASSERT_EQ(first.exit_code, 0) << first.err;
   const fs::path aoi = fs::path(out) / "SYN_001";
-  for (const char* name : {"dsm.tif", "dtm.tif", "ndsm.tif", "quality.tif", "ortho.tif"}) {
+  for (const char* name : {"dsm.tif", "dtm.tif", "ndsm.tif", "quality.tif", "ortho.tif", "classes.tif"}) {
     ASSERT_TRUE(fs::exists(aoi / name)) << name;
     const CommandResult cog = ValidateCog(aoi / name);
     EXPECT_EQ(cog.exit_code, 0) << name << ": " << cog.out << cog.err;
@@ -89,27 +89,43 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
   EXPECT_EQ(against_image.shift_col_px, 0);
   EXPECT_EQ(against_image.shift_row_px, 0);
 
-  // The point cloud: our reader and loaders.gl agree with the report, the
-  // points lie on the AOI and the CRS is UTM 17N with ellipsoidal heights.
+  // The point cloud (points.laz by default): our reader and laz-perf agree
+  // with the report, the points lie on the AOI, the CRS is UTM 17N with
+  // ellipsoidal heights, and the catalog says so.
   const nlohmann::json& products = report.at("products").at(0);
-  const LasHeaderInfo las = ReadLasHeader((aoi / "points.las").string());
+  const LasHeaderInfo las = ReadLasHeader((aoi / "points.laz").string());
+  EXPECT_TRUE(las.compressed);
   EXPECT_EQ(las.point_count, products.at("points").at("count").get<std::uint64_t>());
+  EXPECT_EQ(products.at("points").at("encoding"), "laz");
   EXPECT_GT(las.point_count, 1000u);
   const DsmGrid grid = ReadDsm((aoi / "dsm.tif").string());
   EXPECT_GE(las.min_x, grid.upper_left_easting_m);
   EXPECT_LE(las.max_x, grid.upper_left_easting_m + grid.width_px * grid.gsd_m);
   EXPECT_LE(las.max_y, grid.upper_left_northing_m);
   EXPECT_GE(las.min_y, grid.upper_left_northing_m - grid.height_px * grid.gsd_m);
-  EXPECT_GT(las.points_by_class[2], 0u);  // ground
   OGRSpatialReferenceH crs = OSRNewSpatialReference(las.crs_wkt.c_str());
   ASSERT_NE(crs, nullptr);
   EXPECT_EQ(OSRGetAxesCount(crs), 3);
   OSRDestroySpatialReference(crs);
+  const nlohmann::json points_asset = ReadJson(aoi / "SYN_001.json").at("assets").at("points");
+  EXPECT_EQ(points_asset.at("type"), "application/vnd.laszip");
+  EXPECT_EQ(points_asset.at("proj:code"), "EPSG:32617");
+  EXPECT_EQ(points_asset.at("proj:bbox").at(2).get<double>(), las.min_z);
   const fs::path web = fs::path(SKYFALL_SOURCE_DIR) / "web";
-  if (fs::exists(web / "node_modules" / "@loaders.gl" / "las")) {
-    const CommandResult loaded = RunCommand("node " + (web / "check_las.mjs").string() + " " + (aoi / "points.las").string(), dir);
-    ASSERT_EQ(loaded.exit_code, 0) << loaded.err;
-    EXPECT_EQ(nlohmann::json::parse(loaded.out).at("count").get<std::uint64_t>(), las.point_count) << loaded.out;
+  const bool decoders = fs::exists(web / "node_modules" / "laz-perf") && fs::exists(web / "node_modules" / "copc");
+  const auto decode = [&](const fs::path& file) {
+    const CommandResult r = RunCommand("node " + (web / "check_points.mjs").string() + " " + file.string(), dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json::object();
+  };
+  nlohmann::json laz;
+  if (decoders) {
+    laz = decode(aoi / "points.laz");
+    EXPECT_EQ(laz.at("decoded").get<std::uint64_t>(), las.point_count) << laz.dump();
+    EXPECT_EQ(laz.at("crs_wkt"), las.crs_wkt);
+    EXPECT_EQ(laz.at("mins").at(0).get<double>(), las.min_x);
+    EXPECT_EQ(laz.at("maxs").at(2).get<double>(), las.max_z);
+    EXPECT_GT(laz.at("classes").value("2", 0), 0);  // ground
   }
 
   // Heights above EGM96: the same surface less the undulation (N = -29.7 m
@@ -134,14 +150,34 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
   const nlohmann::json again = ReadJson(fs::path(out) / "SYN_001" / "run_report.json");
   EXPECT_NEAR(again.at("dsm").at(0).at("mae_m").get<double>(), dsm.at("mae_m").get<double>(), 1e-9);
   EXPECT_EQ(again.at("products").at(0).at("vertical_datum"), "egm96");
+  // The points moved up by the same undulation, and their CRS says EGM96.
+  const LasHeaderInfo las_egm = ReadLasHeader((aoi / "points.laz").string());
+  EXPECT_NEAR(las_egm.min_z - las.min_z, -n, kDatumToleranceM);
+  EXPECT_NE(las_egm.crs_wkt.find("EGM96"), std::string::npos) << las_egm.crs_wkt;
+
+  // COPC on request: points.copc.laz replaces points.laz, holds the same
+  // records, every point inside its octree node, and is catalogued as COPC.
+  const CommandResult copc_run = RunCommand(run + " --set products.points_format=copc", dir);
+  ASSERT_EQ(copc_run.exit_code, 0) << copc_run.err;
+  EXPECT_FALSE(fs::exists(aoi / "points.laz"));
+  ASSERT_TRUE(fs::exists(aoi / "points.copc.laz"));
+  EXPECT_TRUE(ReadLasHeader((aoi / "points.copc.laz").string()).copc);
+  EXPECT_EQ(ReadJson(aoi / "SYN_001.json").at("assets").at("points").at("type"), "application/vnd.laszip+copc");
+  if (decoders) {
+    const nlohmann::json copc = decode(aoi / "points.copc.laz");
+    EXPECT_EQ(copc.at("format"), "copc");
+    EXPECT_EQ(copc.at("outside"), 0);
+    EXPECT_EQ(copc.at("node_points"), copc.at("count"));
+    EXPECT_EQ(copc.at("records_sha256"), laz.at("records_sha256"));
+  }
 
   // A product turned off is said to be left out, and its file from the
   // previous run goes: the catalog and the page list only what the run made.
   const CommandResult without = RunCommand(run + " --set products.points=false", dir);
   ASSERT_EQ(without.exit_code, 0) << without.err;
-  EXPECT_FALSE(fs::exists(aoi / "points.las"));
+  for (const char* name : {"points.las", "points.laz", "points.copc.laz"}) EXPECT_FALSE(fs::exists(aoi / name));
   const nlohmann::json last = ReadJson(fs::path(out) / "SYN_001" / "run_report.json");
-  EXPECT_EQ(last.at("products").at(0).at("left_out").at(0), "points.las (products.points off)");
+  EXPECT_EQ(last.at("products").at(0).at("left_out").at(0), "point cloud (products.points off)");
   EXPECT_FALSE(ReadJson(aoi / "SYN_001.json").at("assets").contains("points"));
 }
 
