@@ -152,7 +152,9 @@ std::optional<HeightReference> HeightReferenceOfRaster(const std::string& path) 
       return HeightReference::kEgm96;
     throw Error("datum", path,
                 std::string("states heights in ") + (name ? name : "an unnamed vertical CRS") +
-                    ", which the run cannot convert to the WGS84 ellipsoid or EGM96 (convert it with gdalwarp first)");
+                    "; the products are compared on heights above the WGS84 ellipsoid (the RPCs' frame) and "
+                    "written above it or the EGM96 geoid, and the run converts neither to the other (convert it "
+                    "with gdalwarp first)");
   }
   if (const char* item = GDALGetMetadataItem(ds.handle, kHeightReferenceItem, nullptr)) {
     if (const std::optional<HeightReference> stated = EnumFromName<HeightReference>(item)) return stated;

@@ -174,8 +174,15 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   // The city's mosaics span both AOIs and agree with each AOI's own layer
   // where they overlap: both are sampled from the same cells on grids that
   // share their pixel edges.
-  for (const char* name : {"ortho_city.tif", "dtm_city.tif", "quality_city.tif", "classes_city.tif"})
-    EXPECT_TRUE(fs::exists(city_dir / name)) << name;
+  for (const char* name : {"ortho_city.tif", "dtm_city.tif", "quality_city.tif", "classes_city.tif"}) {
+    ASSERT_TRUE(fs::exists(city_dir / name)) << name;
+    // GDAL's own COG validator, as a GIS client would judge the file.
+    const testing::CommandResult cog = testing::RunCommand(
+        "/usr/bin/python3 /usr/lib/python3/dist-packages/osgeo_utils/samples/validate_cloud_optimized_geotiff.py " +
+            (city_dir / name).string(),
+        city_dir);
+    EXPECT_EQ(cog.exit_code, 0) << name << ": " << cog.out << cog.err;
+  }
   const DsmGrid city_dtm = ReadDsm((city_dir / "dtm_city.tif").string());
   EXPECT_EQ(city_dtm.width_px, 2 * 96 * 2);  // 192 m at 0.5 m
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
@@ -258,6 +265,8 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   int items = 0;
   for (const auto& link : collection["links"]) items += link["rel"] == "item";
   EXPECT_EQ(items, 2 + 6);
+  for (const char* key : {"dsm_city", "ortho_city", "dtm_city", "quality_city", "classes_city"})
+    EXPECT_TRUE(collection["assets"].contains(key)) << key;
   if (fs::exists(testing::SharedSchemas() / "stac-1.1.0")) {
     const std::string log = (dir / "stac.log").string();
     const std::string validate = "/usr/bin/python3 " + std::string(SKYFALL_SOURCE_DIR) + "/tests/stac_validate.py " +

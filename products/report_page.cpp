@@ -216,6 +216,16 @@ std::string ClassesTable(const json& comparison) {
          Cell(Number(lc, "cells", 0), true) + "</tr></table>";
 }
 
+// The orthophoto against the synthetic city's exact one (every cell), where
+// the truth has one.
+std::string OrthoTruthTable(const json& dsm) {
+  if (!dsm.contains("ortho_truth")) return "";
+  const json& exact = dsm["ortho_truth"];
+  return "<table><tr><th>ortho vs exact orthophoto: PSNR [dB]</th><th>SSIM</th><th>cells</th></tr><tr>" +
+         Cell(Number(exact, "psnr_db", 2), true) + Cell(Number(exact, "ssim", 3), true) +
+         Cell(Number(exact, "cells", 0), true) + "</tr></table>";
+}
+
 // Per AOI: the GIS products, their previews side by side (the orthophoto
 // beside the DSM and the quality layers), and their figures against the
 // truth (DTM on ground, nDSM on buildings, ortho against the nadir image).
@@ -245,7 +255,7 @@ std::string ProductsSection(const CityReport& report, const fs::path& out_dir) {
               Cell(Number(terrain, "ndsm_mae_building_m", 2), true) +
               Cell(Number(terrain, "ndsm_bias_building_m", 2), true) + Cell(Number(ortho, "psnr_db", 2), true) +
               Cell(Number(ortho, "ssim", 3), true) + Cell(Number(ortho, "ground_cells", 0), true) + "</tr></table>" +
-              ClassesTable(truth[aoi]);
+              OrthoTruthTable(truth[aoi]) + ClassesTable(truth[aoi]);
     }
     html += "<div class=pair>";
     const char* figures[][2] = {{"ortho.png", "Orthophoto (nadir render, no lean)"},

@@ -380,13 +380,27 @@ std::string WriteCityStac(const StacCity& city) {
     item_links.push_back(Link("item", Relative(item_path, collection_path.parent_path()), kGeoJson));
   }
   const auto box = BoundingBox(all);
+  // The city's own layers: its DSM and, for a city of several AOIs, the
+  // mosaics of their orthophotos, DTMs, quality layers and classes.
+  json assets = json::object();
+  const fs::path city_dir = out / city.city;
+  AddRaster(&assets, "dsm_city", city_dir / "scene" / "dsm_city.tif", city_dir, {"data"},
+            "City DSM: the merged scene's heights over every AOI", "m");
+  AddRaster(&assets, "ortho_city", city_dir / "ortho_city.tif", city_dir, {"data", "visual"},
+            "City orthophoto: the AOIs' true orthophotos in one mosaic", "");
+  AddRaster(&assets, "dtm_city", city_dir / "dtm_city.tif", city_dir, {"data"}, "City DTM: bare earth", "m");
+  AddRaster(&assets, "quality_city", city_dir / "quality_city.tif", city_dir, {"data", "metadata"},
+            "City quality layers (as each AOI's quality.tif)", "");
+  AddRaster(&assets, "classes_city", city_dir / "classes_city.tif", city_dir, {"data"},
+            "City classes (ASPRS codes, as each AOI's classes.tif)", "");
   json links = {Link("self", "./collection.json", kJson), Link("root", "../catalog.json", kJson),
                 Link("parent", "../catalog.json", kJson)};
   for (const json& l : item_links) links.push_back(l);
-  const json collection = {
+  json collection = {
       {"type", "Collection"},
       {"stac_version", kStacVersion},
-      {"stac_extensions", {kStacProjection, kStacFile}},
+      {"stac_extensions", assets.empty() ? json{kStacProjection, kStacFile}
+                                         : json{kStacProjection, kStacRaster, kStacFile}},
       {"id", city.city},
       {"title", "City " + city.city},
       {"description", "3D Gaussian-splat city scene, level of detail and DSM products reconstructed by skyfall "
@@ -399,6 +413,7 @@ std::string WriteCityStac(const StacCity& city) {
                                                              times.end.empty() ? fallback : times.end})})}}}}},
       {"summaries", {{"proj:code", codes}}},
       {"links", links}};
+  if (!assets.empty()) collection["assets"] = assets;
   WriteDoc(collection_path, collection);
   return collection_path.string();
 }

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <ogr_srs_api.h>
 
@@ -126,6 +127,26 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
     EXPECT_EQ(laz.at("mins").at(0).get<double>(), las.min_x);
     EXPECT_EQ(laz.at("maxs").at(2).get<double>(), las.max_z);
     EXPECT_GT(laz.at("classes").value("2", 0), 0);  // ground
+  }
+
+  // The report page: the orthophoto beside the DSM and the quality layers,
+  // the figures against the truth (the exact orthophoto's too), and a link
+  // to the point cloud.
+  {
+    std::ifstream page_file(fs::path(out) / "report.html");
+    const std::string page((std::istreambuf_iterator<char>(page_file)), {});
+    const std::size_t ortho_at = page.find("<figcaption>Orthophoto"), dsm_at = page.find("<figcaption>DSM"),
+                      views_at = page.find("<figcaption>Views that see"),
+                      rule_at = page.find("<figcaption>How each cell got its height");
+    ASSERT_NE(ortho_at, std::string::npos);
+    ASSERT_NE(dsm_at, std::string::npos);
+    ASSERT_NE(views_at, std::string::npos);
+    ASSERT_NE(rule_at, std::string::npos);
+    EXPECT_LT(ortho_at, dsm_at);
+    EXPECT_LT(dsm_at, views_at);
+    EXPECT_NE(page.find("ortho vs exact orthophoto"), std::string::npos);
+    EXPECT_NE(page.find("DTM on ground: MAE"), std::string::npos);
+    EXPECT_NE(page.find("href=\"SYN_001/points.laz\""), std::string::npos);
   }
 
   // Heights above EGM96: the same surface less the undulation (N = -29.7 m
