@@ -3,8 +3,6 @@
 // copc.js) and laz-rs (loaders.gl), all from npm, driven by
 // web/check_points.mjs and web/check_las.mjs.
 #include <gtest/gtest.h>
-#include <cpl_conv.h>
-#include <ogr_srs_api.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +18,7 @@
 #include "products/copc.h"
 #include "products/laz_encoder.h"
 #include "products/point_cloud.h"
+#include "products/point_cloud_test_support.h"
 #include "tests/test_support.h"
 
 namespace skyfall {
@@ -30,19 +29,6 @@ using nlohmann::json;
 using testing::ErrorText;
 
 constexpr double kHalfStep = 0.5 * kLasScaleM;  // quantization error of a stored coordinate
-
-std::string Utm17nWkt() {
-  OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
-  OSRImportFromEPSG(srs, 32617);
-  OSRPromoteTo3D(srs, nullptr);
-  char* wkt = nullptr;
-  const char* options[] = {"FORMAT=WKT2_2019", nullptr};
-  OSRExportToWktEx(srs, &wkt, options);
-  std::string text = wkt ? wkt : "";
-  CPLFree(wkt);
-  OSRDestroySpatialReference(srs);
-  return text;
-}
 
 // A city block: a 200 x 100 m grid of 0.5 m cells, roofs and ground, grey
 // and coloured cells, the classes the product writes.
@@ -90,20 +76,6 @@ std::vector<LasPoint> RaggedCloud(std::size_t n) {
   return points;
 }
 
-struct Extent {
-  double min[3], max[3];
-};
-
-Extent TrueExtent(const std::vector<LasPoint>& points) {
-  Extent e;
-  for (int a = 0; a < 3; ++a) e.min[a] = std::numeric_limits<double>::infinity(), e.max[a] = -e.min[a];
-  for (const LasPoint& p : points) {
-    const double xyz[3] = {p.easting_m, p.northing_m, p.height_m};
-    for (int a = 0; a < 3; ++a) e.min[a] = std::min(e.min[a], xyz[a]), e.max[a] = std::max(e.max[a], xyz[a]);
-  }
-  return e;
-}
-
 // web/check_points.mjs's report of `file`, or nothing when npm's decoders
 // are not installed.
 std::optional<json> Decode(const fs::path& file) {
@@ -125,8 +97,8 @@ bool DecodersInstalled(const fs::path& dir) {
 // sorted sets: LAZ and COPC reorder points), with the header's count,
 // bounds and CRS, and every COPC point inside its node's cube.
 void ExpectEveryEncodingDecodesAlike(const std::vector<LasPoint>& points, const fs::path& dir, int min_nodes) {
-  const std::string wkt = Utm17nWkt();
-  const Extent truth = TrueExtent(points);
+  const std::string wkt = testing::Utm17nWithHeightWkt();
+  const testing::Bounds truth = testing::TrueBounds(points);
   std::map<PointCloudEncoding, json> decoded;
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
     const fs::path file = dir / PointCloudFileName(encoding);
@@ -169,7 +141,7 @@ TEST(Laz, EveryEncodingOfExtremeInputDecodesToTheSameRecords) {
   ExpectEveryEncodingDecodesAlike(RaggedCloud(60000), dir, /*min_nodes=*/2);
   // One point, and none: the smallest chunk and no chunk at all.
   ExpectEveryEncodingDecodesAlike(RaggedCloud(1), dir, /*min_nodes=*/1);
-  const std::string wkt = Utm17nWkt();
+  const std::string wkt = testing::Utm17nWithHeightWkt();
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
     const fs::path file = dir / ("empty_" + PointCloudFileName(encoding));
     WriteLas(file.string(), {}, wkt, encoding);
@@ -190,7 +162,7 @@ TEST(Laz, LazRsReadsTheFixedChunkLaz) {
   }
   const std::vector<LasPoint> points = CityBlock();
   const fs::path file = dir / "block.laz";
-  WriteLas(file.string(), points, Utm17nWkt(), PointCloudEncoding::kLaz);
+  WriteLas(file.string(), points, testing::Utm17nWithHeightWkt(), PointCloudEncoding::kLaz);
   const testing::CommandResult r =
       testing::RunCommand("node " + (web / "check_las.mjs").string() + " " + file.string(), dir);
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -205,7 +177,7 @@ TEST(Laz, LazRsReadsTheFixedChunkLaz) {
 // the LASzip VLR and COPC's info VLR, and still finds the CRS.
 TEST(Laz, ReaderTellsPlainLazAndCopcApart) {
   const fs::path dir = testing::ScratchDir("laz_reader");
-  const std::string wkt = Utm17nWkt();
+  const std::string wkt = testing::Utm17nWithHeightWkt();
   const std::vector<LasPoint> points = CityBlock();
   std::map<PointCloudEncoding, std::uintmax_t> bytes;
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
@@ -228,7 +200,7 @@ TEST(Laz, ReaderTellsPlainLazAndCopcApart) {
 TEST(Laz, ReaderRefusesACompressionBitWithoutTheLaszipRecord) {
   const fs::path dir = testing::ScratchDir("laz_reader");
   const std::string file = (dir / "marked.las").string();
-  WriteLas(file, CityBlock(), Utm17nWkt(), PointCloudEncoding::kLas);
+  WriteLas(file, CityBlock(), testing::Utm17nWithHeightWkt(), PointCloudEncoding::kLas);
   std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
   f.seekp(104);
   f.put(static_cast<char>(7 | kLazFormatBit));

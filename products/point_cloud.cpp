@@ -373,23 +373,31 @@ void WriteLas(const std::string& path, const std::vector<LasPoint>& points, cons
   }
 }
 
-std::string PointCloudFileName(PointCloudEncoding encoding) {
-  switch (encoding) {
-    case PointCloudEncoding::kLas: return "points.las";
-    case PointCloudEncoding::kLaz: return "points.laz";
-    case PointCloudEncoding::kCopc: return "points.copc.laz";
-  }
-  return "points.las";
+namespace {
+
+// Each encoding's file name (COPC's own suffix for COPC) and media type.
+struct PointCloudFile {
+  PointCloudEncoding encoding;
+  const char* name;
+  const char* media_type;
+};
+constexpr PointCloudFile kPointCloudFiles[] = {
+    {PointCloudEncoding::kLas, "points.las", "application/vnd.las"},
+    {PointCloudEncoding::kLaz, "points.laz", "application/vnd.laszip"},
+    {PointCloudEncoding::kCopc, "points.copc.laz", "application/vnd.laszip+copc"},
+};
+
+const PointCloudFile& FileOf(PointCloudEncoding encoding) {
+  for (const PointCloudFile& f : kPointCloudFiles)
+    if (f.encoding == encoding) return f;
+  return kPointCloudFiles[0];
 }
 
-std::string PointCloudMediaType(PointCloudEncoding encoding) {
-  switch (encoding) {
-    case PointCloudEncoding::kLas: return "application/vnd.las";
-    case PointCloudEncoding::kLaz: return "application/vnd.laszip";
-    case PointCloudEncoding::kCopc: return "application/vnd.laszip+copc";
-  }
-  return "application/vnd.las";
-}
+}  // namespace
+
+std::string PointCloudFileName(PointCloudEncoding encoding) { return FileOf(encoding).name; }
+
+std::string PointCloudMediaType(PointCloudEncoding encoding) { return FileOf(encoding).media_type; }
 
 LasHeaderInfo ReadLasHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

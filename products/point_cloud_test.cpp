@@ -10,29 +10,19 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "products/point_cloud_test_support.h"
 #include "tests/test_support.h"
 
 namespace skyfall {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::Bounds;
 using testing::ErrorText;
+using testing::TrueBounds;
+using testing::Utm17nWithHeightWkt;
 
 constexpr double kHalfStep = 0.5 * kLasScaleM;
-
-// EPSG:32617 (UTM 17N) with the ellipsoidal height as third axis, as WKT2.
-std::string Utm17nWithHeightWkt() {
-  OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
-  OSRImportFromEPSG(srs, 32617);
-  OSRPromoteTo3D(srs, nullptr);
-  char* wkt = nullptr;
-  const char* options[] = {"FORMAT=WKT2_2019", nullptr};
-  OSRExportToWktEx(srs, &wkt, options);
-  std::string text = wkt ? wkt : "";
-  CPLFree(wkt);
-  OSRDestroySpatialReference(srs);
-  return text;
-}
 
 // 1,000 points on a 50 x 20 grid with sub-millimetre coordinates, classes
 // ground / high vegetation / building in turn and distinct colours.
@@ -50,20 +40,6 @@ std::vector<LasPoint> SmallCloud() {
     p.classification = kClasses[i % 3];
   }
   return points;
-}
-
-struct Bounds {
-  double min[3], max[3];
-};
-
-Bounds TrueBounds(const std::vector<LasPoint>& points) {
-  Bounds b;
-  for (int a = 0; a < 3; ++a) b.min[a] = std::numeric_limits<double>::infinity(), b.max[a] = -b.min[a];
-  for (const LasPoint& p : points) {
-    const double xyz[3] = {p.easting_m, p.northing_m, p.height_m};
-    for (int a = 0; a < 3; ++a) b.min[a] = std::min(b.min[a], xyz[a]), b.max[a] = std::max(b.max[a], xyz[a]);
-  }
-  return b;
 }
 
 TEST(PointCloud, WritesLas14Format7ThatReadsBack) {
