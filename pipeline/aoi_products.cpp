@@ -375,10 +375,11 @@ void WriteTerrain(const ProductOptions& po, const AoiCatalog& a, const DsmGrid& 
 
 // The point cloud files of every encoding but `keep`: an earlier run's, in
 // another encoding, would otherwise linger beside the new one.
-std::vector<fs::path> OtherPointClouds(const fs::path& aoi_dir, std::optional<PointCloudEncoding> keep) {
+std::vector<fs::path> OtherPointClouds(const fs::path& dir, std::optional<PointCloudEncoding> keep,
+                                       const std::string& stem = "points") {
   std::vector<fs::path> paths;
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
-    if (encoding != keep) paths.push_back(aoi_dir / PointCloudFileName(encoding));
+    if (encoding != keep) paths.push_back(dir / PointCloudFileName(encoding, stem));
   }
   return paths;
 }
@@ -532,8 +533,46 @@ MosaicLayers RenderMosaic(const RunOptions& options, const DsmGrid& grid, const 
   return m;
 }
 
-// ortho_city.tif, dtm_city.tif, quality_city.tif and classes_city.tif over all of a city's
-// AOIs, like scene/dsm_city.tif; a city of one AOI has its AOI's.
+// The values of block `b` of a raster on `whole` (one value per cell).
+template <class T>
+std::vector<T> CropBlock(const std::vector<T>& values, const DsmGrid& whole, const GridBlock& b) {
+  std::vector<T> out;
+  out.reserve(static_cast<std::size_t>(b.grid.width_px) * b.grid.height_px);
+  for (int r = 0; r < b.grid.height_px; ++r) {
+    const auto row = values.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(b.row0 + r) * whole.width_px + b.col0);
+    out.insert(out.end(), row, row + b.grid.width_px);
+  }
+  return out;
+}
+
+// points_city.laz: the city's Gaussians as one classified point cloud, the
+// merged cloud a GIS user loads instead of one file per AOI. Read block by
+// block like the mosaics; each Gaussian falls in one block (its centre's
+// cell), so no point is written twice. The cloud itself is held whole:
+// 32 bytes a point (about 70 MB for a 1 km city at 0.5 m).
+json WriteCityPoints(const ProductOptions& po, int epsg, const MosaicLayers& m, const std::vector<std::uint8_t>& classes,
+                     const std::string& surface_path, const GeodeticPoint& enu_origin, const fs::path& city_dir) {
+  std::vector<LasPoint> points;
+  for (const GridBlock& b : GridBlocks(m.dsm, kDsmBlockPx)) {
+    const GaussianCloud part = ReadGaussiansPly(surface_path, MeetsGrid(EnuBoxOfGrid(b.grid, enu_origin), m.dsm.gsd_m));
+    DsmGrid dtm = b.grid;
+    dtm.height_m = CropBlock(m.dense.dtm.height_m, m.dsm, b);
+    dtm.reference = HeightReference::kEllipsoid;
+    const std::vector<std::uint8_t> block_classes = classes.empty() ? classes : CropBlock(classes, m.dsm, b);
+    const std::vector<LasPoint> block = ScenePoints(part, enu_origin, dtm, po.vertical_datum, po.min_opacity,
+                                                    po.ground_tolerance_m, block_classes);
+    points.insert(points.end(), block.begin(), block.end());
+  }
+  const fs::path path = city_dir / PointCloudFileName(po.points_format, "points_city");
+  WriteLas(path.string(), points, HeightCrsWkt(epsg, po.vertical_datum, /*wkt1=*/true), po.points_format);
+  RemoveStale(OtherPointClouds(city_dir, po.points_format, "points_city"));
+  return {{"path", path.string()}, {"count", points.size()}, {"encoding", EnumName(po.points_format)},
+          {"bytes", fs::file_size(path)}};
+}
+
+// ortho_city.tif, dtm_city.tif, quality_city.tif, classes_city.tif and
+// points_city.laz over all of a city's AOIs, like scene/dsm_city.tif; a
+// city of one AOI has its AOI's.
 json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& aois, const std::string& surface_path,
                       const GeodeticPoint& enu_origin, const std::vector<std::string>& tile_dirs,
                       const fs::path& city_dir) {
@@ -558,12 +597,18 @@ json WriteCityMosaics(const RunOptions& options, const std::vector<AoiCatalog>& 
     WriteQualityCog(path, m.dsm, m.dense, m.spread_m);
     files["quality"] = path;
   }
+  LandCoverMap map;
   if (po.classes) {
     // One threshold for the whole city: its objects' median colour.
     const std::string path = (city_dir / "classes_city.tif").string();
-    const LandCoverMap map = ClassifyLandCover(m.dsm, m.dense.dtm, m.rgb, !Panchromatic(aois.front()), po.land_cover);
+    map = ClassifyLandCover(m.dsm, m.dense.dtm, m.rgb, !Panchromatic(aois.front()), po.land_cover);
     WriteLandCoverCog(path, m.dsm, map, {{"LAND_COVER_RULE", "as each AOI's classes.tif, with the city's threshold"}});
     files["classes"] = path;
+  }
+  if (po.points) {
+    files["points"] = WriteCityPoints(po, aois.front().epsg, m, map.classes, surface_path, enu_origin, city_dir);
+  } else {
+    RemoveStale(OtherPointClouds(city_dir, std::nullopt, "points_city"));
   }
   return files;
 }

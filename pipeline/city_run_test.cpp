@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "products/dsm.h"
+#include "products/point_cloud.h"
 #include "pipeline/exit_codes.h"
 #include "pipeline/merge_tiles.h"
 #include "pipeline/tile_run.h"
@@ -183,6 +184,16 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
         city_dir);
     EXPECT_EQ(cog.exit_code, 0) << name << ": " << cog.out << cog.err;
   }
+  // The city's point cloud: every AOI's points once (the AOIs' grids tile
+  // the city's, and a point belongs to the cell under its centre).
+  ASSERT_TRUE(fs::exists(city_dir / "points_city.laz"));
+  const LasHeaderInfo city_points = ReadLasHeader((city_dir / "points_city.laz").string());
+  std::uint64_t aoi_points = 0;
+  for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"})
+    aoi_points += ReadLasHeader((dir / "out" / aoi / "points.laz").string()).point_count;
+  EXPECT_GT(aoi_points, 0u);
+  EXPECT_EQ(city_points.point_count, aoi_points);
+  EXPECT_TRUE(city_points.compressed);
   const DsmGrid city_dtm = ReadDsm((city_dir / "dtm_city.tif").string());
   EXPECT_EQ(city_dtm.width_px, 2 * 96 * 2);  // 192 m at 0.5 m
   for (const char* aoi : {"SYN_001_X0Y0", "SYN_001_X1Y0"}) {
@@ -265,7 +276,7 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   int items = 0;
   for (const auto& link : collection["links"]) items += link["rel"] == "item";
   EXPECT_EQ(items, 2 + 6);
-  for (const char* key : {"dsm_city", "ortho_city", "dtm_city", "quality_city", "classes_city"})
+  for (const char* key : {"dsm_city", "ortho_city", "dtm_city", "quality_city", "classes_city", "points_city"})
     EXPECT_TRUE(collection["assets"].contains(key)) << key;
   if (fs::exists(testing::SharedSchemas() / "stac-1.1.0")) {
     const std::string log = (dir / "stac.log").string();

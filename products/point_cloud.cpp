@@ -375,16 +375,16 @@ void WriteLas(const std::string& path, const std::vector<LasPoint>& points, cons
 
 namespace {
 
-// Each encoding's file name (COPC's own suffix for COPC) and media type.
+// Each encoding's file suffix (COPC's own for COPC) and media type.
 struct PointCloudFile {
   PointCloudEncoding encoding;
-  const char* name;
+  const char* suffix;
   const char* media_type;
 };
 constexpr PointCloudFile kPointCloudFiles[] = {
-    {PointCloudEncoding::kLas, "points.las", "application/vnd.las"},
-    {PointCloudEncoding::kLaz, "points.laz", "application/vnd.laszip"},
-    {PointCloudEncoding::kCopc, "points.copc.laz", "application/vnd.laszip+copc"},
+    {PointCloudEncoding::kLas, ".las", "application/vnd.las"},
+    {PointCloudEncoding::kLaz, ".laz", "application/vnd.laszip"},
+    {PointCloudEncoding::kCopc, ".copc.laz", "application/vnd.laszip+copc"},
 };
 
 const PointCloudFile& FileOf(PointCloudEncoding encoding) {
@@ -395,7 +395,9 @@ const PointCloudFile& FileOf(PointCloudEncoding encoding) {
 
 }  // namespace
 
-std::string PointCloudFileName(PointCloudEncoding encoding) { return FileOf(encoding).name; }
+std::string PointCloudFileName(PointCloudEncoding encoding, const std::string& stem) {
+  return stem + FileOf(encoding).suffix;
+}
 
 std::string PointCloudMediaType(PointCloudEncoding encoding) { return FileOf(encoding).media_type; }
 

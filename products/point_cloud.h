@@ -43,9 +43,10 @@ struct EnumNames<PointCloudEncoding> {
       {{PointCloudEncoding::kLas, "las"}, {PointCloudEncoding::kLaz, "laz"}, {PointCloudEncoding::kCopc, "copc"}}};
 };
 
-// The product's file name for each encoding (points.las, points.laz,
-// points.copc.laz, COPC's own suffix) and its media type.
-std::string PointCloudFileName(PointCloudEncoding encoding);
+// The product's file name for each encoding (<stem>.las, <stem>.laz,
+// <stem>.copc.laz: COPC's own suffix) and its media type. An AOI's cloud is
+// "points", its city's "points_city".
+std::string PointCloudFileName(PointCloudEncoding encoding, const std::string& stem = "points");
 std::string PointCloudMediaType(PointCloudEncoding encoding);
 
 // Scale of the stored integer coordinates on all axes: millimetres, finer

@@ -62,11 +62,13 @@ std::string Link(const fs::path& target, const fs::path& out_dir, const std::str
   return "<a href=\"" + HtmlEscape(UrlPath(href)) + "\">" + HtmlEscape(text) + "</a> ";
 }
 
-// The AOI's point cloud in whichever encoding the run wrote.
-std::string PointCloudLinks(const fs::path& aoi_dir, const fs::path& out_dir) {
+// A point cloud (an AOI's "points", a city's "points_city") in whichever
+// encoding the run wrote.
+std::string PointCloudLinks(const fs::path& dir, const fs::path& out_dir, const std::string& stem = "points",
+                            const std::string& text = "point cloud") {
   std::string html;
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
-    html += Link(aoi_dir / PointCloudFileName(encoding), out_dir, std::string("point cloud (") + name + ")");
+    html += Link(dir / PointCloudFileName(encoding, stem), out_dir, text + " (" + name + ")");
   }
   return html;
 }
@@ -292,6 +294,7 @@ std::string CitySection(const CityReport& report, const fs::path& out_dir, std::
   html += "<p>Products: " + Link(city_dir / "scene" / "scene.ply", out_dir, "scene (PLY)") +
           Link(city_dir / "scene" / "lod.json", out_dir, "LOD levels") +
           Link(city_dir / "scene" / "dsm_city.tif", out_dir, "city DSM") +
+          PointCloudLinks(city_dir, out_dir, "points_city", "city point cloud") +
           Link(city_dir / "3dtiles" / "tileset.json", out_dir, "3D Tiles") +
           Link(city_dir / "collection.json", out_dir, "STAC collection") +
           Link(CityReportPath(city_dir), out_dir, "run report (JSON)") + "</p>";

@@ -143,16 +143,16 @@ void AddIfExists(json* assets, const std::string& key, const fs::path& path, con
   if (fs::exists(path)) (*assets)[key] = FileAsset(path, doc_dir, media_type, roles, title);
 }
 
-// The AOI's point cloud in whichever encoding the run wrote, with its CRS
-// (read from the file's WKT record) and 3D bounds.
-void AddPointCloud(json* assets, const fs::path& aoi_dir, const fs::path& doc_dir) {
+// A point cloud (`stem` in `dir`, as key `key`) in whichever encoding the
+// run wrote, with its CRS (read from the file's WKT record) and 3D bounds.
+void AddPointCloud(json* assets, const fs::path& dir, const fs::path& doc_dir, const std::string& stem = "points",
+                   const std::string& key = "points", const std::string& what = "the scene's Gaussians") {
   for (const auto& [encoding, name] : EnumNames<PointCloudEncoding>::kNames) {
-    const fs::path path = aoi_dir / PointCloudFileName(encoding);
+    const fs::path path = dir / PointCloudFileName(encoding, stem);
     if (!fs::exists(path)) continue;
     json asset = FileAsset(path, doc_dir, PointCloudMediaType(encoding), {"data"},
-                           "Point cloud (" + std::string(name) +
-                               "): the scene's Gaussians, LAS 1.4 format 7, classes 2 ground, 5 high vegetation, "
-                               "6 building, 1 other");
+                           "Point cloud (" + std::string(name) + "): " + what +
+                               ", LAS 1.4 format 7, classes 2 ground, 5 high vegetation, 6 building, 1 other");
     const LasHeaderInfo las = ReadLasHeader(path.string());
     OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
     char* wkt_in = const_cast<char*>(las.crs_wkt.c_str());
@@ -177,7 +177,7 @@ void AddPointCloud(json* assets, const fs::path& aoi_dir, const fs::path& doc_di
     }
     OSRDestroySpatialReference(srs);
     asset["proj:bbox"] = {las.min_x, las.min_y, las.min_z, las.max_x, las.max_y, las.max_z};
-    (*assets)["points"] = asset;
+    (*assets)[key] = asset;
   }
 }
 
@@ -393,6 +393,7 @@ std::string WriteCityStac(const StacCity& city) {
             "City quality layers (as each AOI's quality.tif)", "");
   AddRaster(&assets, "classes_city", city_dir / "classes_city.tif", city_dir, {"data"},
             "City classes (ASPRS codes, as each AOI's classes.tif)", "");
+  AddPointCloud(&assets, city_dir, city_dir, "points_city", "points_city", "the city's Gaussians over every AOI");
   json links = {Link("self", "./collection.json", kJson), Link("root", "../catalog.json", kJson),
                 Link("parent", "../catalog.json", kJson)};
   for (const json& l : item_links) links.push_back(l);
