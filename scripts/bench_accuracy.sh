@@ -14,8 +14,10 @@
 #             drawK): scenes no setting was chosen on; their options are in
 #             the JSON and the Markdown table
 # Reruns resume: finished runs are reused, so adding a scene costs one run.
-# A full run (every fixed scene, 256 m, no extra arguments) also rewrites
-# README.md's results table (scripts/readme_results.py).
+# A run of fixed scenes at 256 m with the defaults (no --quick, --draw or
+# SKYFALL_RUN_ARGS) records its scenes in docs/accuracy_record.json, the
+# latest measurement of each scene, and rewrites README.md's results table
+# from that record (scripts/readme_results.py).
 # SKYFALL_BIN: the skyfall binary to measure (default build/bin/skyfall; copy
 # it elsewhere to keep building while the benchmark runs). SKYFALL_RUN_ARGS:
 # extra `skyfall run` arguments, e.g. "--set dense.fill_radius_m=10".
@@ -23,6 +25,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 SIZE=256
+# The code measured: the commit at the start, marked when the tree differs from it.
+COMMIT=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+if [ -n "$(git status --porcelain --untracked-files=no 2>/dev/null)" ]; then COMMIT="$COMMIT+changes"; fi
 ONLY=""
 DRAW=0
 DRAW_FROM=1
@@ -122,9 +127,9 @@ for e in "${FIXED[@]}"; do
   IFS='|' read -r n t _ <<< "$e"
   if [ "$t" = true ]; then TUNED="$TUNED$n,"; fi
 done
-python3 - "$OUT" "$SIZE" "$TUNED" <<'PY'
-import json, os, subprocess, sys
-out, size = sys.argv[1], int(sys.argv[2])
+python3 - "$OUT" "$SIZE" "$TUNED" "$COMMIT" <<'PY'
+import datetime, json, os, subprocess, sys
+out, size, commit = sys.argv[1], int(sys.argv[2]), sys.argv[4]
 COG_CHECK = "/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_cloud_optimized_geotiff.py"
 def cogs_valid(products):
     # How many of the AOI's rasters GDAL's own COG validator accepts, of how many.
@@ -244,7 +249,8 @@ for name in sorted(os.listdir(out)):
         # What `skyfall synth` made the scene with (drawn or fixed); None for real data.
         "synth_options": synth_options(name),
     })
-doc = {"schema": "skyfall.bench_accuracy/1", "scenes": scenes}
+doc = {"schema": "skyfall.bench_accuracy/1", "date": datetime.date.today().isoformat(), "commit": commit,
+       "cores": os.cpu_count(), "scenes": scenes}
 with open(os.path.join(out, "bench_accuracy.json.tmp"), "w") as f:
     json.dump(doc, f, indent=2)
 os.replace(os.path.join(out, "bench_accuracy.json.tmp"), os.path.join(out, "bench_accuracy.json"))
@@ -318,9 +324,9 @@ print("\n".join(lines))
 PY
 "$B" -q report --scenes "$OUT/bench_accuracy.json" --out "$OUT"
 echo "bench_accuracy: $OUT/bench_accuracy.json, bench_accuracy.md, bench_accuracy.png" >&2
-# The README's results table is today's figures of the whole fixed set with
-# the defaults: only such a run rewrites it.
-if [ "$SIZE" = 256 ] && [ -z "$ONLY" ] && [ "$DRAW" = 0 ] && [ -z "${SKYFALL_RUN_ARGS:-}" ]; then
-  python3 scripts/readme_results.py "$OUT/bench_accuracy.json" README.md
-  echo "bench_accuracy: README.md's results table rewritten from this run" >&2
+# The README's results table is the latest default-settings figure of each
+# fixed scene, dated: a run of some scenes updates their rows.
+if [ "$SIZE" = 256 ] && [ "$DRAW" = 0 ] && [ -z "${SKYFALL_RUN_ARGS:-}" ]; then
+  python3 scripts/readme_results.py --record docs/accuracy_record.json "$OUT/bench_accuracy.json" README.md
+  echo "bench_accuracy: docs/accuracy_record.json and README.md's results table updated from this run" >&2
 fi

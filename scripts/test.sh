@@ -22,6 +22,8 @@ sanitizer_env() {
 }
 
 bash scripts/setup.sh
+# The scripts' own tests (seconds): the README results table's writer.
+python3 scripts/readme_results_test.py
 if [ "$mode" = "--sanitize" ]; then
   sanitizer_env
   export SKYFALL_BUILD_DIR=${SKYFALL_BUILD_DIR:-build-asan}
