@@ -29,6 +29,11 @@ def number(value, digits, scale=1.0):
     return "n/a" if value is None else f"{value * scale:.{digits}f}"
 
 
+def load(path):
+    with open(path) as f:
+        return json.load(f)
+
+
 def run_date(path, doc):
     return doc.get("date") or datetime.date.fromtimestamp(os.path.getmtime(path)).isoformat()
 
@@ -50,7 +55,7 @@ def row(s, dated):
 
 
 def block(path):
-    doc = json.load(open(path))
+    doc = load(path)
     lines = [f"Measured by `scripts/bench_accuracy.sh` on {run_date(path, doc)}, {doc.get('cores', 2)} cores:", "",
              "| scene | tuned on / held out | DSM MAE (m) | median (m) | completeness (%) | run time (s) |",
              "|---|---|---|---|---|---|"]
@@ -60,8 +65,8 @@ def block(path):
 
 def update_record(record_path, path):
     """Puts the run's scenes into the record; returns the record."""
-    doc = json.load(open(path))
-    record = json.load(open(record_path)) if os.path.isfile(record_path) else {
+    doc = load(path)
+    record = load(record_path) if os.path.isfile(record_path) else {
         "schema": "skyfall.accuracy_record/1", "scenes": []}
     by_name = {s["scene"]: s for s in record["scenes"]}
     date, commit = run_date(path, doc), doc.get("commit") or head_commit()
@@ -98,7 +103,8 @@ def main(argv):
     if len(args) not in (1, 2):
         sys.exit(__doc__.strip().splitlines()[2])
     readme = args[1] if len(args) == 2 else os.path.join(os.path.dirname(__file__), "..", "README.md")
-    text = open(readme).read()
+    with open(readme) as f:
+        text = f.read()
     start, end = text.find(BEGIN), text.find(END)
     if start < 0 or end < start:
         sys.exit(f"readme_results: {readme}: no {BEGIN} ... {END} block")
@@ -106,7 +112,8 @@ def main(argv):
     new = text[:start + len(BEGIN)] + "\n" + table + "\n" + text[end:]
     if new != text:
         tmp = readme + ".tmp"
-        open(tmp, "w").write(new)
+        with open(tmp, "w") as f:
+            f.write(new)
         os.replace(tmp, readme)
 
 

@@ -36,7 +36,8 @@ class ReadmeResults(unittest.TestCase):
 
     def run_script(self, *args):
         subprocess.run([sys.executable, SCRIPT, *args, self.readme], check=True)
-        return open(self.readme).read()
+        with open(self.readme) as f:
+            return f.read()
 
     def test_a_run_replaces_the_block_and_keeps_the_rest(self):
         text = self.run_script(self.bench("a.json", "2026-12-01", "abc1234", [scene("jax068", 1.1034, True)]))
@@ -54,7 +55,8 @@ class ReadmeResults(unittest.TestCase):
         self.assertIn("| syn_b | held out | 0.70 | 0.05 | 99.5 | 300 | 2026-12-06 (def5678) |", text)
         self.assertIn("| jax068 | tuned on | 1.20 | 0.05 | 99.5 | 300 | 2026-12-01 (abc1234) |", text)
         self.assertLess(text.index("| jax068"), text.index("| syn_b"))  # tuned-on scenes first
-        kept = json.load(open(record))
+        with open(record) as f:
+            kept = json.load(f)
         self.assertEqual([s["scene"] for s in kept["scenes"]], ["jax068", "syn_b"])
         self.assertNotIn("dense_mae_m", kept["scenes"][0])  # only the table's fields are kept
         # The same inputs give the same README.
