@@ -124,8 +124,17 @@ TEST(CliProducts, EveryAoiGetsItsGisProductsInAStatedDatum) {
     laz = decode(aoi / "points.laz");
     EXPECT_EQ(laz.at("decoded").get<std::uint64_t>(), las.point_count) << laz.dump();
     EXPECT_EQ(laz.at("crs_wkt"), las.crs_wkt);
-    EXPECT_EQ(laz.at("mins").at(0).get<double>(), las.min_x);
-    EXPECT_EQ(laz.at("maxs").at(2).get<double>(), las.max_z);
+    const double scale[] = {las.scale_x, las.scale_y, las.scale_z}, offset[] = {las.offset_x, las.offset_y, las.offset_z};
+    const double mins[] = {las.min_x, las.min_y, las.min_z}, maxs[] = {las.max_x, las.max_y, las.max_z};
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(laz.at("scale").at(a).get<double>(), scale[a]) << "axis " << a;
+      EXPECT_EQ(laz.at("offset").at(a).get<double>(), offset[a]) << "axis " << a;
+      // The decoded records' bounds are the header's: both are stored integers times the
+      // scale plus the offset, equal up to the last bits of a double (1 um is far below them
+      // and far below the 1 mm step).
+      EXPECT_NEAR(laz.at("mins").at(a).get<double>(), mins[a], 1e-6) << "axis " << a;
+      EXPECT_NEAR(laz.at("maxs").at(a).get<double>(), maxs[a], 1e-6) << "axis " << a;
+    }
     EXPECT_GT(laz.at("classes").value("2", 0), 0);  // ground
   }
 
