@@ -11,11 +11,6 @@ namespace {
 
 constexpr int kMaxLevel = 24;  // cells far below a millimetre step at any city size
 
-struct Pending {
-  std::array<std::int32_t, 4> key;
-  std::vector<std::uint32_t> points;
-};
-
 // Bounds of the node `key` within the cube.
 struct Box {
   std::array<double, 3> min;
@@ -93,14 +88,14 @@ CopcCube CopcCubeAround(const std::vector<std::array<double, 3>>& xyz, double st
 
 std::vector<CopcNode> BuildCopcOctree(const std::vector<std::array<double, 3>>& xyz, const CopcCube& cube) {
   std::vector<CopcNode> nodes;
-  std::deque<Pending> queue;
-  Pending root{{0, 0, 0, 0}, {}};
+  std::deque<CopcNode> queue;  // nodes whose points are not yet split
+  CopcNode root{{0, 0, 0, 0}, {}};
   root.points.resize(xyz.size());
   for (std::uint32_t i = 0; i < root.points.size(); ++i) root.points[i] = i;
   if (!root.points.empty()) queue.push_back(std::move(root));
 
   while (!queue.empty()) {
-    Pending node = std::move(queue.front());
+    CopcNode node = std::move(queue.front());
     queue.pop_front();
     const Box box = NodeBox(cube, node.key);
     CopcNode out{node.key, {}};
@@ -114,7 +109,7 @@ std::vector<CopcNode> BuildCopcOctree(const std::vector<std::array<double, 3>>& 
       for (std::uint32_t i : node.points) cells.emplace_back(Morton(Cell(box, xyz[i], kCopcGridCells)), i);
       std::stable_sort(cells.begin(), cells.end(),
                        [](const auto& a, const auto& b) { return a.first < b.first; });
-      std::array<Pending, 8> children;
+      std::array<CopcNode, 8> children;
       for (int o = 0; o < 8; ++o) {
         children[o].key = {node.key[0] + 1, 2 * node.key[1] + (o & 1), 2 * node.key[2] + ((o >> 1) & 1),
                            2 * node.key[3] + ((o >> 2) & 1)};

@@ -6,15 +6,10 @@
 #include <type_traits>
 
 #include "core/error.h"
+#include "products/little_endian.h"
 
 namespace skyfall {
 namespace {
-
-template <typename T>
-void PutLe(std::string* out, T value) {
-  static_assert(std::is_unsigned_v<T>);
-  for (std::size_t b = 0; b < sizeof(T); ++b) out->push_back(static_cast<char>((value >> (8 * b)) & 0xff));
-}
 
 // --- Entropy coding (LASzip's adaptation of FastAC) --------------------------
 

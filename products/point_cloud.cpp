@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "products/copc.h"
 #include "products/laz_encoder.h"
+#include "products/little_endian.h"
 
 namespace skyfall {
 namespace {
@@ -27,18 +28,6 @@ constexpr char kProjectionUserId[] = "LASF_Projection";
 constexpr std::uint16_t kWktRecordId = 2112;
 
 // --- Writing -----------------------------------------------------------------
-
-template <typename T>
-void PutLe(std::string* out, T value) {
-  static_assert(std::is_unsigned_v<T>);
-  for (std::size_t b = 0; b < sizeof(T); ++b) out->push_back(static_cast<char>((value >> (8 * b)) & 0xff));
-}
-
-void PutLe(std::string* out, double value) {
-  std::uint64_t bits;
-  std::memcpy(&bits, &value, sizeof bits);
-  PutLe(out, bits);
-}
 
 // A fixed-size char field, null-padded.
 void PutText(std::string* out, const std::string& text, std::size_t size) {
@@ -209,9 +198,8 @@ std::string LasBytes(const std::string& crs_wkt, const Quantized& q, const std::
   return out;
 }
 
-// The points as LAZ chunks laid out from `start` (the byte after the chunk
-// table's 8-byte pointer), one chunk per group; returns the chunks' bytes
-// and fills `table`.
+// The points as LAZ chunks, one per group, in the groups' order; returns the
+// chunks' bytes and fills `table` with each chunk's points and bytes.
 std::string LazChunks(const Quantized& q, const std::vector<LasPoint>& points,
                       const std::vector<std::vector<std::uint32_t>>& groups, std::vector<LazChunkEntry>* table) {
   std::string out;
@@ -285,7 +273,7 @@ std::string CopcBytes(const std::string& crs_wkt, const Quantized& q, const std:
 
   std::string page;
   if (nodes.empty()) {  // an empty cloud: the root, with no points, so that the page is not empty
-    page.append(4 * 4 + 8 + 4 + 4, '\0');
+    page.append(kCopcEntryBytes, '\0');
   }
   std::uint64_t at = chunks_start;
   for (std::size_t n = 0; n < nodes.size(); ++n) {
