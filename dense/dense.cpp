@@ -19,43 +19,11 @@ namespace skyfall {
 using dense_detail::kNan;
 
 void DenseOptions::Check() const {
-  auto positive = [](double v, const char* name) {
-    if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
-  };
-  if (cell_m != 0) positive(cell_m, "cell_m");  // 0: automatic
-  positive(height_step_m, "height_step_m");
-  positive(cost_truncation, "cost_truncation");
-  positive(min_std, "min_std");
-  positive(max_cost, "max_cost");
-  positive(max_median_deviation_m, "max_median_deviation_m");
-  fill.Check();
-  if (!(floating_patch_max_m2 >= 0)) throw Error("dense", "floating_patch_max_m2", "must be >= 0 (0 = off)");
-  if (!(floating_patch_min_rise_m >= 0)) throw Error("dense", "floating_patch_min_rise_m", "must be >= 0");
-  if (!(visibility_prior_pairs >= 0)) throw Error("dense", "visibility_prior_pairs", "must be >= 0");
-  if (visibility_near_cells < -1)
-    throw Error("dense", "visibility_near_cells", "must be >= 0, or -1 (the window's radius), got " + std::to_string(visibility_near_cells));
-  if (!(visibility_tolerance_m >= 0)) throw Error("dense", "visibility_tolerance_m", "must be >= 0");
-  if (!(height_margin_m >= 0)) throw Error("dense", "height_margin_m", "must be >= 0");
-  if (!(range_probe_min_gsd_m >= 0))
-    throw Error("dense", "range_probe_min_gsd_m", "must be >= 0 m, got " + FormatDouble(range_probe_min_gsd_m));
-  if (!(range_probe_above_m >= 0 && range_probe_above_m <= 5000))
-    throw Error("dense", "range_probe_above_m", "must be 0..5000 m (0 = off), got " + FormatDouble(range_probe_above_m));
-  if (!(height_percentile >= 0 && height_percentile < 0.5)) throw Error("dense", "height_percentile", "must be in [0, 0.5)");
-  positive(step_min_m, "step_min_m");
-  positive(support_grey_sigma, "support_grey_sigma");
-  if (!(step_cost_margin >= 0)) throw Error("dense", "step_cost_margin", "must be >= 0, got " + std::to_string(step_cost_margin));
-  if (step_reach_cells < 1) throw Error("dense", "step_reach_cells", "must be >= 1, got " + std::to_string(step_reach_cells));
-  if (support_radius_cells < 1)
-    throw Error("dense", "support_radius_cells", "must be >= 1, got " + std::to_string(support_radius_cells));
-  if (coarse_factor < 1) throw Error("dense", "coarse_factor", "must be >= 1 (1 = off), got " + std::to_string(coarse_factor));
-  if (max_heights < 2) throw Error("dense", "max_heights", "must be >= 2");
-  if (window_cells < 3 || window_cells % 2 == 0) throw Error("dense", "window_cells", "must be odd and >= 3");
-  if (coarse_window_cells < 3 || coarse_window_cells % 2 == 0)
-    throw Error("dense", "coarse_window_cells", "must be odd and >= 3");
-  if (max_pairs < 1) throw Error("dense", "max_pairs", "must be >= 1");
-  if (!(min_pair_angle_deg >= 0 && max_pair_angle_deg > min_pair_angle_deg))
+  CheckOptionRanges(*this, "dense");
+  fill.Check();  // what involves two of its fields
+  if (!(max_pair_angle_deg > min_pair_angle_deg))
     throw Error("dense", "max_pair_angle_deg", "must exceed min_pair_angle_deg >= 0");
-  if (!(sgm_p1 >= 0 && sgm_p2 >= sgm_p1)) throw Error("dense", "sgm_p2", "must be >= sgm_p1 >= 0");
+  if (!(sgm_p2 >= sgm_p1)) throw Error("dense", "sgm_p2", "must be >= sgm_p1 >= 0");
 }
 
 std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector<DenseView>& views,

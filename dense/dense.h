@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/ground_cell.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "core/tile.h"
@@ -132,6 +133,125 @@ struct DenseOptions {
   double visibility_prior_pairs = 2.0;
   void Check() const;               // throws Error("dense", field, ...)
 };
+template <class IO> void Visit(IO& io, DenseOptions& o) {
+  io("cell_m", o.cell_m,
+     "Height grid cell; 0 = automatic from the imagery (0.5 m for sub-metre sensors, else the multiple of 0.5 m "
+     "nearest the finest view's GSD)", range::Or(range::Above(0), 0, "automatic"));
+  io("height_step_m", o.height_step_m,
+     "Step between the candidate heights of the plane sweep", range::Above(0));
+  io("height_margin_m", o.height_margin_m,
+     "Added beyond the tie points' height percentiles to form the sweep's height range", range::AtLeast(0));
+  io("height_percentile", o.height_percentile,
+     "Tie-point heights outside the [p, 1-p] percentiles are ignored for the height range", range::FromBelow(0, 0.5));
+  io("max_heights", o.max_heights,
+     "Most candidate heights per sweep; longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)",
+     range::AtLeast(2));
+  io("range_probe_above_m", o.range_probe_above_m,
+     "A coarse sweep up to this far above the tie points' height range looks for surfaces without tie points (a "
+     "tower in coarse imagery) and raises the sweep's range to them; 0 = off", range::In(0, 5000));
+  io("range_probe_min_gsd_m", o.range_probe_min_gsd_m,
+     "The range probe runs only for imagery whose finest GSD is at least this (sub-metre imagery has tie points on "
+     "its tall roofs)", range::AtLeast(0));
+  io("window_cells", o.window_cells,
+     "Side of the NCC window, odd", range::Odd(range::AtLeast(3)));
+  io("max_pairs", o.max_pairs,
+     "Image pairs used, most verified tie points first", range::AtLeast(1));
+  io("min_pair_matches", o.min_pair_matches,
+     "Verified tie points an image pair needs to be considered", range::AtLeast(0));
+  io("min_pair_angle_deg", o.min_pair_angle_deg,
+     "Pairs with a smaller intersection angle are not used (heights too weakly constrained)", range::AtLeast(0));
+  io("max_pair_angle_deg", o.max_pair_angle_deg,
+     "Pairs with a larger intersection angle are not used (views too different to correlate)",
+     range::AboveUpTo(0, 180));
+  io("cost_truncation", o.cost_truncation,
+     "Each pair's matching cost (1 - NCC) is capped at this value", range::Above(0));
+  io("min_std", o.min_std,
+     "Window standard deviation (of the normalized image) below which NCC is undefined and the pair adds the capped "
+     "cost", range::Above(0));
+  io("sgm_p1", o.sgm_p1,
+     "SGM penalty for a one-step height change between neighbouring cells, in cost units", range::AtLeast(0));
+  io("sgm_p2", o.sgm_p2,
+     "SGM penalty for a larger height change (walls), in cost units", range::AtLeast(0));
+  io("max_cost", o.max_cost,
+     "Cells whose matching cost at the chosen height exceeds this get no height", range::Above(0));
+  io("max_median_deviation_m", o.max_median_deviation_m,
+     "Cells further than this from their 3x3 median get no height (speckle)", range::Above(0));
+  io("fill_holes", o.fill_holes,
+     "Fill cells without a height from their surroundings and the terrain model (filled cells are flagged)");
+  io("coarse_factor", o.coarse_factor,
+     "Before filling, holes get a second sweep on a grid this many times coarser, on images blurred to it; 1 = off",
+     range::AtLeast(1));
+  io("coarse_window_cells", o.coarse_window_cells,
+     "NCC window side of the coarse sweep, in coarse cells, odd", range::Odd(range::AtLeast(3)));
+  io("step_min_m", o.step_min_m,
+     "decide_filled_sides: a filled cell's roof side must stand more than this above its ground side", range::Above(0));
+  io("step_reach_cells", o.step_reach_cells,
+     "decide_filled_sides: a cell filled at the ground with measured ground this near keeps the ground",
+     range::AtLeast(1));
+  io("support_radius_cells", o.support_radius_cells,
+     "Radius of the adaptive support-weight window", range::AtLeast(1));
+  io("support_grey_sigma", o.support_grey_sigma,
+     "Grey difference at which a cell's support weight falls to 1/e (on grey scaled so that its 99th percentile is "
+     "1)", range::Above(0));
+  io("step_cost_margin", o.step_cost_margin,
+     "A cell changes side only when the other side's cost is lower by this much (and at most max_cost)",
+     range::AtLeast(0));
+  io("decide_filled_sides", o.decide_filled_sides,
+     "After filling, score each filled cell at the ground and at a roof, and let it take the other side where that "
+     "matches clearly better");
+  io("fill_radius_m", o.fill.radius_m,
+     "A seen hole takes the lowest height above the ground within this distance (doubled while nothing is in reach)",
+     range::Above(0));
+  io("fill_roof_rim_fraction", o.fill.roof_rim_fraction,
+     "A seen hole whose rim of measured cells is at least this share roof takes the roof, even with ground in reach; "
+     "0 = off", range::In(0, 1));
+  io("fill_roof_rim_occluded", o.fill.roof_rim_occluded,
+     "The roof-rim rule also counts holes whose ground no pair sees (a hole in the middle of a roof)");
+  io("fill_roof_enclosed", o.fill.roof_enclosed,
+     "A hole cell enclosed by roof on all sides takes the roof, even where its hole reaches hidden ground beyond the "
+     "roof's edge");
+  io("fill_far_raised_ground", o.fill.far_raised_takes_ground,
+     "A seen hole cell with nothing measured within fill_radius_m, whose lowest measured neighbour further out is "
+     "raised, takes the ground");
+  io("fill_seen_ground_terrain", o.fill.seen_ground_takes_terrain,
+     "A seen hole cell whose lowest measured neighbour in reach is ground takes the terrain model's height");
+  io("fill_edge_hides", o.fill_edge_hides,
+     "Ground whose ray toward a view leaves the grid counts as hidden from that view (the city goes on beyond the "
+     "grid)");
+  io("floating_patch_max_m2", o.floating_patch_max_m2,
+     "Before filling, patches of matched cells smaller than this that stand wholly more than "
+     "floating_patch_min_rise_m above the terrain model become holes; 0 = off", range::AtLeast(0));
+  io("floating_patch_min_rise_m", o.floating_patch_min_rise_m,
+     "Height above the terrain model beyond which a small patch counts as floating (see floating_patch_max_m2)",
+     range::AtLeast(0));
+  io("max_fill_reach_m", o.fill.max_reach_m,
+     "Cells further than this from every measured cell stay empty", range::Above(0));
+  io("fill_ground_radius_m", o.fill.ground_radius_m,
+     "Radius of the morphological opening that gives the ground surface (larger than half the widest building)",
+     range::Above(0));
+  io("fill_ground_max_rise_m", o.fill.ground_max_rise_m,
+     "Where the ground surface stands more than this above the opening of twice fill_ground_radius_m, it holds roofs "
+     "only and the terrain model spans it; 0 = off", range::AtLeast(0));
+  io("fill_ground_tolerance_m", o.fill.ground_tolerance_m,
+     "Measured cells at most this far above the ground surface are ground and shape the terrain model",
+     range::AtLeast(0));
+  io("fill_terrain_block_cells", o.fill.terrain_block_cells,
+     "Block side of the terrain model that spans hidden ground, in grid cells", range::AtLeast(1));
+  io("fill_roof_rim_min_m", o.fill.roof_rim_min_m,
+     "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules",
+     range::AtLeast(0));
+  io("visibility_pass", o.visibility_pass,
+     "Run a second sweep that scores each height only with the pairs whose two views see that point");
+  io("visibility_tolerance_m", o.visibility_tolerance_m,
+     "A point counts as seen when the first surface rises at most this much above its ray toward the camera",
+     range::AtLeast(0));
+  io("visibility_near_cells", o.visibility_near_cells,
+     "Surface cells this near a cell along the ray do not hide it; -1 = the NCC window's radius, 0 = every cell "
+     "hides", range::Or(range::AtLeast(0), -1, "the NCC window's radius"));
+  io("visibility_prior_pairs", o.visibility_prior_pairs,
+     "In the visibility pass, each height's mean cost is taken as if this many more pairs had added the capped cost",
+     range::AtLeast(0));
+}
 
 // One view: its camera in the frame of the grid (ENU) and its pixels.
 struct DenseView {

@@ -586,24 +586,7 @@ double ParseDsmField(const std::string& token, const std::string& path, const ch
 
 }  // namespace
 
-void IngestOptions::Check() const {
-  auto require = [](bool ok, const char* field, double value, const char* rule) {
-    if (!ok) throw Error("ingest", field, FormatDouble(value) + " is invalid: " + rule);
-  };
-  require(std::isfinite(height_margin_m) && height_margin_m >= 0, "height_margin_m",
-          height_margin_m, "must be >= 0");
-  require(std::isfinite(rpc_height_half_range_m) && rpc_height_half_range_m > 0,
-          "rpc_height_half_range_m", rpc_height_half_range_m, "must be > 0");
-  require(std::isfinite(nominal_orbit_height_m) && nominal_orbit_height_m > 0,
-          "nominal_orbit_height_m", nominal_orbit_height_m, "must be > 0");
-  require(std::isfinite(view_ray_height_step_m) && view_ray_height_step_m > 0,
-          "view_ray_height_step_m", view_ray_height_step_m, "must be > 0");
-  try {
-    radiometry.Check();
-  } catch (const Error& e) {
-    throw Error("ingest", "radiometry." + e.subject(), e.detail());
-  }
-}
+void IngestOptions::Check() const { CheckOptionRanges(*this, "ingest"); }
 
 int IngestResult::NumIngested() const {
   int n = 0;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/option_range.h"
 #include "core/stage.h"
 #include "ingest/radiometry.h"
 
@@ -27,6 +28,21 @@ struct IngestOptions {
   // Throws Error("ingest", field, ...) naming the bad field.
   void Check() const;
 };
+template <class IO> void Visit(IO& io, IngestOptions& o) {
+  io.NotAnOption(o.aois);  // which AOIs is part of the request, not of the options
+  io("verify_pixels", o.verify_pixels,
+     "Read every pixel once at ingest, so that corrupt rasters are found early");
+  io("radiometry", o.radiometry);
+  io("height_margin_m", o.height_margin_m,
+     "Margin added on both sides of the height range given by the truth DSM or the Sat-NeRF JSONs", range::AtLeast(0));
+  io("rpc_height_half_range_m", o.rpc_height_half_range_m,
+     "Half-width of the height range around the RPC's HEIGHT_OFF when only the RPC is known (at most its "
+     "HEIGHT_SCALE)", range::Above(0));
+  io("nominal_orbit_height_m", o.nominal_orbit_height_m,
+     "Orbit height assumed for each image's off-nadir angle", range::Above(0));
+  io("view_ray_height_step_m", o.view_ray_height_step_m,
+     "Vertical separation of the two points that define each image's viewing ray", range::Above(0));
+}
 
 // An image or AOI that was left out, and why.
 struct Skipped {

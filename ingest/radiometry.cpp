@@ -105,11 +105,11 @@ std::vector<std::uint8_t> ValidMask(const std::vector<float>& rgb, int w, int h,
 }  // namespace
 
 void RadiometryOptions::Check() const {
-  if (!(low_percentile >= 0 && low_percentile < high_percentile && high_percentile <= 1)) {
-    throw Error("radiometry", "low_percentile", "needs 0 <= low_percentile < high_percentile <= 1, got " +
+  CheckOptionRanges(*this, "radiometry");
+  if (!(low_percentile < high_percentile)) {
+    throw Error("radiometry", "low_percentile", "needs low_percentile < high_percentile, got " +
                                                     FormatDouble(low_percentile) + " and " + FormatDouble(high_percentile));
   }
-  if (max_sample_px < 1024) throw Error("radiometry", "max_sample_px", "must be >= 1024, got " + std::to_string(max_sample_px));
 }
 
 std::size_t NormalizedImage::ValidCount() const {

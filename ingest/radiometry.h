@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/option_range.h"
 
 namespace skyfall {
 
@@ -23,6 +24,17 @@ struct RadiometryOptions {
   int max_sample_px = 1 << 20;     // percentiles from a decimated read of at most this many pixels
   void Check() const;              // throws Error("radiometry", field, ...)
 };
+template <class IO> void Visit(IO& io, RadiometryOptions& o) {
+  io("low_percentile", o.low_percentile,
+     "The raw value at this fraction of an image's valid pixels maps to 0", range::In(0, 1));
+  io("high_percentile", o.high_percentile,
+     "The raw value at this fraction of an image's valid pixels maps to 1", range::In(0, 1));
+  io("stretch_byte", o.stretch_byte,
+     "Also stretch Byte images between the percentiles (off: their 0-255 values map to 0-1 as they are; other data "
+     "types are always stretched)");
+  io("max_sample_px", o.max_sample_px,
+     "The percentiles come from a decimated read of at most this many pixels", range::AtLeast(1024));
+}
 
 // Chooses the bands (colour interpretation red/green/blue, else band
 // descriptions "red"/"green"/"blue" or "r"/"g"/"b", else the first three; one

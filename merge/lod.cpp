@@ -27,13 +27,7 @@ double Sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
 
 }  // namespace
 
-void LodOptions::Check() const {
-  if (max_levels < 0 || max_levels > 24) throw Error("lod", "max_levels", "must be in [0, 24], got " + std::to_string(max_levels));
-  if (!(base_voxel_m > 0)) throw Error("lod", "base_voxel_m", "must be > 0, got " + std::to_string(base_voxel_m));
-  if (!(min_reduction > 0 && min_reduction <= 1)) {
-    throw Error("lod", "min_reduction", "must be in (0, 1], got " + std::to_string(min_reduction));
-  }
-}
+void LodOptions::Check() const { CheckOptionRanges(*this, "lod"); }
 
 double GaussianMass(const GaussianCloud& cloud, std::size_t i) {
   return Sigmoid(cloud.opacity_logits[i]) * std::exp(static_cast<double>(cloud.log_scales[i].sum()));

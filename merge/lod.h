@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 
 namespace skyfall {
 
@@ -21,6 +22,17 @@ struct LodOptions {
   std::size_t min_gaussians = 16;  // no level coarser than this count
   void Check() const;  // throws Error("lod", field, ...)
 };
+template <class IO> void Visit(IO& io, LodOptions& o) {
+  io("max_levels", o.max_levels,
+     "Coarser LOD levels to build", range::In(0, 24));
+  io("base_voxel_m", o.base_voxel_m,
+     "Smallest voxel edge tried; it doubles per attempt", range::Above(0));
+  io("min_reduction", o.min_reduction,
+     "A level is kept only when it has at most this fraction of the previous level's Gaussians; otherwise the voxel "
+     "doubles again", range::AboveUpTo(0, 1));
+  io("min_gaussians", o.min_gaussians,
+     "No coarser level is built from a level of this many Gaussians or fewer", range::AtLeast(1));
+}
 
 struct LodLevel {
   int level = 0;

@@ -116,17 +116,7 @@ int Crossing(const CutLine* to_next, const CutLine* to_previous, double across_m
 
 }  // namespace
 
-void SeamLineOptions::Check() const {
-  if (!(cell_m > 0)) throw Error("merge", "seam_lines.cell_m", "must be > 0, got " + std::to_string(cell_m));
-  if (!(band_fraction >= 0 && band_fraction <= 1)) {
-    throw Error("merge", "seam_lines.band_fraction", "must be in [0, 1], got " + std::to_string(band_fraction));
-  }
-  if (!(max_step_m > 0)) throw Error("merge", "seam_lines.max_step_m", "must be > 0, got " + std::to_string(max_step_m));
-  if (!(bend_m >= 0)) throw Error("merge", "seam_lines.bend_m", "must be >= 0, got " + std::to_string(bend_m));
-  if (!(centre_pull_m > 0)) {
-    throw Error("merge", "seam_lines.centre_pull_m", "must be > 0, got " + std::to_string(centre_pull_m));
-  }
-}
+void SeamLineOptions::Check() const { CheckOptionRanges(*this, "merge", "seam_lines"); }
 
 double CutLine::CutAt(double along_m) const {
   const double k = std::floor((along_m - along_start_m) / cell_m);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/tile.h"
 
 namespace skyfall {
@@ -48,6 +49,21 @@ struct SeamLineOptions {
   double centre_pull_m = 0.005;
   void Check() const;           // throws Error("merge", field, ...)
 };
+template <class IO> void Visit(IO& io, SeamLineOptions& o) {
+  io("enabled", o.enabled,
+     "Cut between tiles along seam lines where their DSMs agree; off: the straight core boundaries");
+  io("cell_m", o.cell_m,
+     "Cell of the height maps and of the seam line", range::Above(0));
+  io("band_fraction", o.band_fraction,
+     "Seam lines stay within this fraction of the overlap margin of the core boundary", range::In(0, 1));
+  io("max_step_m", o.max_step_m,
+     "Height disagreements are capped at this, and a cell only one tile covers costs this much", range::Above(0));
+  io("bend_m", o.bend_m,
+     "Cost added per cell the line moves sideways, so that it stays straight where the tiles agree", range::AtLeast(0));
+  io("centre_pull_m", o.centre_pull_m,
+     "Cost added per cell along the line for each cell it is off the core boundary, so that a detour ends where the "
+     "disagreement does", range::Above(0));
+}
 
 // A cut line along one tile boundary: for each cell along the boundary, the
 // coordinate across it where ownership passes to the next tile.

@@ -40,16 +40,7 @@ bool AnyActiveNear(const openvdb::MaskGrid::ConstAccessor& acc, const openvdb::C
 
 }  // namespace
 
-void StitchOptions::Check() const {
-  if (!(voxel_m > 0)) throw Error("merge", "voxel_m", "must be > 0, got " + std::to_string(voxel_m));
-  if (!(min_opacity >= 0 && min_opacity < 1)) {
-    throw Error("merge", "min_opacity", "must be in [0, 1), got " + std::to_string(min_opacity));
-  }
-  if (match_radius_voxels < 0 || match_radius_voxels > 8) {
-    throw Error("merge", "match_radius_voxels", "must be in [0, 8], got " + std::to_string(match_radius_voxels));
-  }
-  seam_lines.Check();
-}
+void StitchOptions::Check() const { CheckOptionRanges(*this, "merge"); }
 
 Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPoint& to_origin) {
   if (from_origin.lon_deg == to_origin.lon_deg && from_origin.lat_deg == to_origin.lat_deg &&

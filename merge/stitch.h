@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/stage.h"
 #include "core/tile.h"
 #include "merge/ownership.h"
@@ -35,6 +36,19 @@ struct StitchOptions {
   SeamLineOptions seam_lines;
   void Check() const;  // throws Error("merge", field, ...)
 };
+template <class IO> void Visit(IO& io, StitchOptions& o) {
+  io("voxel_m", o.voxel_m,
+     "Occupancy voxel edge", range::Above(0));
+  io("min_opacity", o.min_opacity,
+     "Gaussians more transparent than this neither mark occupancy nor fill holes", range::FromBelow(0, 1));
+  io("match_radius_voxels", o.match_radius_voxels,
+     "A neighbour's Gaussian is a duplicate when the owner's occupancy has an active voxel within this distance",
+     range::In(0, 8));
+  io("occupancy_columns", o.occupancy_columns,
+     "Occupancy by ground column (a neighbour's Gaussian over ground the owner covers, at any height, is a "
+     "duplicate); off: by voxel");
+  io("seam_lines", o.seam_lines);
+}
 
 struct StitchResult {
   GaussianCloud cloud;              // in the city frame

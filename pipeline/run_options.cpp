@@ -25,10 +25,6 @@ constexpr const char* kSchema = "skyfall.run_options/1";
 // The IO objects the registry (option_registry.h) is visited with: JSON
 // writer and strict reader, the option describer and the completeness check.
 
-template <class T>
-constexpr bool kIsLeaf = std::is_arithmetic_v<T> || std::is_enum_v<T> || std::is_same_v<T, std::string> ||
-                        std::is_same_v<T, Eigen::Vector3d>;
-
 class Writer {
  public:
   explicit Writer(json* out) : out_(out) {}
@@ -38,7 +34,7 @@ class Writer {
       (*out_)[key] = {value.x(), value.y(), value.z()};
     } else if constexpr (std::is_enum_v<T>) {
       (*out_)[key] = EnumName(value);
-    } else if constexpr (kIsLeaf<T>) {
+    } else if constexpr (kIsOptionLeaf<T>) {
       (*out_)[key] = value;
     } else {
       json nested = json::object();
@@ -132,7 +128,7 @@ class Coverage {
   template <class T>
   void operator()(const char* key, T& value, const char* /*help*/ = nullptr, const OptionRange& = {}) {
     const std::string path = path_.empty() ? key : path_ + "." + key;
-    if constexpr (kIsLeaf<T>) {
+    if constexpr (kIsOptionLeaf<T>) {
       Claim(value);
     } else {
       Own(value, path);
@@ -172,7 +168,7 @@ class Describer {
   template <class T>
   void operator()(const char* key, T& value, const char* help = nullptr, const OptionRange& range = {}) {
     const std::string path = path_.empty() ? key : path_ + "." + key;
-    if constexpr (kIsLeaf<T>) {
+    if constexpr (kIsOptionLeaf<T>) {
       json holder = json::object();
       Writer w(&holder);
       w(key, value);
@@ -202,32 +198,6 @@ class Describer {
 };
 
 // Every numeric value against the range the registry declares for it.
-class RangeChecker {
- public:
-  explicit RangeChecker(std::string path) : path_(std::move(path)) {}
-  template <class T>
-  void operator()(const char* key, T& value, const char* /*help*/ = nullptr, const OptionRange& range = {}) {
-    const std::string path = path_.empty() ? key : path_ + "." + key;
-    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-      Need(path, static_cast<double>(value), range);
-    } else if constexpr (std::is_same_v<T, Eigen::Vector3d>) {
-      for (int k = 0; k < 3; ++k) Need(path + "[" + std::to_string(k) + "]", value[k], range);
-    } else if constexpr (!kIsLeaf<T>) {
-      RangeChecker inner(path);
-      Visit(inner, value);
-    }
-  }
-  template <class T>
-  void NotAnOption(const T&) {}
-
- private:
-  static void Need(const std::string& path, double value, const OptionRange& range) {
-    if (range.Declared() && !range.Contains(value))
-      throw Error("run options", path, FormatDouble(value) + " must be " + range.Text());
-  }
-  std::string path_;
-};
-
 template <class T>
 json ToJson(const T& options) {
   json out = json::object();
@@ -255,24 +225,13 @@ void CheckSection(const char* section, F check) {
 }  // namespace
 
 void TrainStageOptions::Check() const {
+  CheckOptionRanges(*this, "train");
   optimizer.Check();
   optimizer.appearance.Check();
   optimizer.raster.Check();
-  if (downscale < 1) throw Error("train", "downscale", "must be >= 1, got " + std::to_string(downscale));
   if (depth_prior != "surface" && depth_prior != "none" && depth_prior.rfind("cmd:", 0) != 0)
     throw Error("train", "depth_prior", "'" + depth_prior + "' is not one of surface, none, cmd:COMMAND");
   if (depth_prior == "cmd:") throw Error("train", "depth_prior", "'cmd:' names no command");
-  if (!(init_max_scale_m >= 0)) throw Error("train", "init_max_scale_m", "must be >= 0 (0 = no cap), got " + FormatDouble(init_max_scale_m));
-  if (init_pieces < 1) throw Error("train", "init_pieces", "must be >= 1, got " + std::to_string(init_pieces));
-  if (!(init_spacing_m > 0)) throw Error("train", "init_spacing_m", "must be > 0, got " + FormatDouble(init_spacing_m));
-  if (!(anchor.filled_weight >= 0 && anchor.filled_weight <= 1))
-    throw Error("train", "surface_filled_weight", "must be in [0, 1], got " + FormatDouble(anchor.filled_weight));
-  if (!(anchor.step_weight >= 0 && anchor.step_weight <= 1))
-    throw Error("train", "surface_step_weight", "must be in [0, 1], got " + FormatDouble(anchor.step_weight));
-  if (!(anchor.step_reach_m >= 0))
-    throw Error("train", "surface_step_reach_m", "must be >= 0, got " + FormatDouble(anchor.step_reach_m));
-  if (!(anchor.step_min_m > 0))
-    throw Error("train", "surface_step_min_m", "must be > 0, got " + FormatDouble(anchor.step_min_m));
 }
 
 void IduStageOptions::Check() const {
@@ -283,41 +242,21 @@ void IduStageOptions::Check() const {
   auto_decision.Check();
 }
 
-void MergeOptions::Check() const {
-  stitch.Check();
-  try {
-    lod.Check();
-  } catch (const Error& e) {
-    throw Error("merge", "lod." + e.subject(), e.detail());
-  }
-  if (!(seam_gsd_m > 0)) throw Error("merge", "seam_gsd_m", "must be > 0, got " + FormatDouble(seam_gsd_m));
-}
+void MergeOptions::Check() const { CheckOptionRanges(*this, "merge"); }
 
 void DsmOptions::Check() const {
+  CheckOptionRanges(*this, "dsm");
   try {
-    export_options.Check();
-  } catch (const Error& e) {
-    throw Error("dsm", "export." + e.subject(), e.detail());
-  }
-  try {
-    compare.Check();
+    compare.breakdown.Check();
   } catch (const Error& e) {
     throw Error("dsm", "compare." + e.subject(), e.detail());
   }
 }
 
-void ExportOptions::Check() const {
-  try {
-    tiles3d_options.Check();
-  } catch (const Error& e) {
-    throw Error("exports", "tiles3d_options." + e.subject(), e.detail());
-  }
-}
+void ExportOptions::Check() const { CheckOptionRanges(*this, "exports"); }
 
 void SlurmOptions::Check() const {
-  if (cpus_per_task < 1) throw Error("slurm", "cpus_per_task", "must be >= 1, got " + std::to_string(cpus_per_task));
-  if (mem_mb < 0) throw Error("slurm", "mem_mb", "must be >= 0 (0 = estimated), got " + std::to_string(mem_mb));
-  if (!(poll_s > 0)) throw Error("slurm", "poll_s", "must be > 0, got " + FormatDouble(poll_s));
+  CheckOptionRanges(*this, "slurm");
   // These go into job scripts: refuse what would break out of an #SBATCH line.
   for (const auto& [name, value] : {std::pair<const char*, const std::string&>{"partition", partition},
                                     {"account", account}, {"time_limit", time_limit}}) {
@@ -328,7 +267,7 @@ void SlurmOptions::Check() const {
 }
 
 void ExecutorOptions::Check() const {
-  if (jobs < 0) throw Error("executor", "jobs", "must be >= 0 (0 = automatic), got " + std::to_string(jobs));
+  CheckOptionRanges(*this, "executor");
   try {
     slurm.Check();
   } catch (const Error& e) {
@@ -337,21 +276,13 @@ void ExecutorOptions::Check() const {
 }
 
 void ProductOptions::Check() const {
+  CheckOptionRanges(*this, "products");
   if (vertical_datum == HeightReference::kAboveTerrain)
     throw Error("products", "vertical_datum", "must be 'ellipsoid' or 'egm96' (above_terrain is the nDSM's, not a datum)");
-  if (!(gsd_m > 0)) throw Error("products", "gsd_m", FormatDouble(gsd_m) + " must be > 0");
-  if (ortho_bits != 8 && ortho_bits != 16)
-    throw Error("products", "ortho_bits", std::to_string(ortho_bits) + " must be 8 or 16");
-  if (!(min_opacity >= 0 && min_opacity <= 1))
-    throw Error("products", "min_opacity", FormatDouble(min_opacity) + " must be in [0, 1]");
-  if (!(ground_tolerance_m >= 0))
-    throw Error("products", "ground_tolerance_m", FormatDouble(ground_tolerance_m) + " must be >= 0");
-  land_cover.Check();
 }
 
 void RunOptions::Check() const {
-  RangeChecker ranges("");
-  Visit(ranges, const_cast<RunOptions&>(*this));
+  CheckOptionRanges(*this, "run options");
   CheckSection("ingest", [&] { ingest.Check(); });
   CheckSection("tiling", [&] { tiling.Check(); });
   CheckSection("sfm", [&] { sfm.Check(); });
@@ -444,74 +375,6 @@ std::string UnitOfKey(const std::string& key) {
   }
   return "";
 }
-
-bool OptionRange::Declared() const {
-  return std::isfinite(min) || std::isfinite(max) || !values.empty() || odd;
-}
-
-bool OptionRange::Contains(double v) const {
-  if (!std::isfinite(v)) return false;
-  if (also && v == *also) return true;
-  if (!values.empty()) return std::find(values.begin(), values.end(), v) != values.end();
-  if (odd && std::fmod(std::abs(v), 2.0) != 1.0) return false;
-  return (min_open ? v > min : v >= min) && (max_open ? v < max : v <= max);
-}
-
-std::string OptionRange::Text() const {
-  std::string text;
-  if (!values.empty()) {
-    for (std::size_t k = 0; k < values.size(); ++k)
-      text += (k == 0 ? "" : k + 1 == values.size() ? " or " : ", ") + FormatDouble(values[k]);
-    return text;
-  }
-  if (odd) text = "odd, ";
-  if (std::isfinite(min) && std::isfinite(max)) {
-    text += "in " + std::string(min_open ? "(" : "[") + FormatDouble(min) + ", " + FormatDouble(max) +
-            (max_open ? ")" : "]");
-  } else if (std::isfinite(min)) {
-    text += (min_open ? "> " : ">= ") + FormatDouble(min);
-  } else if (std::isfinite(max)) {
-    text += (max_open ? "< " : "<= ") + FormatDouble(max);
-  } else {
-    text += "finite";
-  }
-  if (also) text += ", or " + FormatDouble(*also) + (also_means.empty() ? "" : " (" + also_means + ")");
-  return text;
-}
-
-namespace range {
-namespace {
-OptionRange Interval(double min, bool min_open, double max, bool max_open) {
-  OptionRange r;
-  r.min = min;
-  r.max = max;
-  r.min_open = min_open;
-  r.max_open = max_open;
-  return r;
-}
-}  // namespace
-constexpr double kInf = std::numeric_limits<double>::infinity();
-OptionRange AtLeast(double min) { return Interval(min, false, kInf, false); }
-OptionRange Above(double min) { return Interval(min, true, kInf, false); }
-OptionRange In(double min, double max) { return Interval(min, false, max, false); }
-OptionRange Inside(double min, double max) { return Interval(min, true, max, true); }
-OptionRange AboveUpTo(double min, double max) { return Interval(min, true, max, false); }
-OptionRange FromBelow(double min, double max) { return Interval(min, false, max, true); }
-OptionRange OneOf(std::vector<double> values) {
-  OptionRange r;
-  r.values = std::move(values);
-  return r;
-}
-OptionRange Odd(OptionRange r) {
-  r.odd = true;
-  return r;
-}
-OptionRange Or(OptionRange r, double also, const char* means) {
-  r.also = also;
-  r.also_means = means;
-  return r;
-}
-}  // namespace range
 
 std::vector<OptionDescription> DescribeRunOptions() {
   std::vector<OptionDescription> rows;

@@ -14,17 +14,18 @@
 #include <vector>
 
 #include "core/enum_codec.h"
-#include "products/dsm.h"
+#include "core/option_range.h"
+#include "dense/dense.h"
+#include "ingest/dfc2019.h"
 #include "merge/lod.h"
 #include "merge/stitch.h"
+#include "products/dsm.h"
 #include "products/land_cover.h"
 #include "products/point_cloud.h"
 #include "products/tiles3d.h"
-#include "dense/dense.h"
 #include "sfm/sfm.h"
-#include "synthesis/idu.h"
 #include "splat/trainer.h"
-#include "ingest/dfc2019.h"
+#include "synthesis/idu.h"
 #include "tiling/tiling.h"
 
 namespace skyfall {
@@ -237,37 +238,6 @@ std::string SfmOptionsJson(const SfmOptions& options);
 // that only say when to checkpoint, evaluate or keep snapshots. A checkpoint
 // written under other values is set aside, not resumed.
 std::string TrainCheckpointJson(const TrainStageOptions& options);
-
-// The values a numeric option takes, declared with it in the registry: an
-// interval whose ends may be open, or a set of values; optionally one more
-// value outside the interval (0 = automatic) and odd integers only. A
-// ranged value must also be finite. RunOptions::Check() checks every value
-// against its range, naming the option's dotted path, before the sections'
-// own checks (which keep what involves two fields).
-struct OptionRange {
-  double min = -std::numeric_limits<double>::infinity();
-  double max = std::numeric_limits<double>::infinity();
-  bool min_open = false, max_open = false;
-  std::vector<double> values;  // when not empty: exactly one of these
-  std::optional<double> also;  // accepted besides the interval
-  std::string also_means;      // what `also` stands for, e.g. "automatic"
-  bool odd = false;
-  bool Declared() const;  // false for the default: any value
-  bool Contains(double value) const;
-  std::string Text() const;  // ">= 1", "in (0, 1]", "8 or 16", "odd, >= 3", ">= 16, or 0 (automatic)"
-};
-// Ranges as the registry writes them.
-namespace range {
-OptionRange AtLeast(double min);                // [min, inf)
-OptionRange Above(double min);                  // (min, inf)
-OptionRange In(double min, double max);         // [min, max]
-OptionRange Inside(double min, double max);     // (min, max)
-OptionRange AboveUpTo(double min, double max);  // (min, max]
-OptionRange FromBelow(double min, double max);  // [min, max)
-OptionRange OneOf(std::vector<double> values);
-OptionRange Odd(OptionRange r);
-OptionRange Or(OptionRange r, double also, const char* means);
-}  // namespace range
 
 // The option registry (option_registry.h): every field of RunOptions, listed
 // once with its help and range; the JSON form, --set, --print-config, the

@@ -511,18 +511,11 @@ DsmGrid SampleOnGrid(const DsmGrid& source, const DsmGrid& target, const std::st
   return out;
 }
 
-void DsmExportOptions::Check() const {
-  if (!(camera_height_m >= 1e4)) {
-    throw Error("dsm", "camera_height_m", "must be >= 10000 (a near-orthographic camera), got " + FormatDouble(camera_height_m));
-  }
-  if (!(min_alpha > 0 && min_alpha < 1)) throw Error("dsm", "min_alpha", "must be in (0, 1), got " + FormatDouble(min_alpha));
-}
+void DsmExportOptions::Check() const { CheckOptionRanges(*this, "dsm"); }
 
 void DsmCompareOptions::Check() const {
-  if (max_shift_px < 0) throw Error("dsm", "max_shift_px", "must be >= 0, got " + std::to_string(max_shift_px));
-  if (pyramid_levels < 1) throw Error("dsm", "pyramid_levels", "must be >= 1, got " + std::to_string(pyramid_levels));
-  if (!(within_m > 0)) throw Error("dsm", "within_m", "must be > 0, got " + FormatDouble(within_m));
-  breakdown.Check();
+  CheckOptionRanges(*this, "dsm");
+  breakdown.Check();  // its own checks, also for callers that build it alone
 }
 
 }  // namespace skyfall

@@ -10,9 +10,10 @@
 #include "core/aoi.h"
 #include "core/dsm_grid.h"
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/tile.h"
-#include "products/dsm_breakdown.h"
 #include "ingest/dfc2019.h"
+#include "products/dsm_breakdown.h"
 #include "splat/ply.h"
 
 namespace skyfall {
@@ -51,6 +52,15 @@ struct DsmExportOptions {
   bool median_depth = true;
   void Check() const;  // throws Error("dsm", field, ...)
 };
+template <class IO> void Visit(IO& io, DsmExportOptions& o) {
+  io("camera_height_m", o.camera_height_m,
+     "Height of the nadir camera the DSM is rendered from (far, so nearly orthographic)", range::AtLeast(10000));
+  io("min_alpha", o.min_alpha,
+     "Pixels whose accumulated opacity is below this are nodata", range::Inside(0, 1));
+  io("median_depth", o.median_depth,
+     "A pixel's height is the depth where the accumulated opacity reaches 0.5; off: the opacity-weighted expected "
+     "depth");
+}
 
 // Rasterizes the scene (in the AOI's ENU frame with origin `enu_origin`) onto
 // `grid` (its data is replaced) by rendering median (or expected) depth from a nadir
@@ -117,6 +127,24 @@ struct DsmCompareOptions {
   DsmBreakdownOptions breakdown;  // error by class and beside building outlines (needs classes)
   void Check() const;          // throws Error("dsm", field, ...)
 };
+template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
+  io.NotAnOption(o.breakdown.building_class);  // the LiDAR classes' code (ASPRS 6), not a choice
+  io("max_shift_px", o.max_shift_px,
+     "Search radius of the horizontal alignment shift per pyramid level", range::AtLeast(0));
+  io("pyramid_levels", o.pyramid_levels,
+     "Levels of the 2x pyramid the shift is searched on, coarse to fine", range::AtLeast(1));
+  io("mask_water", o.mask_water,
+     "Leave water (class 9) out of the comparison");
+  io("within_m", o.within_m,
+     "The comparison reports the fraction of pixels whose error is at most this", range::Above(0));
+  io("rim_width_m", o.breakdown.rim_width_m,
+     "With classes: width of the bands inside and outside building outlines whose error is reported apart",
+     range::Above(0));
+  io("edge_band_m", o.breakdown.edge_band_m,
+     "With classes: width of each band of the edge profile", range::Above(0));
+  io("edge_bands", o.breakdown.edge_bands,
+     "With classes: bands of the edge profile on each side of the building outlines", range::In(1, 100));
+}
 
 struct DsmComparison {
   int shift_col_px = 0;   // prediction sampled at (col + shift_col, row + shift_row)

@@ -86,17 +86,7 @@ ClassAgreement Agreement(std::int64_t both, std::int64_t predicted, std::int64_t
 
 }  // namespace
 
-void LandCoverOptions::Check() const {
-  auto need = [](bool ok, const char* field, double value, const char* rule) {
-    if (!ok) throw Error("products", std::string("land_cover.") + field, FormatDouble(value) + " " + rule);
-  };
-  need(object_min_m > 0 && object_min_m <= 50, "object_min_m", object_min_m, "must be in (0, 50] m");
-  need(green_sigmas >= 0 && green_sigmas <= 10, "green_sigmas", green_sigmas, "must be in [0, 10]");
-  need(min_roughness_m >= 0 && min_roughness_m <= 10, "min_roughness_m", min_roughness_m, "must be in [0, 10] m");
-  need(plane_half_window_m > 0 && plane_half_window_m <= 20, "plane_half_window_m", plane_half_window_m,
-       "must be in (0, 20] m");
-  need(vote_radius_m >= 0 && vote_radius_m <= 20, "vote_radius_m", vote_radius_m, "must be in [0, 20] m");
-}
+void LandCoverOptions::Check() const { CheckOptionRanges(*this, "products", "land_cover"); }
 
 std::vector<float> ExcessGreen(const std::vector<float>& rgb) {
   std::vector<float> green(rgb.size() / 3, kNan);

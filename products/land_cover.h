@@ -18,6 +18,7 @@
 
 #include "core/dsm_grid.h"
 #include "core/enum_codec.h"
+#include "core/option_range.h"
 
 namespace skyfall {
 
@@ -38,6 +39,19 @@ struct LandCoverOptions {
   double vote_radius_m = 1.0;        // half side of the window whose majority of votes decides a cell
   void Check() const;                // throws Error("products", "land_cover." field, ...)
 };
+template <class IO> void Visit(IO& io, LandCoverOptions& o) {
+  io("object_min_m", o.object_min_m,
+     "A cell standing more than this above the DTM is an object: a building or a tree", range::AboveUpTo(0, 50));
+  io("green_sigmas", o.green_sigmas,
+     "An object cell votes vegetation when its excess green (2g - r - b) / (r + g + b) exceeds the AOI's objects' "
+     "median by this many robust sigmas (1.4826 x MAD) ...", range::In(0, 10));
+  io("min_roughness_m", o.min_roughness_m,
+     "... and its surface departs by more than this (RMS) from the least-squares plane around it", range::In(0, 10));
+  io("plane_half_window_m", o.plane_half_window_m,
+     "Half side of the window of that plane fit", range::AboveUpTo(0, 20));
+  io("vote_radius_m", o.vote_radius_m,
+     "Half side of the window whose majority of object cells' votes decides building or vegetation", range::In(0, 20));
+}
 
 struct LandCoverMap {
   std::vector<std::uint8_t> classes;  // LandCover codes, row-major on the DSM's grid

@@ -147,12 +147,7 @@ json ReadJsonFile(const fs::path& path) {
 
 }  // namespace
 
-void Tiles3dOptions::Check() const {
-  if (!(leaf_m > 0)) throw Error("3dtiles", "leaf_m", "must be > 0, got " + FormatDouble(leaf_m));
-  if (max_fractional_bits < 0 || max_fractional_bits > 20) {
-    throw Error("3dtiles", "max_fractional_bits", "must be in 0..20, got " + std::to_string(max_fractional_bits));
-  }
-}
+void Tiles3dOptions::Check() const { CheckOptionRanges(*this, "3dtiles"); }
 
 std::vector<std::uint8_t> SplatGlb(const GaussianCloud& cloud, int fractional_bits) {
   const std::vector<std::uint8_t> spz = EncodeSpz(cloud, fractional_bits);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/stage.h"
 
 namespace skyfall {
@@ -22,6 +23,12 @@ struct Tiles3dOptions {
   int max_fractional_bits = 16;  // finest SPZ position step 2^-bits m (fewer when coordinates are large)
   void Check() const;            // throws Error("3dtiles", field, ...)
 };
+template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
+  io("leaf_m", o.leaf_m,
+     "A node splits into quadrants while it is wider than this", range::Above(0));
+  io("max_fractional_bits", o.max_fractional_bits,
+     "The finest SPZ position step is 2^-bits metres (fewer bits when coordinates are large)", range::In(0, 20));
+}
 
 struct Tiles3dSummary {
   std::string tileset_path;

@@ -36,13 +36,7 @@ struct OffsetPrior {
 
 }  // namespace
 
-void BundleOptions::Check() const {
-  if (!(huber_px > 0)) throw Error("bundle", "huber_px", FormatDouble(huber_px) + " must be > 0");
-  if (!(offset_prior_sigma_px > 0)) {
-    throw Error("bundle", "offset_prior_sigma_px", FormatDouble(offset_prior_sigma_px) + " must be > 0");
-  }
-  if (max_iterations < 1) throw Error("bundle", "max_iterations", "must be >= 1");
-}
+void BundleOptions::Check() const { CheckOptionRanges(*this, "bundle"); }
 
 BundleSummary RunBundleAdjustment(BundleProblem* bp, const BundleOptions& options) {
   options.Check();

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "sfm/geometry.h"
 
@@ -20,6 +21,14 @@ struct BundleOptions {
   int max_iterations = 100;
   void Check() const;
 };
+template <class IO> void Visit(IO& io, BundleOptions& o) {
+  io("huber_px", o.huber_px,
+     "Scale of the Huber robust loss on reprojection errors", range::Above(0));
+  io("offset_prior_sigma_px", o.offset_prior_sigma_px,
+     "Standard deviation of the prior that keeps each image's offset near zero", range::Above(0));
+  io("max_iterations", o.max_iterations,
+     "Most solver iterations per bundle adjustment round", range::AtLeast(1));
+}
 
 struct BundleProblem {
   std::vector<PinholeCamera> cameras;       // held fixed

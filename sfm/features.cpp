@@ -163,14 +163,11 @@ void NearestBothWays(const ImageFeatures& a, const ImageFeatures& b, Nearest& a_
 }  // namespace
 
 void FeatureOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("features", field, FormatDouble(v) + " is out of range");
-  };
-  need(max_features >= 16, "max_features", max_features);
-  need(contrast_threshold > 0 && contrast_threshold < 1, "contrast_threshold", contrast_threshold);
-  need(ratio > 0 && ratio < 1, "ratio", ratio);
-  need(clahe_clip > 0, "clahe_clip", clahe_clip);
-  need(stretch_low >= 0 && stretch_low < stretch_high && stretch_high <= 1, "stretch_high", stretch_high);
+  CheckOptionRanges(*this, "features");
+  if (!(stretch_low < stretch_high)) {
+    throw Error("features", "stretch_high", FormatDouble(stretch_high) + " must be above stretch_low " +
+                                                FormatDouble(stretch_low));
+  }
 }
 
 ImageFeatures DetectFeatures(const std::vector<float>& pixels, int width, int height, int bands,

@@ -7,6 +7,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/option_range.h"
+
 namespace skyfall {
 
 struct FeatureOptions {
@@ -18,6 +20,21 @@ struct FeatureOptions {
   double stretch_high = 0.99;       // percentile mapped to 255
   void Check() const;               // throws Error("features", field, ...)
 };
+template <class IO> void Visit(IO& io, FeatureOptions& o) {
+  io("max_features", o.max_features,
+     "Strongest SIFT keypoints kept per image", range::AtLeast(16));
+  io("contrast_threshold", o.contrast_threshold,
+     "SIFT contrast threshold (OpenCV's default is 0.04; satellite crops are low in contrast)", range::Inside(0, 1));
+  io("ratio", o.ratio,
+     "Lowe's ratio test: a match is kept when its descriptor distance is below this fraction of the second best's",
+     range::Inside(0, 1));
+  io("clahe_clip", o.clahe_clip,
+     "CLAHE clip limit, applied after the percentile stretch", range::Above(0));
+  io("stretch_low", o.stretch_low,
+     "Percentile, as a fraction, of the grey image mapped to 0 before CLAHE", range::In(0, 1));
+  io("stretch_high", o.stretch_high,
+     "Percentile, as a fraction, of the grey image mapped to 255 before CLAHE", range::In(0, 1));
+}
 
 struct ImageFeatures {
   std::vector<Eigen::Vector2d> keypoints;           // pixel centres at integers (RPC convention)

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/height.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 
 namespace skyfall {
@@ -31,6 +32,23 @@ struct VerifyOptions {
   // stands around the AOI (a tower next to it), whose tie points are still good.
   double height_pad_m = 50.0;
 };
+// The verification's height range comes from each catalog, so only its
+// tolerances are options.
+template <class IO> void Visit(IO& io, VerifyOptions& o) {
+  io.NotAnOption(o.min_up);  // the height range comes from each catalog
+  io.NotAnOption(o.max_up);
+  io("min_threshold_px", o.min_threshold_px,
+     "Smallest accepted distance of a match from its epipolar line", range::Above(0));
+  io("mad_factor", o.mad_factor,
+     "The epipolar threshold is max(min_threshold_px, this x 1.4826 x the median absolute deviation of the pair's "
+     "distances)", range::Above(0));
+  io("segment_slack", o.segment_slack,
+     "Overshoot allowed beyond the ends of the epipolar segment of the height range, as a fraction of its length",
+     range::AtLeast(0));
+  io("height_pad_m", o.height_pad_m,
+     "Added above and below the AOI's height range, so that tie points on what stands around the AOI are kept",
+     range::AtLeast(0));
+}
 
 // Keeps the matches whose point in `b` lies on the epipolar segment of its
 // point in `a`. The cameras may be offset by a few pixels from each other

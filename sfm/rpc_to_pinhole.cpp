@@ -177,17 +177,7 @@ void Errors(const PinholeCamera& cam, const std::vector<Correspondence>& corr, d
 
 }  // namespace
 
-void PinholeFitOptions::Check() const {
-  auto need = [](bool ok, const char* field, int v) {
-    if (!ok) throw Error("pinhole", field, std::to_string(v) + " is too small");
-  };
-  need(grid_cols >= 3, "grid_cols", grid_cols);
-  need(grid_rows >= 3, "grid_rows", grid_rows);
-  need(grid_heights >= 2, "grid_heights", grid_heights);
-  need(check_cols >= 1, "check_cols", check_cols);
-  need(check_rows >= 1, "check_rows", check_rows);
-  need(check_heights >= 1, "check_heights", check_heights);
-}
+void PinholeFitOptions::Check() const { CheckOptionRanges(*this, "pinhole"); }
 
 PinholeFit ApproximateRpcByPinhole(
     const RpcModel& rpc, int width_px, int height_px, EllipsoidHeightM min_height, EllipsoidHeightM max_height,

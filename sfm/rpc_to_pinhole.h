@@ -9,6 +9,7 @@
 
 #include "core/aoi.h"
 #include "core/height.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/rpc.h"
 
@@ -29,6 +30,28 @@ struct PinholeFitOptions {
   bool estimate_skew = true;  // free K(0,1) during refinement
   void Check() const;         // throws Error("pinhole", field, ...)
 };
+template <class IO> void Visit(IO& io, PinholeFitOptions& o) {
+  io("grid_cols", o.grid_cols,
+     "Columns of the image-space grid of RPC correspondences the pinhole camera is fitted to (edges included)",
+     range::AtLeast(3));
+  io("grid_rows", o.grid_rows,
+     "Rows of the fit grid (edges included)", range::AtLeast(3));
+  io("grid_heights", o.grid_heights,
+     "Heights of the fit grid, spread across the height range", range::AtLeast(2));
+  io("check_cols", o.check_cols,
+     "Columns of the check grid (the cell centres of a finer grid) on which the fit's error against the RPC is "
+     "measured", range::AtLeast(1));
+  io("check_rows", o.check_rows,
+     "Rows of the check grid", range::AtLeast(1));
+  io("check_heights", o.check_heights,
+     "Heights of the check grid", range::AtLeast(1));
+  io("hartley_normalization", o.hartley_normalization,
+     "Normalize both point sets (Hartley) before the DLT; without it the DLT loses most of its precision");
+  io("refine", o.refine,
+     "Refine the DLT's camera by nonlinear least squares");
+  io("estimate_skew", o.estimate_skew,
+     "Let the skew K(0,1) vary during the refinement");
+}
 
 struct PinholeFit {
   PinholeCamera camera;

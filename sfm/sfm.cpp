@@ -92,19 +92,8 @@ int AnchorIndex(const std::string& name, const std::vector<SfmImage>& images, co
 }  // namespace
 
 void SfmOptions::Check() const {
-  pinhole.Check();
-  features.Check();
-  bundle.Check();
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("sfm", field, FormatDouble(v) + " is out of range");
-  };
-  need(min_matches_per_pair >= 5, "min_matches_per_pair", min_matches_per_pair);
-  need(min_observations_per_image >= 3, "min_observations_per_image", min_observations_per_image);
-  need(max_reprojection_before_ba_px > 0, "max_reprojection_before_ba_px", max_reprojection_before_ba_px);
-  need(max_reprojection_after_ba_px > 0, "max_reprojection_after_ba_px", max_reprojection_after_ba_px);
-  need(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90, "min_triangulation_angle_deg",
-       min_triangulation_angle_deg);
-  need(ba_rounds >= 1, "ba_rounds", ba_rounds);
+  CheckOptionRanges(*this, "sfm");
+  features.Check();  // what involves two of its fields
 }
 
 ReprojectionStats ComputeStats(std::vector<double> e) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "sfm/bundle.h"
@@ -37,6 +38,28 @@ struct SfmOptions {
   std::string anchor_image;
   void Check() const;  // throws Error("sfm", field, ...)
 };
+template <class IO> void Visit(IO& io, SfmOptions& o) {
+  io("pinhole", o.pinhole);
+  io("features", o.features);
+  io("verify", o.verify);
+  io("bundle", o.bundle);
+  io("min_matches_per_pair", o.min_matches_per_pair,
+     "Verified matches an image pair needs to count", range::AtLeast(5));
+  io("min_observations_per_image", o.min_observations_per_image,
+     "An image with fewer tie-point observations is left out", range::AtLeast(3));
+  io("max_reprojection_before_ba_px", o.max_reprojection_before_ba_px,
+     "Points that reproject worse than this before bundle adjustment are dropped (RPC biases reach tens of pixels)",
+     range::Above(0));
+  io("max_reprojection_after_ba_px", o.max_reprojection_after_ba_px,
+     "Outlier cut on the reprojection error between bundle adjustment rounds", range::Above(0));
+  io("min_triangulation_angle_deg", o.min_triangulation_angle_deg,
+     "Points triangulated from rays meeting at a smaller angle are dropped", range::FromBelow(0, 90));
+  io("ba_rounds", o.ba_rounds,
+     "Bundle adjustment rounds, with an outlier cut between them", range::AtLeast(1));
+  io("anchor_image", o.anchor_image,
+     "What fixes the absolute position: empty = the robust average of all images' RPCs; else the name of one image "
+     "whose RPC fixes the horizontal position (a tile without it falls back to the average)");
+}
 
 struct ReprojectionStats {
   double median_px = 0, mean_px = 0, p90_px = 0;

@@ -279,14 +279,7 @@ Vec<T> BackwardBilinear(const AppearanceModelT<T>& m, const Vec<T>& embedding, c
 }  // namespace
 
 void AppearanceOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("appearance", field, FormatDouble(v) + " is out of range");
-  };
-  need(image_dim >= 1 && image_dim <= 1024, "image_dim", image_dim);
-  need(gaussian_dim >= 1 && gaussian_dim <= 1024, "gaussian_dim", gaussian_dim);
-  need(hidden >= 1 && hidden <= 4096, "hidden", hidden);
-  for (double lr : {lr_image, lr_gaussian, lr_mlp}) need(lr > 0 && std::isfinite(lr), "learning rate", lr);
-  need(init_std > 0 && std::isfinite(init_std), "init_std", init_std);
+  CheckOptionRanges(*this, "appearance");
   if (model != "mlp" && model != "bilinear") throw Error("appearance", "model", "'" + model + "' is not 'mlp' or 'bilinear'");
 }
 

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 
 namespace skyfall {
 
@@ -47,6 +48,26 @@ struct AppearanceOptions {
   double init_std = 0.1;
   void Check() const;  // throws Error("appearance", field, ...)
 };
+template <class IO> void Visit(IO& io, AppearanceOptions& o) {
+  io.NotAnOption(o.enabled);  // decided by train.appearance
+  io("model", o.model,
+     "'mlp' (the paper's MLP on both embeddings and the colour) or 'bilinear' (a cheaper MLP on the image embedding "
+     "alone)");
+  io("image_dim", o.image_dim,
+     "Size of the per-image embedding", range::In(1, 1024));
+  io("gaussian_dim", o.gaussian_dim,
+     "Size of the per-Gaussian embedding", range::In(1, 1024));
+  io("hidden", o.hidden,
+     "Width of the MLP's hidden layers", range::In(1, 4096));
+  io("lr_image", o.lr_image,
+     "Adam learning rate of the per-image embeddings", range::Above(0));
+  io("lr_gaussian", o.lr_gaussian,
+     "Adam learning rate of the per-Gaussian embeddings", range::Above(0));
+  io("lr_mlp", o.lr_mlp,
+     "Adam learning rate of the MLP's weights", range::Above(0));
+  io("init_std", o.init_std,
+     "Standard deviation of the embeddings' random start, N(0, init_std^2)", range::Above(0));
+}
 
 // Per Gaussian: gamma (r, g, b) then beta (r, g, b).
 template <typename T>

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/option_range.h"
 #include "core/pinhole.h"
 
 namespace skyfall {
@@ -96,6 +97,21 @@ struct PseudoCameraOptions {
   int size_px = 192;
   double fov_deg = 60.0;
 };
+template <class IO> void Visit(IO& io, PseudoCameraOptions& o) {
+  io("radius_m", o.radius_m,
+     "Distance of a pseudo camera from its look-at point", range::Above(0));
+  io("look_at_sigma_m", o.look_at_sigma_m,
+     "Standard deviation of the look-at points' horizontal offset from the scene centre (also for the surface "
+     "anchor's nadir patches)", range::AtLeast(0));
+  io("min_elevation_deg", o.min_elevation_deg,
+     "Lowest elevation of a pseudo camera (azimuths are random)", range::In(0, 90));
+  io("max_elevation_deg", o.max_elevation_deg,
+     "Highest elevation of a pseudo camera", range::In(0, 90));
+  io("size_px", o.size_px,
+     "Side of a pseudo view (square)", range::AtLeast(16));
+  io("fov_deg", o.fov_deg,
+     "Field of view of a pseudo camera", range::Inside(0, 170));
+}
 // A camera `height_m` above `look_at` (ENU: z up) looking straight down, x
 // to the east and image rows to the south, with `gsd_m` ground pixels at the
 // look-at height and size_px x size_px pixels: the view the DSM is exported

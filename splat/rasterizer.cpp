@@ -86,18 +86,10 @@ SKYFALL_TARGET_END
 #define SKYFALL_RASTER_PATHS(call) SKYFALL_RETURN_FOR_ACTIVE_PATH(raster, call)
 
 void RasterOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("raster", field, FormatDouble(v) + " is out of range");
-  };
-  need(tile_px >= 4 && tile_px <= 64, "tile_px", tile_px);
-  need(min_alpha >= 0 && min_alpha < max_alpha, "min_alpha", min_alpha);
-  need(max_alpha > 0 && max_alpha < 1, "max_alpha", max_alpha);
-  need(min_transmittance >= 0 && min_transmittance < 1, "min_transmittance", min_transmittance);
-  need(dilation_px2 >= 0, "dilation_px2", dilation_px2);
-  need(near_m > 0, "near_m", near_m);
-  need(guard_band >= 0, "guard_band", guard_band);
-  need(sigma_extent > 0, "sigma_extent", sigma_extent);
-  need(sh_degree == 0 || sh_degree == 1, "sh_degree", sh_degree);
+  CheckOptionRanges(*this, "raster");
+  if (!(min_alpha < max_alpha)) {
+    throw Error("raster", "min_alpha", FormatDouble(min_alpha) + " must be below max_alpha " + FormatDouble(max_alpha));
+  }
 }
 
 template <typename T>

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "splat/appearance.h"
 
@@ -38,6 +39,30 @@ struct RasterOptions {
   Eigen::Vector3d background = Eigen::Vector3d::Zero();
   void Check() const;                  // throws Error("raster", field, ...)
 };
+template <class IO> void Visit(IO& io, RasterOptions& o) {
+  io.NotAnOption(o.median_depth);  // an output choice of each caller
+  io("tile_px", o.tile_px,
+     "Side of the square screen tiles the Gaussians are binned into", range::In(4, 64));
+  io("min_alpha", o.min_alpha,
+     "Contributions with a smaller alpha are skipped", range::AtLeast(0));
+  io("max_alpha", o.max_alpha,
+     "Alpha is clamped to this, which keeps transmittance invertible", range::Inside(0, 1));
+  io("min_transmittance", o.min_transmittance,
+     "A pixel stops blending once its transmittance falls below this", range::FromBelow(0, 1));
+  io("dilation_px2", o.dilation_px2,
+     "Added to the diagonal of each projected 2D covariance (anti-aliasing)", range::AtLeast(0));
+  io("near_m", o.near_m,
+     "Gaussians closer than this to the camera plane are culled", range::Above(0));
+  io("guard_band", o.guard_band,
+     "Gaussians whose centre projects further than this fraction of the image size beyond its edges are culled",
+     range::AtLeast(0));
+  io("sigma_extent", o.sigma_extent,
+     "A Gaussian blends the pixels within this many standard deviations (Mahalanobis)", range::Above(0));
+  io("sh_degree", o.sh_degree,
+     "Degree of the spherical-harmonics colours: 0 or 1", range::OneOf({0, 1}));
+  io("background", o.background,
+     "Colour behind the Gaussians: red, green, blue, each in [0, 1]", range::In(0, 1));
+}
 
 // A projected Gaussian: everything the blending loops read about it, packed
 // into one cache line (in float), because they visit Gaussians in depth

@@ -433,14 +433,7 @@ std::vector<TrainView> MatchSceneAppearance(const GaussianCloud& scene, std::vec
   return views;
 }
 
-void IduAutoOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("idu", std::string("auto.") + field, FormatDouble(v) + " is out of range");
-  };
-  need(step_m > 0, "step_m", step_m);
-  need(min_facade_ratio >= 0, "min_facade_ratio", min_facade_ratio);
-  need(min_measured_fraction >= 0 && min_measured_fraction <= 1, "min_measured_fraction", min_measured_fraction);
-}
+void IduAutoOptions::Check() const { CheckOptionRanges(*this, "idu", "auto"); }
 
 IduDecision DecideIdu(Switch mode, const IduAutoOptions& o, const std::vector<Eigen::Vector3f>& points,
                       const std::vector<std::uint8_t>& filled, double cell_m) {

@@ -14,12 +14,13 @@
 
 #include "core/enum_codec.h"
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/stage.h"
 #include "core/tile.h"
 #include "splat/depth_prior.h"
+#include "splat/trainer.h"
 #include "synthesis/orbit.h"
 #include "synthesis/refiner.h"
-#include "splat/trainer.h"
 
 namespace skyfall {
 
@@ -132,6 +133,16 @@ struct IduAutoOptions {
   double min_measured_fraction = 0.05; // below: water, featureless or empty, skipped
   void Check() const;
 };
+template <class IO> void Visit(IO& io, IduAutoOptions& o) {
+  io("step_m", o.step_m,
+     "A height step between neighbouring dense cells at least this tall counts as a facade", range::Above(0));
+  io("min_facade_ratio", o.min_facade_ratio,
+     "Tiles with less facade than this, in m^2 of facade per m^2 of ground, are flat or low-rise and skipped",
+     range::AtLeast(0));
+  io("min_measured_fraction", o.min_measured_fraction,
+     "Tiles whose dense heights matched a smaller fraction of the grid (water, featureless or empty) are skipped",
+     range::In(0, 1));
+}
 
 struct IduDecision {
   bool on = false;

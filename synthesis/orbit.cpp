@@ -8,22 +8,7 @@
 
 namespace skyfall {
 
-void OrbitOptions::Check() const {
-  auto need = [](bool ok, const char* field, double value) {
-    if (!ok) throw Error("idu", std::string("orbit.") + field, FormatDouble(value) + " is out of range");
-  };
-  need(grid >= 1 && grid <= 16, "grid", grid);
-  need(views_per_point >= 1 && views_per_point <= 64, "views_per_point", views_per_point);
-  need(episodes >= 1 && episodes <= 50, "episodes", episodes);
-  need(elevation_start_deg > 5 && elevation_start_deg < 90, "elevation_start_deg", elevation_start_deg);
-  need(elevation_end_deg > 5 && elevation_end_deg < 90, "elevation_end_deg", elevation_end_deg);
-  need(radius_start_per_core > 0 && radius_start_per_core <= 10, "radius_start_per_core", radius_start_per_core);
-  need(radius_end_per_core > 0 && radius_end_per_core <= 10, "radius_end_per_core", radius_end_per_core);
-  need(min_radius_m >= 0, "min_radius_m", min_radius_m);
-  need(fov_deg >= 5 && fov_deg <= 120, "fov_deg", fov_deg);
-  need(width_px >= 16 && width_px <= 4096, "width_px", width_px);
-  need(height_px >= 16 && height_px <= 4096, "height_px", height_px);
-}
+void OrbitOptions::Check() const { CheckOptionRanges(*this, "idu", "orbit"); }
 
 namespace {
 double EpisodeFraction(const OrbitOptions& o, int episode) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/tile.h"
 
@@ -39,6 +40,30 @@ struct OrbitOptions {
   int height_px = 256;
   void Check() const;                  // throws Error("idu", field, ...)
 };
+template <class IO> void Visit(IO& io, OrbitOptions& o) {
+  io("grid", o.grid,
+     "The look-at points form a grid x grid square over the tile's core", range::In(1, 16));
+  io("views_per_point", o.views_per_point,
+     "Orbit views per look-at point in each episode", range::In(1, 64));
+  io("episodes", o.episodes,
+     "Episodes of the curriculum, from high to low elevation", range::In(1, 50));
+  io("elevation_start_deg", o.elevation_start_deg,
+     "Elevation of the orbit views in the first episode", range::Inside(5, 90));
+  io("elevation_end_deg", o.elevation_end_deg,
+     "Elevation of the orbit views in the last episode", range::Inside(5, 90));
+  io("radius_start_per_core", o.radius_start_per_core,
+     "Orbit radius in the first episode, as a multiple of the core's side", range::AboveUpTo(0, 10));
+  io("radius_end_per_core", o.radius_end_per_core,
+     "Orbit radius in the last episode, as a multiple of the core's side", range::AboveUpTo(0, 10));
+  io("min_radius_m", o.min_radius_m,
+     "Smallest orbit radius, which keeps the cameras of small tiles above the rooftops", range::AtLeast(0));
+  io("fov_deg", o.fov_deg,
+     "Field of view of the orbit views", range::In(5, 120));
+  io("width_px", o.width_px,
+     "Width of an orbit view", range::In(16, 4096));
+  io("height_px", o.height_px,
+     "Height of an orbit view", range::In(16, 4096));
+}
 
 // One orbit view of one episode.
 struct OrbitView {

@@ -106,19 +106,7 @@ std::vector<float> SampleFactors(const ReprojectOptions& o, const RefineRequest&
 
 }  // namespace
 
-void ReprojectOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("idu", std::string("reproject.") + field, FormatDouble(v) + " is out of range");
-  };
-  need(visibility_tolerance_m > 0, "visibility_tolerance_m", visibility_tolerance_m);
-  need(angle_weight_power >= 0, "angle_weight_power", angle_weight_power);
-  need(keep_probability > 0 && keep_probability <= 1, "keep_probability", keep_probability);
-  need(weight_jitter >= 0 && weight_jitter < 1, "weight_jitter", weight_jitter);
-  need(inpaint_radius_px > 0, "inpaint_radius_px", inpaint_radius_px);
-  need(smooth_diameter_px >= 0 && smooth_diameter_px <= 31, "smooth_diameter_px", smooth_diameter_px);
-  need(smooth_sigma_colour > 0, "smooth_sigma_colour", smooth_sigma_colour);
-  need(smooth_sigma_space_px > 0, "smooth_sigma_space_px", smooth_sigma_space_px);
-}
+void ReprojectOptions::Check() const { CheckOptionRanges(*this, "idu", "reproject"); }
 
 ReprojectRefiner::ReprojectRefiner(const std::vector<TrainView>& satellite, ReprojectOptions options, RasterOptions raster,
                                    const SurfaceDepthPrior* surface)

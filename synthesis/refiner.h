@@ -11,6 +11,7 @@
 
 #include "core/enum_codec.h"
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "splat/depth_prior.h"
@@ -43,6 +44,29 @@ struct RefineRequest {
   int n_min = 4, n_max = 10, n_avg = 1, steps = 28;
   double source_guidance_scale = 1.5, target_guidance_scale = 5.5;
 };
+template <class IO> void Visit(IO& io, RefineRequest& o) {
+  // Set per episode by the synthesis stage from its own options (idu.samples, idu.seed).
+  io.NotAnOption(o.samples);
+  io.NotAnOption(o.seed);
+  io.NotAnOption(o.episode);
+  io("source_prompt", o.source_prompt,
+     "Prompt that describes the rendered views, for external (diffusion) refiners");
+  io("target_prompt", o.target_prompt,
+     "Prompt that describes the refined views wanted, for external (diffusion) refiners");
+  io("n_min", o.n_min,
+     "FlowEdit's n_min, for external refiners: the last this many steps are plain sampling with the target prompt",
+     range::AtLeast(0));
+  io("n_max", o.n_max,
+     "FlowEdit's n_max, for external refiners: editing starts this many steps before the end", range::AtLeast(0));
+  io("n_avg", o.n_avg,
+     "FlowEdit's n_avg, for external refiners: noise samples averaged per step", range::AtLeast(1));
+  io("steps", o.steps,
+     "Diffusion sampling steps, for external refiners", range::AtLeast(1));
+  io("source_guidance_scale", o.source_guidance_scale,
+     "Classifier-free guidance scale of the source prompt, for external refiners", range::AtLeast(0));
+  io("target_guidance_scale", o.target_guidance_scale,
+     "Classifier-free guidance scale of the target prompt, for external refiners", range::AtLeast(0));
+}
 
 using RefinedSamples = std::vector<std::vector<float>>;  // N_s images, 3 floats per pixel in [0, 1]
 
@@ -84,6 +108,28 @@ struct ReprojectOptions {
   double smooth_sigma_space_px = 2.0;
   void Check() const;                 // throws Error("idu", field, ...)
 };
+template <class IO> void Visit(IO& io, ReprojectOptions& o) {
+  io("visibility_tolerance_m", o.visibility_tolerance_m,
+     "A satellite view sees an orbit pixel's surface point when the point's depth in that view is within this of the "
+     "depth the scene renders there", range::Above(0));
+  io("angle_weight_power", o.angle_weight_power,
+     "A satellite view weighs (cos of the angle between its ray and the orbit ray)^this, so views from similar "
+     "directions count most", range::AtLeast(0));
+  io("keep_probability", o.keep_probability,
+     "Each sample keeps each satellite view with this probability (at least one view is kept)", range::AboveUpTo(0, 1));
+  io("weight_jitter", o.weight_jitter,
+     "Each kept view's weight is scaled by a factor drawn from [1 - this, 1 + this]", range::FromBelow(0, 1));
+  io("inpaint", o.inpaint,
+     "Pixels no satellite view sees: 'telea' or 'ns' (OpenCV inpainting) or 'render' (the rendered colour is kept)");
+  io("inpaint_radius_px", o.inpaint_radius_px,
+     "Radius of the OpenCV inpainting", range::Above(0));
+  io("smooth_diameter_px", o.smooth_diameter_px,
+     "Diameter of the final edge-preserving bilateral filter; 0 = off", range::In(0, 31));
+  io("smooth_sigma_colour", o.smooth_sigma_colour,
+     "Colour sigma of the bilateral filter, in colour units of 0 to 1", range::Above(0));
+  io("smooth_sigma_space_px", o.smooth_sigma_space_px,
+     "Spatial sigma of the bilateral filter", range::Above(0));
+}
 
 // Built-in refiner without model weights: each orbit pixel with a surface
 // takes the robust (weighted median) colour of the satellite views that see

@@ -169,17 +169,10 @@ AoiCatalog TileCatalog(const AoiCatalog& first, const TileSpec& tile, const EnuF
 }  // namespace
 
 void TilingOptions::Check() const {
-  if (!(tile_m == 0.0 || tile_m >= 16.0)) {
-    throw Error("tile", "tile_m", "must be 0 (automatic) or >= 16 m, got " + std::to_string(tile_m));
-  }
-  if (tile_cells < 64) throw Error("tile", "tile_cells", "must be >= 64 cells, got " + std::to_string(tile_cells));
-  if (!(overlap_m >= 0.0 && (tile_m == 0.0 || overlap_m < tile_m))) {
+  CheckOptionRanges(*this, "tile");
+  if (!(tile_m == 0.0 || overlap_m < tile_m)) {
     throw Error("tile", "overlap_m", "must be in [0, tile_m), got " + std::to_string(overlap_m));
   }
-  if (!(min_coverage > 0.0 && min_coverage <= 1.0)) {
-    throw Error("tile", "min_coverage", "must be in (0, 1], got " + std::to_string(min_coverage));
-  }
-  if (min_images < 2) throw Error("tile", "min_images", "must be >= 2, got " + std::to_string(min_images));
 }
 
 double ImageGroundSampleM(const ImageRecord& image, double ellipsoid_height_m) {

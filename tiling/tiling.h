@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/aoi.h"
+#include "core/option_range.h"
 #include "core/stage.h"
 #include "core/tile.h"
 
@@ -33,6 +34,23 @@ struct TilingOptions {
   std::string city;           // name of the city; empty = the AOI name, or the AOIs' common prefix
   void Check() const;         // throws Error("tile", field, ...)
 };
+template <class IO> void Visit(IO& io, TilingOptions& o) {
+  io("tile_m", o.tile_m,
+     "Tile core side; 0: sized by the imagery (a multiple of 256 m holding about tile_cells dense cells)",
+     range::Or(range::AtLeast(16), 0, "automatic"));
+  io("tile_cells", o.tile_cells,
+     "What an automatic tile (tile_m 0) holds along a side, in cells of the automatic dense grid (0.5 m for "
+     "sub-metre sensors, else about half the finest image's GSD)", range::AtLeast(64));
+  io("overlap_m", o.overlap_m,
+     "Overlap margin around each tile's core", range::AtLeast(0));
+  io("min_coverage", o.min_coverage,
+     "An image is used for a tile when at least this fraction of the tile's 3D box (extent x height range) projects "
+     "inside it", range::AboveUpTo(0, 1));
+  io("min_images", o.min_images,
+     "A tile seen by fewer images is kept empty and skipped", range::AtLeast(2));
+  io("city", o.city,
+     "Name of the city (empty = the AOI's name, or the AOIs' common prefix)");
+}
 
 // Step of automatic tile sides [m]: tiles of imagery finer than 0.75 m keep
 // the 256 m side that every accuracy figure was measured with.
