@@ -6,7 +6,12 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <array>
+#include <cstring>
+#include <fstream>
 #include <numeric>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -40,13 +45,12 @@ json Accessor(std::size_t count, const char* type, int component_type, bool norm
 struct LodLevel {
   int level = 0;
   double geometric_error_m = 0;
-  GaussianCloud cloud;
+  std::string path;  // its PLY, read a chunk at a time
 };
 
 struct Area {
   double x0, y0, x1, y1;
   double Width() const { return std::max(x1 - x0, y1 - y0); }
-  bool Contains(const Eigen::Vector3f& p) const { return p.x() >= x0 && p.x() < x1 && p.y() >= y0 && p.y() < y1; }
 };
 
 struct ZRange {
@@ -55,31 +59,136 @@ struct ZRange {
   bool Empty() const { return !(lo <= hi); }
 };
 
+// The quadrants of `a` (west-south, east-south, west-north, east-north), or
+// `a` alone once it is no wider than a leaf: the next level refines in place.
+std::vector<Area> Split(const Area& a, double leaf_m) {
+  if (a.Width() <= leaf_m) return {a};
+  const double mx = 0.5 * (a.x0 + a.x1), my = 0.5 * (a.y0 + a.y1);
+  return {{a.x0, a.y0, mx, my}, {mx, a.y0, a.x1, my}, {a.x0, my, mx, a.y1}, {mx, my, a.x1, a.y1}};
+}
+
+// The node `depth` levels below `root` whose half-open area holds `p`, named
+// by the branches of the descent: a quadrant's index as in Split, 's' where a
+// node does not split. A node of depth d holds the Gaussians of LOD level
+// index (levels - 1 - d), so the key also says the level.
+std::string NodeKey(Area area, int depth, const Eigen::Vector3f& p, double leaf_m) {
+  std::string key;
+  for (int d = 0; d < depth; ++d) {
+    if (area.Width() <= leaf_m) {
+      key += 's';
+      continue;
+    }
+    const double mx = 0.5 * (area.x0 + area.x1), my = 0.5 * (area.y0 + area.y1);
+    const bool east = p.x() >= mx, north = p.y() >= my;
+    key += static_cast<char>('0' + (east ? 1 : 0) + (north ? 2 : 0));
+    area = {east ? mx : area.x0, north ? my : area.y0, east ? area.x1 : mx, north ? area.y1 : my};
+  }
+  return key;
+}
+
+// Each node's Gaussians, gathered on disk while the levels are streamed, so
+// that memory holds at most `budget_bytes` of them plus one node's cloud,
+// whatever the city's size. A node's records keep the order of its level's
+// file. The folder is removed when the spill is destroyed.
+class NodeSpill {
+ public:
+  NodeSpill(fs::path dir, std::size_t budget_bytes) : dir_(std::move(dir)), budget_bytes_(budget_bytes) {
+    fs::remove_all(dir_);  // a killed export's leftovers
+    fs::create_directories(dir_);
+  }
+  ~NodeSpill() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  NodeSpill(const NodeSpill&) = delete;
+  NodeSpill& operator=(const NodeSpill&) = delete;
+
+  void Add(const std::string& key, const GaussianCloud& chunk, std::size_t i) {
+    auto [it, first] = buffers_.try_emplace(key);
+    if (first && occupied_.insert(key).second) {
+      for (std::size_t n = 0; n < key.size(); ++n) occupied_.insert(key.substr(0, n));  // its ancestors
+    }
+    std::array<float, kFloats> r;
+    std::copy_n(chunk.means[i].data(), 3, r.begin());
+    std::copy_n(chunk.log_scales[i].data(), 3, r.begin() + 3);
+    std::copy_n(chunk.rotations[i].data(), 4, r.begin() + 6);
+    r[10] = chunk.opacity_logits[i];
+    std::copy(chunk.sh[i].begin(), chunk.sh[i].end(), r.begin() + 11);
+    it->second.append(reinterpret_cast<const char*>(r.data()), sizeof(r));
+    buffered_bytes_ += sizeof(r);
+    if (buffered_bytes_ >= budget_bytes_) Flush();
+  }
+
+  // Appends every buffer to its node's file and frees the buffers.
+  void Flush() {
+    for (const auto& [key, bytes] : buffers_) {
+      const fs::path path = File(key);
+      std::ofstream out(path, std::ios::binary | std::ios::app);
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+      if (!out) throw Error("3dtiles", path.string(), "cannot be written (disk full?)");
+    }
+    buffers_.clear();
+    buffered_bytes_ = 0;
+  }
+
+  // Whether the node or one below it holds a Gaussian.
+  bool Occupied(const std::string& key) const { return occupied_.count(key) > 0; }
+
+  // The node's Gaussians (none when it holds none); its file is removed.
+  GaussianCloud Take(const std::string& key) {
+    GaussianCloud cloud;
+    const fs::path path = File(key);
+    if (!fs::exists(path)) return cloud;
+    const std::string bytes = ReadTextFile(path.string());
+    if (bytes.size() % sizeof(std::array<float, kFloats>) != 0)
+      throw Error("3dtiles", path.string(), "holds a partial record");
+    const std::size_t n = bytes.size() / sizeof(std::array<float, kFloats>);
+    cloud.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::array<float, kFloats> r;
+      std::memcpy(r.data(), bytes.data() + i * sizeof(r), sizeof(r));
+      cloud.means[i] = Eigen::Vector3f(r[0], r[1], r[2]);
+      cloud.log_scales[i] = Eigen::Vector3f(r[3], r[4], r[5]);
+      cloud.rotations[i] = Eigen::Vector4f(r[6], r[7], r[8], r[9]);
+      cloud.opacity_logits[i] = r[10];
+      std::copy(r.begin() + 11, r.end(), cloud.sh[i].begin());
+    }
+    fs::remove(path);
+    return cloud;
+  }
+
+ private:
+  static constexpr std::size_t kFloats = 11 + 3 * kShCoeffsPerChannel;  // mean, log scale, rotation, logit, SH
+  fs::path File(const std::string& key) const { return dir_ / ("n" + key + ".bin"); }
+
+  fs::path dir_;
+  std::size_t budget_bytes_;
+  std::size_t buffered_bytes_ = 0;
+  std::unordered_map<std::string, std::string> buffers_;
+  std::unordered_set<std::string> occupied_;
+};
+
 class TreeWriter {
  public:
-  TreeWriter(const std::vector<LodLevel>& levels, const Tiles3dOptions& options, const fs::path& out_dir)
-      : levels_(levels), options_(options), out_dir_(out_dir) {}
+  TreeWriter(const std::vector<LodLevel>& levels, const Tiles3dOptions& options, const fs::path& out_dir,
+             NodeSpill* spill)
+      : levels_(levels), options_(options), out_dir_(out_dir), spill_(spill) {}
 
-  // The node for `area` at LOD level index `k` (0 = finest) and its subtree;
-  // null when nothing of any level below it lies in the area. `inside[j]`
-  // lists the Gaussians of level j (j <= k) in the area, so each level is
-  // partitioned once per depth rather than scanned once per node.
-  json Build(const Area& area, std::size_t k, const std::vector<std::vector<std::uint32_t>>& inside, ZRange* z_out) {
-    GaussianCloud subset;
-    for (std::uint32_t i : inside[k]) subset.Append(levels_[k].cloud, i);
+  // The node `key` for `area` at LOD level index `k` (0 = finest) and its
+  // subtree, written depth first; null when nothing of any level below it
+  // lies in the area.
+  json Build(const Area& area, std::size_t k, const std::string& key, ZRange* z_out) {
+    if (!spill_->Occupied(key)) return nullptr;
+    GaussianCloud subset = spill_->Take(key);
     ZRange z = Heights(subset);
     json children = json::array();
     double child_error = 0;
     if (k > 0) {
-      for (const Area& a : Split(area)) {
-        std::vector<std::vector<std::uint32_t>> child_inside(k);
-        for (std::size_t j = 0; j < k; ++j) {
-          for (std::uint32_t i : inside[j]) {
-            if (a.Contains(levels_[j].cloud.means[i])) child_inside[j].push_back(i);
-          }
-        }
+      const std::vector<Area> parts = Split(area, options_.leaf_m);
+      for (std::size_t q = 0; q < parts.size(); ++q) {
         ZRange child_z;
-        json child = Build(a, k - 1, child_inside, &child_z);
+        const std::string child_key = key + (parts.size() == 1 ? 's' : static_cast<char>('0' + q));
+        json child = Build(parts[q], k - 1, child_key, &child_z);
         if (child.is_null()) continue;
         child_error = std::max(child_error, child.at("geometricError").get<double>());
         z.Add(child_z);
@@ -106,12 +215,6 @@ class TreeWriter {
   Tiles3dSummary summary;
 
  private:
-  std::vector<Area> Split(const Area& a) const {
-    if (a.Width() <= options_.leaf_m) return {a};  // no split: the next level refines in place
-    const double mx = 0.5 * (a.x0 + a.x1), my = 0.5 * (a.y0 + a.y1);
-    return {{a.x0, a.y0, mx, my}, {mx, a.y0, a.x1, my}, {a.x0, my, mx, a.y1}, {mx, my, a.x1, a.y1}};
-  }
-
   static ZRange Heights(const GaussianCloud& cloud) {
     ZRange z;
     for (std::size_t i = 0; i < cloud.size(); ++i) {
@@ -135,6 +238,7 @@ class TreeWriter {
   const std::vector<LodLevel>& levels_;
   const Tiles3dOptions& options_;
   fs::path out_dir_;
+  NodeSpill* spill_;
 };
 
 json ReadJsonFile(const fs::path& path) {
@@ -231,7 +335,7 @@ Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& ou
       LodLevel level;
       level.level = l.at("level");
       level.geometric_error_m = l.at("geometric_error_m");
-      level.cloud = ReadGaussiansPly((scene / l.at("file").get<std::string>()).string());
+      level.path = (scene / l.at("file").get<std::string>()).string();
       levels.push_back(std::move(level));
     }
   } catch (const json::exception& e) {
@@ -240,13 +344,16 @@ Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& ou
   if (levels.empty()) throw Error("3dtiles", (scene / "lod.json").string(), "lists no level");
   std::sort(levels.begin(), levels.end(), [](const LodLevel& a, const LodLevel& b) { return a.level < b.level; });
   // The root area: a square around every Gaussian of every level, so that
-  // quadrants stay square.
+  // quadrants stay square. The levels are streamed twice (here, then into
+  // their nodes), never held whole.
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = -lo;
   for (const LodLevel& l : levels) {
-    for (const auto& m : l.cloud.means) {
-      lo = lo.cwiseMin(m.head<2>().cast<double>());
-      hi = hi.cwiseMax(m.head<2>().cast<double>());
-    }
+    ForEachGaussiansPlyChunk(l.path, [&](const GaussianCloud& chunk) {
+      for (const auto& m : chunk.means) {
+        lo = lo.cwiseMin(m.head<2>().cast<double>());
+        hi = hi.cwiseMax(m.head<2>().cast<double>());
+      }
+    });
   }
   if (!(lo.x() <= hi.x())) throw Error("3dtiles", scene_dir, "the scene holds no Gaussian");
   const double side = (hi - lo).maxCoeff() + 1e-3;  // half-open areas: the last Gaussian stays inside
@@ -254,14 +361,18 @@ Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& ou
   progress.Info(fmt::format("3dtiles: {} LOD level(s) over {:.0f} m, leaves up to {:.0f} m", levels.size(), side,
                             options.leaf_m));
   fs::create_directories(out / "content");
-  TreeWriter writer(levels, options, out);
-  std::vector<std::vector<std::uint32_t>> everything(levels.size());
+  NodeSpill spill(out / ".spill", static_cast<std::size_t>(options.spill_buffer_mb * 1e6));
   for (std::size_t j = 0; j < levels.size(); ++j) {
-    everything[j].resize(levels[j].cloud.size());
-    std::iota(everything[j].begin(), everything[j].end(), 0u);
+    const int depth = static_cast<int>(levels.size() - 1 - j);
+    ForEachGaussiansPlyChunk(levels[j].path, [&](const GaussianCloud& chunk) {
+      for (std::size_t i = 0; i < chunk.size(); ++i)
+        spill.Add(NodeKey(root_area, depth, chunk.means[i], options.leaf_m), chunk, i);
+    });
   }
+  spill.Flush();
+  TreeWriter writer(levels, options, out, &spill);
   ZRange z;
-  json root = writer.Build(root_area, levels.size() - 1, everything, &z);
+  json root = writer.Build(root_area, levels.size() - 1, "", &z);
   const Eigen::Matrix4d ecef_from_enu = EnuFrame(origin).EcefFromEnu();
   std::vector<double> transform(16);
   for (int c = 0; c < 4; ++c)

@@ -21,6 +21,10 @@ namespace skyfall {
 struct Tiles3dOptions {
   double leaf_m = 128;         // [m] a node splits into quadrants while it is wider than this
   int max_fractional_bits = 16;  // finest SPZ position step 2^-bits m (fewer when coordinates are large)
+  // [MB] Gaussians waiting for their tile are written to disk when they fill
+  // this much memory: with one tile's cloud and one read chunk, it bounds
+  // the export's memory whatever the city's size.
+  double spill_buffer_mb = 64;
   void Check() const;            // throws Error("3dtiles", field, ...)
 };
 template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
@@ -28,6 +32,9 @@ template <class IO> void Visit(IO& io, Tiles3dOptions& o) {
      "A node splits into quadrants while it is wider than this", range::Above(0));
   io("max_fractional_bits", o.max_fractional_bits,
      "The finest SPZ position step is 2^-bits metres (fewer bits when coordinates are large)", range::In(0, 20));
+  io("spill_buffer_mb", o.spill_buffer_mb,
+     "Gaussians waiting for their tile's file are written to disk when they fill this much memory (bounds the "
+     "export's memory, whatever the city's size)", range::Above(0));
 }
 
 struct Tiles3dSummary {
@@ -40,8 +47,10 @@ struct Tiles3dSummary {
 };
 
 // Exports OUT/<city>/scene (lod.json, lod_<k>.ply, frame.json) to out_dir:
-// tileset.json (written last) and content/*.glb. Throws Error naming the
-// missing or bad file.
+// tileset.json (written last) and content/*.glb. The levels are streamed and
+// each tile's Gaussians gathered in out_dir/.spill (removed at the end), so
+// memory stays near options.spill_buffer_mb. Throws Error naming the missing
+// or bad file.
 Tiles3dSummary Export3dTiles(const std::string& scene_dir, const std::string& out_dir, const Tiles3dOptions& options,
                              Progress& progress);
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
@@ -183,6 +184,53 @@ TEST(Tiles3d, QuadtreeOfLevelsWithTheCityFrameAsRootTransform) {
   }
   EXPECT_EQ(m[3], 0.0);
   EXPECT_EQ(m[15], 1.0);
+}
+
+// Every file under `dir`, by relative path, with its bytes.
+std::map<std::string, std::vector<std::uint8_t>> FilesUnder(const fs::path& dir) {
+  std::map<std::string, std::vector<std::uint8_t>> files;
+  for (const auto& entry : fs::recursive_directory_iterator(dir))
+    if (entry.is_regular_file()) files[fs::relative(entry.path(), dir).string()] = Slurp(entry.path());
+  return files;
+}
+
+// Each node's Gaussians have their centres inside its box (horizontally),
+// which is what the streamed bucketing must give.
+void CheckContentInsideBoxes(const json& node, const fs::path& dir, std::size_t* checked) {
+  if (node.contains("content")) {
+    const std::vector<double> box = node["boundingVolume"]["box"];
+    const auto [gltf, spz] = SplitGlb(Slurp(dir / node["content"]["uri"].get<std::string>()));
+    const GaussianCloud cloud = DecodeSpz(spz, "glb", nullptr);
+    constexpr double kSpzStepM = 1e-3;  // far above the SPZ position step, far below the boxes' 75 m
+    for (const Eigen::Vector3f& m : cloud.means) {
+      EXPECT_LE(std::abs(m.x() - box[0]), box[3] + kSpzStepM);
+      EXPECT_LE(std::abs(m.y() - box[1]), box[7] + kSpzStepM);
+      ++*checked;
+    }
+  }
+  if (node.contains("children"))
+    for (const json& child : node["children"]) CheckContentInsideBoxes(child, dir, checked);
+}
+
+TEST(Tiles3d, StreamedThroughATinySpillTheTilesetIsTheSameByteForByte) {
+  const fs::path dir = testing::ScratchDir("tiles3d");
+  WriteScene(dir / "scene", 64);
+  NullProgress progress;
+  Tiles3dOptions options;
+  options.leaf_m = 100;
+  options.spill_buffer_mb = 1e3;  // everything buffered, one write per tile
+  const Tiles3dSummary whole = Export3dTiles((dir / "scene").string(), (dir / "whole").string(), options, progress);
+  options.spill_buffer_mb = 1e-4;  // 100 bytes: a write for about every Gaussian
+  const Tiles3dSummary tiny = Export3dTiles((dir / "scene").string(), (dir / "tiny").string(), options, progress);
+  EXPECT_EQ(whole.tiles, tiny.tiles);
+  EXPECT_EQ(whole.gaussians, tiny.gaussians);
+  const auto a = FilesUnder(dir / "whole"), b = FilesUnder(dir / "tiny");
+  ASSERT_EQ(a.size(), static_cast<std::size_t>(whole.contents) + 1);  // the GLBs and tileset.json; no spill left
+  EXPECT_TRUE(a == b);
+  EXPECT_FALSE(fs::exists(dir / "tiny" / ".spill"));
+  std::size_t checked = 0;
+  CheckContentInsideBoxes(json::parse(std::string(a.at("tileset.json").begin(), a.at("tileset.json").end()))["root"], dir / "tiny", &checked);
+  EXPECT_EQ(checked, whole.gaussians);
 }
 
 TEST(Tiles3d, MissingLodIsANamedError) {

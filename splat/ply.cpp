@@ -147,8 +147,10 @@ void AppendVertex(const PlyLayout& l, const float* v, std::size_t index, const G
 
 // The vertices after the header, a chunk at a time, so that memory holds the
 // kept Gaussians and one chunk, never the whole file.
+// With `visit`, each chunk's kept Gaussians are handed to it and dropped, and
+// the returned cloud is empty.
 GaussianCloud ReadBody(std::istream& in, std::size_t body_size, const PlyLayout& l, const GaussianFilter& keep,
-                       const std::string& path) {
+                       const std::string& path, const GaussianChunkVisitor& visit = {}) {
   const std::size_t n_props = l.props.size();
   // The declared count must fit the data before anything is allocated: a
   // binary value takes 4 bytes, an ASCII one at least 2 characters.
@@ -163,7 +165,7 @@ GaussianCloud ReadBody(std::istream& in, std::size_t body_size, const PlyLayout&
                                  std::to_string(l.count * n_props * sizeof(float)) + " expected");
   }
   GaussianCloud c;
-  if (!keep) {
+  if (!keep && !visit) {
     c.means.reserve(l.count), c.log_scales.reserve(l.count), c.rotations.reserve(l.count);
     c.opacity_logits.reserve(l.count), c.sh.reserve(l.count);
   }
@@ -181,25 +183,43 @@ GaussianCloud ReadBody(std::istream& in, std::size_t body_size, const PlyLayout&
           throw Error("ply", path, "truncated ASCII data at value " + std::to_string(first * n_props + k));
     }
     for (std::size_t i = 0; i < n; ++i) AppendVertex(l, &values[i * n_props], first + i, keep, path, &c);
+    if (visit) {
+      visit(c);
+      c = GaussianCloud();
+    }
   }
   return c;
 }
 
-GaussianCloud ReadPly(std::istream& in, std::size_t total_bytes, const GaussianFilter& keep, const std::string& path) {
+GaussianCloud ReadPly(std::istream& in, std::size_t total_bytes, const GaussianFilter& keep, const std::string& path,
+                      const GaussianChunkVisitor& visit = {}) {
   const PlyLayout layout = ReadHeader(in, path);
   const std::size_t header_bytes = static_cast<std::size_t>(in.tellg());
-  return ReadBody(in, total_bytes - header_bytes, layout, keep, path);
+  return ReadBody(in, total_bytes - header_bytes, layout, keep, path, visit);
+}
+
+// The file opened and sized, or an Error naming it.
+std::size_t OpenPly(const std::string& path, std::ifstream* in) {
+  in->open(path, std::ios::binary);
+  if (!*in) throw Error("ply", path, "cannot be opened");
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error("ply", path, "cannot be sized: " + ec.message());
+  return static_cast<std::size_t>(size);
 }
 
 }  // namespace
 
 GaussianCloud ReadGaussiansPly(const std::string& path, const GaussianFilter& keep) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("ply", path, "cannot be opened");
-  std::error_code ec;
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) throw Error("ply", path, "cannot be sized: " + ec.message());
-  return ReadPly(in, static_cast<std::size_t>(size), keep, path);
+  std::ifstream in;
+  const std::size_t size = OpenPly(path, &in);
+  return ReadPly(in, size, keep, path);
+}
+
+void ForEachGaussiansPlyChunk(const std::string& path, const GaussianChunkVisitor& visit) {
+  std::ifstream in;
+  const std::size_t size = OpenPly(path, &in);
+  ReadPly(in, size, GaussianFilter(), path, visit);
 }
 
 GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path) {

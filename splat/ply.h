@@ -26,6 +26,11 @@ using GaussianFilter = std::function<bool(const Eigen::Vector3f& mean, const Eig
 // holds what is kept and one chunk. Throws Error("ply", path, ...) naming
 // the missing property, the bad header line or the truncation.
 GaussianCloud ReadGaussiansPly(const std::string& path, const GaussianFilter& keep = {});
+// Reads the file a chunk (65,536 Gaussians) at a time and hands each chunk to
+// `visit`, in file order; memory holds one chunk, whatever the file's size.
+// Throws as ReadGaussiansPly.
+using GaussianChunkVisitor = std::function<void(const GaussianCloud& chunk)>;
+void ForEachGaussiansPlyChunk(const std::string& path, const GaussianChunkVisitor& visit);
 // The same from the file's bytes; `path` names it in errors.
 GaussianCloud ParseGaussiansPly(const std::string& data, const std::string& path);
 

@@ -118,5 +118,35 @@ TEST(Ply, AFilteredReadKeepsWhatTheFilterTakesInFileOrder) {
   }
 }
 
+TEST(Ply, AChunkedReadHandsEveryGaussianOnceInFileOrder) {
+  const fs::path dir = ScratchDir("plychunks");
+  GaussianCloud c;
+  constexpr std::size_t kCount = 140000;  // two full chunks of 65,536 and a partial one
+  c.resize(kCount);
+  for (std::size_t i = 0; i < kCount; ++i) {
+    c.means[i] = Eigen::Vector3f(static_cast<float>(i), -1.0f, 2.0f);
+    c.log_scales[i] = Eigen::Vector3f(-1.0f, -2.0f, -3.0f);
+    c.rotations[i] = Eigen::Vector4f(1.0f, 0.0f, 0.0f, 0.0f);
+    c.opacity_logits[i] = static_cast<float>(i % 11);
+    c.sh[i].fill(static_cast<float>(i % 5));
+  }
+  WriteGaussiansPly((dir / "big.ply").string(), c);
+  std::vector<std::size_t> chunk_sizes;
+  GaussianCloud joined;
+  ForEachGaussiansPlyChunk((dir / "big.ply").string(), [&](const GaussianCloud& chunk) {
+    chunk_sizes.push_back(chunk.size());
+    for (std::size_t i = 0; i < chunk.size(); ++i) joined.Append(chunk, i);
+  });
+  EXPECT_EQ(chunk_sizes, (std::vector<std::size_t>{65536, 65536, kCount - 2 * 65536}));
+  ASSERT_EQ(joined.size(), kCount);
+  for (std::size_t i = 0; i < kCount; i += 4999) {
+    EXPECT_EQ(joined.means[i], c.means[i]) << i;
+    EXPECT_EQ(joined.opacity_logits[i], c.opacity_logits[i]) << i;
+    EXPECT_EQ(joined.sh[i], c.sh[i]) << i;
+  }
+  const std::string error = ErrorText([&] { ForEachGaussiansPlyChunk((dir / "none.ply").string(), {}); });
+  EXPECT_NE(error.find("none.ply"), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace skyfall
