@@ -55,17 +55,17 @@ void AddDenseCommand(CLI::App& app, Runner* runner) {
   cmd->add_option("--cell", opts->cell_m, "Grid cell [m]; 0: follows the imagery (0.5 m below 0.75 m GSD)")->capture_default_str();
   cmd->add_option("--height-step", opts->height_step_m, "Sweep step [m]")->capture_default_str();
   cmd->add_option("--window", opts->window_cells, "NCC window side [cells], odd")->capture_default_str();
-  cmd->add_option("--max-pairs", opts->max_pairs, "Image pairs used, most tie points first")->capture_default_str();
-  cmd->add_option("--p1", opts->sgm_p1, "SGM penalty for a one-step height change")->capture_default_str();
-  cmd->add_option("--p2", opts->sgm_p2, "SGM penalty for a larger height change")->capture_default_str();
+  cmd->add_option("--max-pairs", opts->pairs.max, "Image pairs used, most tie points first")->capture_default_str();
+  cmd->add_option("--p1", opts->sgm.p1, "SGM penalty for a one-step height change")->capture_default_str();
+  cmd->add_option("--p2", opts->sgm.p2, "SGM penalty for a larger height change")->capture_default_str();
   cmd->add_option("--max-cost", opts->max_cost, "Cells matching worse than this get no height")->capture_default_str();
-  cmd->add_flag("--visibility-pass,!--no-visibility-pass", opts->visibility_pass,
+  cmd->add_flag("--visibility-pass,!--no-visibility-pass", opts->visibility.pass,
                 "Second sweep scoring each height only with the pairs that see it")
       ->capture_default_str();
-  cmd->add_option("--visibility-tolerance", opts->visibility_tolerance_m,
+  cmd->add_option("--visibility-tolerance", opts->visibility.tolerance_m,
                   "First-surface error allowed before a point counts as hidden [m]")
       ->capture_default_str();
-  cmd->add_option("--visibility-prior", opts->visibility_prior_pairs,
+  cmd->add_option("--visibility-prior", opts->visibility.prior_pairs,
                   "Pairs of truncation cost added to each height's mean in the second sweep")
       ->capture_default_str();
   cmd->add_option("--fill-radius", opts->fill.radius_m,

@@ -21,9 +21,9 @@ using dense_detail::kNan;
 void DenseOptions::Check() const {
   CheckOptionRanges(*this, "dense");
   fill.Check();  // what involves two of its fields
-  if (!(max_pair_angle_deg > min_pair_angle_deg))
+  if (!(pairs.max_angle_deg > pairs.min_angle_deg))
     throw Error("dense", "max_pair_angle_deg", "must exceed min_pair_angle_deg >= 0");
-  if (!(sgm_p2 >= sgm_p1)) throw Error("dense", "sgm_p2", "must be >= sgm_p1 >= 0");
+  if (!(sgm.p2 >= sgm.p1)) throw Error("dense", "sgm_p2", "must be >= sgm_p1 >= 0");
 }
 
 std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector<DenseView>& views,
@@ -32,14 +32,14 @@ std::vector<DensePair> SelectDensePairs(const DenseOptions& o, const std::vector
   for (const DensePair& p : pairs) {
     if (p.a < 0 || p.b < 0 || p.a >= static_cast<int>(views.size()) || p.b >= static_cast<int>(views.size()) || p.a == p.b)
       throw Error("dense", "pairs", "pair (" + std::to_string(p.a) + ", " + std::to_string(p.b) + ") names no two views");
-    if (p.verified < o.min_pair_matches) continue;
+    if (p.verified < o.pairs.min_matches) continue;
     const Eigen::Vector3d ra = (views[p.a].camera.Centre() - centre).normalized();
     const Eigen::Vector3d rb = (views[p.b].camera.Centre() - centre).normalized();
     const double angle_deg = std::acos(std::clamp(ra.dot(rb), -1.0, 1.0)) * 180.0 / M_PI;
-    if (angle_deg >= o.min_pair_angle_deg && angle_deg <= o.max_pair_angle_deg) kept.push_back(p);
+    if (angle_deg >= o.pairs.min_angle_deg && angle_deg <= o.pairs.max_angle_deg) kept.push_back(p);
   }
   std::stable_sort(kept.begin(), kept.end(), [](const DensePair& x, const DensePair& y) { return x.verified > y.verified; });
-  if (kept.size() > static_cast<std::size_t>(o.max_pairs)) kept.resize(o.max_pairs);
+  if (kept.size() > static_cast<std::size_t>(o.pairs.max)) kept.resize(o.pairs.max);
   return kept;
 }
 
@@ -171,9 +171,9 @@ ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, 
     v.to_cameras.push_back(views[k].camera.Centre() - centre);
   }
   for (const DensePair& p : pairs) v.camera_pairs.push_back({v.slot[p.a], v.slot[p.b]});
-  const bool hole_sweep = o.fill_holes && o.coarse_factor > 1;
-  if (o.range_probe_above_m > 0 || hole_sweep)
-    v.coarse = dense_detail::BlurForCoarseSweeps(v.grey, v.projection, o.cell_m, std::max(o.coarse_factor, 2), centre);
+  const bool hole_sweep = o.fill_holes && o.coarse.factor > 1;
+  if (o.range_probe.above_m > 0 || hole_sweep)
+    v.coarse = dense_detail::BlurForCoarseSweeps(v.grey, v.projection, o.cell_m, std::max(o.coarse.factor, 2), centre);
   return v;
 }
 
@@ -186,11 +186,11 @@ ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, 
 void RaiseRangeToProbe(const DenseOptions& o, const HeightGrid& g, const ViewSlots& v,
                        const std::vector<DensePair>& pairs, Progress& progress, SweepPlan* plan) {
   plan->tie_points_z_hi = plan->z_hi;
-  if (o.range_probe_above_m <= 0 || plan->finest_gsd_m < o.range_probe_min_gsd_m) return;
+  if (o.range_probe.above_m <= 0 || plan->finest_gsd_m < o.range_probe.min_gsd_m) return;
   plan->probe_ran = true;
   const Sweep from_tie_points{o, g, plan->z_lo, plan->step_m, plan->nh, pairs, v.slot, v.grey, v.projection};
   plan->probe_top_m =
-      dense_detail::ProbeTopHeight(from_tie_points, v.coarse, plan->z_hi + o.range_probe_above_m, progress);
+      dense_detail::ProbeTopHeight(from_tie_points, v.coarse, plan->z_hi + o.range_probe.above_m, progress);
   if (!plan->probe_top_m || *plan->probe_top_m + o.height_margin_m <= plan->z_hi) return;
   plan->z_hi = *plan->probe_top_m + o.height_margin_m;
   SetHeightSteps(o, "tie points and the probe's surfaces", plan);
@@ -210,11 +210,11 @@ CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillG
   const DenseOptions& o = sweep.o;
   const HeightGrid& g = sweep.grid;
   CellHeights first = PickHeights(sweep, CostVolume(sweep, nullptr, "dense: sweeping heights", progress), progress);
-  if (!o.visibility_pass) return first;
+  if (!o.visibility.pass) return first;
   std::vector<float> surface = first.height_m;
   const GroundModel model = GroundModelOf(surface, g.nx, g.ny, fill);
   const std::vector<std::uint8_t> occluded =
-      OccludedAtGround(g, surface, model.terrain_m, v.to_cameras, v.camera_pairs, o.visibility_tolerance_m,
+      OccludedAtGround(g, surface, model.terrain_m, v.to_cameras, v.camera_pairs, o.visibility.tolerance_m,
                        sweep.z_lo, o.fill_edge_hides);
   const std::vector<std::uint8_t> filled = FillHoles(surface, g.nx, g.ny, fill, model, &occluded);
   // Only the measured surface and the occluded ground (filled with the
@@ -222,8 +222,8 @@ CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillG
   for (std::size_t k = 0; k < sweep.Cells(); ++k)
     if (filled[k] && !occluded[k]) surface[k] = dense_detail::kNan;
   const std::vector<std::vector<float>> seen_above =
-      dense_detail::SeenAbove(g, surface, v.to_cameras, sweep.z_lo, o.visibility_tolerance_m,
-                              o.visibility_near_cells >= 0 ? o.visibility_near_cells : o.window_cells / 2);
+      dense_detail::SeenAbove(g, surface, v.to_cameras, sweep.z_lo, o.visibility.tolerance_m,
+                              o.visibility.near_cells >= 0 ? o.visibility.near_cells : o.window_cells / 2);
   CellHeights second = PickHeights(
       sweep, CostVolume(sweep, &seen_above, "dense: sweeping heights the views see", progress), progress);
   for (std::size_t k = 0; k < sweep.Cells(); ++k)
@@ -250,11 +250,11 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
   counts->floating = RemoveFloatingPatches(g->height_m, g->nx, g->ny, model.terrain_m, floating);
   counts->measured -= counts->floating;
   const std::vector<std::uint8_t> occluded =
-      OccludedAtGround(*g, g->height_m, model.terrain_m, v.to_cameras, v.camera_pairs, o.visibility_tolerance_m,
+      OccludedAtGround(*g, g->height_m, model.terrain_m, v.to_cameras, v.camera_pairs, o.visibility.tolerance_m,
                        sweep.z_lo, o.fill_edge_hides);
   counts->occluded = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
   std::vector<std::uint8_t> from_coarse(cells, 0);
-  if (o.coarse_factor > 1) {
+  if (o.coarse.factor > 1) {
     const std::vector<float> coarse = dense_detail::CoarseSweepHeights(sweep, v.coarse, progress);
     for (std::size_t k = 0; k < cells; ++k)
       if (!std::isfinite(g->height_m[k]) && !occluded[k] && std::isfinite(coarse[k])) {
@@ -265,7 +265,7 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
   }
   const std::vector<float> measured_m = g->height_m;  // coarse heights included: they are a surface
   g->filled = FillHoles(g->height_m, g->nx, g->ny, fill, model, &occluded, &g->fill_rule);
-  if (o.decide_filled_sides) {
+  if (o.steps.decide_filled_sides) {
     std::vector<std::uint8_t> candidates = g->filled;
     for (std::size_t k = 0; k < cells; ++k) candidates[k] &= from_coarse[k] ? 0 : 1;
     const std::vector<float> before = g->height_m;
@@ -287,8 +287,8 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
 void CountSeeingViews(const Sweep& sweep, const ViewSlots& v, const std::vector<DenseView>& views, HeightGrid* g) {
   const DenseOptions& o = sweep.o;
   const std::vector<std::vector<float>> seen_above =
-      dense_detail::SeenAbove(*g, g->height_m, v.to_cameras, sweep.z_lo, o.visibility_tolerance_m,
-                              o.visibility_near_cells >= 0 ? o.visibility_near_cells : o.window_cells / 2);
+      dense_detail::SeenAbove(*g, g->height_m, v.to_cameras, sweep.z_lo, o.visibility.tolerance_m,
+                              o.visibility.near_cells >= 0 ? o.visibility.near_cells : o.window_cells / 2);
   g->views.assign(g->height_m.size(), 0);
   for (std::size_t s = 0; s < v.used.size(); ++s) {
     const DenseView& view = views[v.used[s]];

@@ -25,6 +25,100 @@
 
 namespace skyfall {
 
+// The pairs the sweep correlates.
+struct DensePairOptions {
+  int max = 200;               // pairs kept, most verified tie points first
+  int min_matches = 50;        // verified tie points for a pair to be considered
+  double min_angle_deg = 4.0;  // below, heights are too weakly constrained
+  double max_angle_deg = 40.0; // above, the views differ too much to correlate
+};
+
+// Semi-global smoothing of the cost volume [cost units].
+struct DenseSgmOptions {
+  double p1 = 0.06;  // penalty for a one-step height change between cells
+  double p2 = 2.0;   // penalty for a larger change (walls)
+};
+
+// A coarse sweep up to `above_m` above the tie points' range looks for
+// surfaces that hold no tie point (a tower at a coarse GSD) and raises the
+// sweep's range to them (RaiseRangeToProbe). 0 = off.
+struct DenseRangeProbeOptions {
+  double above_m = 200.0;
+  // The probe runs only for imagery whose finest GSD is at least this: at
+  // sub-metre GSD the tie points reach the tall roofs, and with few pairs
+  // the probe's chance matches only raised the range (decision D-122).
+  double min_gsd_m = 1.0;
+};
+
+// Before filling, holes get a second chance at a coarser scale: a sweep on
+// a grid of `factor` x cell_m, with windows as many cells wide, on images
+// blurred to that cell. A weakly textured surface (a tiled roof whose
+// courses alias, a plain slab) that no 5-cell window correlates often does
+// over a window this much wider. Ground no pair sees (OccludedAtGround) is
+// not taken from it. 1 = off.
+struct DenseCoarseOptions {
+  int factor = 3;
+  int window_cells = 5;  // the coarse sweep's NCC window side [coarse cells], odd
+};
+
+// Windows fatten what they straddle: beside a roof's edge the roof's
+// texture fills most of a ground cell's window, and a band of ground about
+// a window radius wide takes the roof's height. Filled cells are decided
+// again (DenseStepOptions) with adaptive support weights (Yoon and
+// Kweon's): a window of `radius_cells` whose cells weigh by how like the
+// centre they look in the most nadir view that sees it (`grey_sigma`, on
+// grey scaled so its 99th percentile is 1) and by distance, so the centre's
+// own surface decides, not the wall's other side. (Deciding measured cells
+// beside steps the same way was tried and not adopted: decision D-063.)
+struct DenseSupportOptions {
+  int radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
+  double grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
+};
+
+// After filling, each filled cell (not from the coarse sweep) is scored at
+// the ground (the terrain model) and at a roof (its fill where raised, else
+// the lowest raised measured height in reach) with the adaptive support
+// weights, and takes the other side where that matches clearly better
+// (min_m, cost_margin, max_cost); a cell filled at the ground with measured
+// ground within reach_cells keeps it (beside a step the roof wins by
+// fattening). The fill rules decide from geometry alone: holes in roofs
+// that join the unmatched streets beside them took the terrain (decision
+// D-096). (Pulling steps onto matched ground back by a cell after filling
+// was tried and not adopted: decisions D-082 and D-083.)
+struct DenseStepOptions {
+  double min_m = 2.0;       // [m] a rise beyond this within reach_cells is a step
+  int reach_cells = 3;      // [cells] measured ground this near keeps a filled cell at the ground
+  double cost_margin = 0.1; // a cell changes side only for a cost this much lower (and <= max_cost)
+  bool decide_filled_sides = true;
+};
+
+// A second sweep that scores each height of a cell only with the pairs
+// whose two views see that point, judged against the first sweep's surface
+// (holes filled): beside a wall half the views see the ground and the other
+// half the wall, and averaging them all favours the roof.
+struct DenseVisibilityOptions {
+  bool pass = true;
+  // Surface cells this near a cell (along the ray) do not hide it; -1 = the
+  // NCC window's radius. Beside a step they are the band that the windows
+  // fatten (ground at the roof's height), and counted as occluders they hid
+  // the ground under them from every view, so that the roof won there for
+  // want of a rival. 0 = every cell hides.
+  int near_cells = -1;
+  // A point counts as seen when the first surface rises at most this much
+  // above the ray toward the camera [m]: the first surface's own error.
+  double tolerance_m = 1.0;
+  // Only the measured surface and the occluded ground (filled with the
+  // terrain) hide what is behind them, not the holes the views see: a
+  // street between two roofs that the first sweep missed is filled at the
+  // roofs' height, and with that fill hiding it no view would see the
+  // street's own heights in the second sweep (D-062). Heights seen by few
+  // pairs get a noisy mean whose chance minima would win: the mean is taken
+  // as if this many more pairs had added the truncation cost.
+  double prior_pairs = 2.0;
+};
+
+// The dense stage's options, in named parts; the run configuration keeps
+// flat keys (dense.sgm_p2, dense.visibility_pass, ...), given in Visit().
 struct DenseOptions {
   // Ground sampling of the height grid [m]; 0 (the default): follows the
   // imagery, AutomaticCellM.
@@ -32,24 +126,13 @@ struct DenseOptions {
   double height_step_m = 0.25;      // sweep step [m]; about a third of a pixel of parallax for WV3 pairs
   double height_margin_m = 4.0;     // added beyond the tie points' height percentiles [m]
   double height_percentile = 0.005; // tie-point heights outside [p, 1-p] are ignored for the range
-  // A coarse sweep up to this far above the tie points' range looks for
-  // surfaces that hold no tie point (a tower at a coarse GSD) and raises
-  // the sweep's range to them (RaiseRangeToProbe). 0 = off.
-  double range_probe_above_m = 200.0;
-  // The probe runs only for imagery whose finest GSD is at least this: at
-  // sub-metre GSD the tie points reach the tall roofs, and with few pairs
-  // the probe's chance matches only raised the range (decision D-122).
-  double range_probe_min_gsd_m = 1.0;
   int max_heights = 600;            // longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)
+  DenseRangeProbeOptions range_probe;
+  DensePairOptions pairs;
   int window_cells = 5;             // NCC window side [cells], odd
-  int max_pairs = 200;              // pairs kept, most verified tie points first
-  int min_pair_matches = 50;        // verified tie points for a pair to be considered
-  double min_pair_angle_deg = 4.0;  // below, heights are too weakly constrained
-  double max_pair_angle_deg = 40.0; // above, the views differ too much to correlate
   double cost_truncation = 0.8;     // per-pair cost (1 - NCC) is capped here
   double min_std = 0.004;           // window standard deviation (of the normalized image) below which NCC is undefined
-  double sgm_p1 = 0.06;             // SGM penalty for a one-step height change between cells [cost units]
-  double sgm_p2 = 2.0;              // SGM penalty for a larger change (walls)
+  DenseSgmOptions sgm;
   double max_cost = 0.55;           // cells whose matching cost at the chosen height exceeds this get no height
   double max_median_deviation_m = 2.0;  // cells further than this from their 3x3 median get no height (speckle)
   // Holes (cells without a height) are filled (FillHoles): ground no pair
@@ -71,66 +154,12 @@ struct DenseOptions {
   // 0 = off.
   double floating_patch_max_m2 = 25.0;
   double floating_patch_min_rise_m = 20.0;
-  // Before filling, holes get a second chance at a coarser scale: a sweep
-  // on a grid of coarse_factor x cell_m, with windows as many cells wide, on
-  // images blurred to that cell. A weakly textured surface (a tiled roof
-  // whose courses alias, a plain slab) that no 5-cell window correlates
-  // often does over a window this much wider. Ground no pair sees
-  // (OccludedAtGround) is not taken from it. 1 = off.
-  int coarse_factor = 3;
-  int coarse_window_cells = 5;      // the coarse sweep's NCC window side [coarse cells], odd
-  // Windows fatten what they straddle: beside a roof's edge the roof's
-  // texture fills most of a ground cell's window, and a band of ground
-  // about a window radius wide takes the roof's height. Filled cells are
-  // decided again (decide_filled_sides) with adaptive support weights (Yoon
-  // and Kweon's): a window of support_radius_cells whose cells weigh by how
-  // like the centre they look in the most nadir view that sees it
-  // (support_grey_sigma, on grey scaled so its 99th percentile is 1) and by
-  // distance, so the centre's own surface decides, not the wall's other
-  // side. (Deciding measured cells beside steps the same way was tried and
-  // not adopted: decision D-063.)
-  double step_min_m = 2.0;          // [m] a rise beyond this within step_reach_cells is a step
-  int step_reach_cells = 3;         // [cells] measured ground this near keeps a filled cell at the ground
-  int support_radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
-  double support_grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
-  double step_cost_margin = 0.1;    // a cell changes side only for a cost this much lower (and <= max_cost)
-  // After filling, each filled cell (not from the coarse sweep) is scored
-  // at the ground (the terrain model) and at a roof (its fill where raised,
-  // else the lowest raised measured height in reach) with the same
-  // adaptive support weights, and takes the other side where that matches
-  // clearly better (step_min_m, step_cost_margin, max_cost); a cell filled
-  // at the ground with measured ground within step_reach_cells keeps it
-  // (beside a step the roof wins by fattening). The fill rules decide from
-  // geometry alone: holes in roofs that join the unmatched streets beside
-  // them took the terrain (decision D-096).
-  bool decide_filled_sides = true;
-  // (Pulling steps onto matched ground back by a cell after filling was
-  // tried and not adopted: decisions D-082 and D-083.)
+  DenseCoarseOptions coarse;
+  DenseSupportOptions support;
+  DenseStepOptions steps;
   // How holes are filled (FillHoles): run configuration keys dense.fill_*.
   HoleFillOptions fill;
-  // A second sweep that scores each height of a cell only with the pairs
-  // whose two views see that point, judged against the first sweep's
-  // surface (holes filled): beside a wall half the views see the ground and
-  // the other half the wall, and averaging them all favours the roof.
-  bool visibility_pass = true;
-  // Surface cells this near a cell (along the ray) do not hide it; -1 = the
-  // NCC window's radius. Beside a step they are the band that the windows
-  // fatten (ground at the roof's height), and counted as occluders they
-  // hid the ground under them from every view, so that the roof won there
-  // for want of a rival. 0 = every cell hides.
-  int visibility_near_cells = -1;
-  // A point counts as seen when the first surface rises at most this much
-  // above the ray toward the camera [m]: the first surface's own error.
-  double visibility_tolerance_m = 1.0;
-  // In the visibility pass only the measured surface and the occluded
-  // ground (filled with the terrain) hide what is behind them, not the
-  // holes the views see: a street between two roofs that the first sweep
-  // missed is filled at the roofs' height, and with that fill hiding it no
-  // view would see the street's own heights in the second sweep (D-062).
-  // Heights seen by few pairs get a noisy mean whose chance minima would
-  // win: the mean is taken as if this many more pairs had added the
-  // truncation cost.
-  double visibility_prior_pairs = 2.0;
+  DenseVisibilityOptions visibility;
   void Check() const;               // throws Error("dense", field, ...)
 };
 template <class IO> void Visit(IO& io, DenseOptions& o) {
@@ -146,21 +175,21 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("max_heights", o.max_heights,
      "Most candidate heights per sweep; longer ranges are swept in coarser steps (memory: cells x heights x 4 bytes)",
      range::AtLeast(2));
-  io("range_probe_above_m", o.range_probe_above_m,
+  io("range_probe_above_m", o.range_probe.above_m,
      "A coarse sweep up to this far above the tie points' height range looks for surfaces without tie points (a "
      "tower in coarse imagery) and raises the sweep's range to them; 0 = off", range::In(0, 5000));
-  io("range_probe_min_gsd_m", o.range_probe_min_gsd_m,
+  io("range_probe_min_gsd_m", o.range_probe.min_gsd_m,
      "The range probe runs only for imagery whose finest GSD is at least this (sub-metre imagery has tie points on "
      "its tall roofs)", range::AtLeast(0));
   io("window_cells", o.window_cells,
      "Side of the NCC window, odd", range::Odd(range::AtLeast(3)));
-  io("max_pairs", o.max_pairs,
+  io("max_pairs", o.pairs.max,
      "Image pairs used, most verified tie points first", range::AtLeast(1));
-  io("min_pair_matches", o.min_pair_matches,
+  io("min_pair_matches", o.pairs.min_matches,
      "Verified tie points an image pair needs to be considered", range::AtLeast(0));
-  io("min_pair_angle_deg", o.min_pair_angle_deg,
+  io("min_pair_angle_deg", o.pairs.min_angle_deg,
      "Pairs with a smaller intersection angle are not used (heights too weakly constrained)", range::AtLeast(0));
-  io("max_pair_angle_deg", o.max_pair_angle_deg,
+  io("max_pair_angle_deg", o.pairs.max_angle_deg,
      "Pairs with a larger intersection angle are not used (views too different to correlate)",
      range::AboveUpTo(0, 180));
   io("cost_truncation", o.cost_truncation,
@@ -168,9 +197,9 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("min_std", o.min_std,
      "Window standard deviation (of the normalized image) below which NCC is undefined and the pair adds the capped "
      "cost", range::Above(0));
-  io("sgm_p1", o.sgm_p1,
+  io("sgm_p1", o.sgm.p1,
      "SGM penalty for a one-step height change between neighbouring cells, in cost units", range::AtLeast(0));
-  io("sgm_p2", o.sgm_p2,
+  io("sgm_p2", o.sgm.p2,
      "SGM penalty for a larger height change (walls), in cost units", range::AtLeast(0));
   io("max_cost", o.max_cost,
      "Cells whose matching cost at the chosen height exceeds this get no height", range::Above(0));
@@ -178,25 +207,25 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Cells further than this from their 3x3 median get no height (speckle)", range::Above(0));
   io("fill_holes", o.fill_holes,
      "Fill cells without a height from their surroundings and the terrain model (filled cells are flagged)");
-  io("coarse_factor", o.coarse_factor,
+  io("coarse_factor", o.coarse.factor,
      "Before filling, holes get a second sweep on a grid this many times coarser, on images blurred to it; 1 = off",
      range::AtLeast(1));
-  io("coarse_window_cells", o.coarse_window_cells,
+  io("coarse_window_cells", o.coarse.window_cells,
      "NCC window side of the coarse sweep, in coarse cells, odd", range::Odd(range::AtLeast(3)));
-  io("step_min_m", o.step_min_m,
+  io("step_min_m", o.steps.min_m,
      "decide_filled_sides: a filled cell's roof side must stand more than this above its ground side", range::Above(0));
-  io("step_reach_cells", o.step_reach_cells,
+  io("step_reach_cells", o.steps.reach_cells,
      "decide_filled_sides: a cell filled at the ground with measured ground this near keeps the ground",
      range::AtLeast(1));
-  io("support_radius_cells", o.support_radius_cells,
+  io("support_radius_cells", o.support.radius_cells,
      "Radius of the adaptive support-weight window", range::AtLeast(1));
-  io("support_grey_sigma", o.support_grey_sigma,
+  io("support_grey_sigma", o.support.grey_sigma,
      "Grey difference at which a cell's support weight falls to 1/e (on grey scaled so that its 99th percentile is "
      "1)", range::Above(0));
-  io("step_cost_margin", o.step_cost_margin,
+  io("step_cost_margin", o.steps.cost_margin,
      "A cell changes side only when the other side's cost is lower by this much (and at most max_cost)",
      range::AtLeast(0));
-  io("decide_filled_sides", o.decide_filled_sides,
+  io("decide_filled_sides", o.steps.decide_filled_sides,
      "After filling, score each filled cell at the ground and at a roof, and let it take the other side where that "
      "matches clearly better");
   io("fill_radius_m", o.fill.radius_m,
@@ -240,15 +269,15 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("fill_roof_rim_min_m", o.fill.roof_rim_min_m,
      "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules",
      range::AtLeast(0));
-  io("visibility_pass", o.visibility_pass,
+  io("visibility_pass", o.visibility.pass,
      "Run a second sweep that scores each height only with the pairs whose two views see that point");
-  io("visibility_tolerance_m", o.visibility_tolerance_m,
+  io("visibility_tolerance_m", o.visibility.tolerance_m,
      "A point counts as seen when the first surface rises at most this much above its ray toward the camera",
      range::AtLeast(0));
-  io("visibility_near_cells", o.visibility_near_cells,
+  io("visibility_near_cells", o.visibility.near_cells,
      "Surface cells this near a cell along the ray do not hide it; -1 = the NCC window's radius, 0 = every cell "
      "hides", range::Or(range::AtLeast(0), -1, "the NCC window's radius"));
-  io("visibility_prior_pairs", o.visibility_prior_pairs,
+  io("visibility_prior_pairs", o.visibility.prior_pairs,
      "In the visibility pass, each height's mean cost is taken as if this many more pairs had added the capped cost",
      range::AtLeast(0));
 }

@@ -87,7 +87,7 @@ TEST(Dense, OptionsNameTheBadField) {
   o.cell_m = std::nan("");
   EXPECT_THROW(o.Check(), Error);
   o = DenseOptions{};
-  o.sgm_p2 = 0.01;
+  o.sgm.p2 = 0.01;
   EXPECT_THROW(o.Check(), Error);
   auto message = [](const DenseOptions& bad) -> std::string {
     try {
@@ -98,19 +98,19 @@ TEST(Dense, OptionsNameTheBadField) {
     return "accepted";
   };
   o = DenseOptions{};
-  o.support_grey_sigma = 0;
+  o.support.grey_sigma = 0;
   EXPECT_NE(message(o).find("support_grey_sigma"), std::string::npos) << message(o);
   o = DenseOptions{};
-  o.step_reach_cells = 0;
+  o.steps.reach_cells = 0;
   EXPECT_NE(message(o).find("step_reach_cells"), std::string::npos) << message(o);
   o = DenseOptions{};
-  o.visibility_near_cells = -2;
+  o.visibility.near_cells = -2;
   EXPECT_NE(message(o).find("visibility_near_cells"), std::string::npos) << message(o);
   o = DenseOptions{};
-  o.support_radius_cells = -1;
+  o.support.radius_cells = -1;
   EXPECT_NE(message(o).find("support_radius_cells"), std::string::npos) << message(o);
   o = DenseOptions{};
-  o.step_min_m = std::nan("");
+  o.steps.min_m = std::nan("");
   EXPECT_NE(message(o).find("step_min_m"), std::string::npos) << message(o);
 }
 
@@ -152,7 +152,7 @@ TEST(Dense, PairsAreChosenByAngleAndTiePoints) {
   ASSERT_EQ(kept.size(), 2u);
   EXPECT_EQ(kept[0].b, 3);  // 300 tie points before 100
   EXPECT_EQ(kept[1].b, 1);
-  o.max_pairs = 1;
+  o.pairs.max = 1;
   EXPECT_EQ(SelectDensePairs(o, views, pairs, Eigen::Vector3d::Zero()).size(), 1u);
   EXPECT_THROW(SelectDensePairs(o, views, {{0, 7, 100}}, Eigen::Vector3d::Zero()), Error);
 }
@@ -365,7 +365,7 @@ TEST(Dense, ARoofAboveEveryTiePointIsFoundByTheRangeProbe) {
   const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
   const std::vector<Eigen::Vector3d> ground_only = {{-28, -28, 0}, {28, -28, 0}, {-28, 28, 0}, {28, 28, 1}, {-20, 0, 0}};
   DenseOptions off;
-  off.range_probe_above_m = 0;
+  off.range_probe.above_m = 0;
   const DenseResult without = RunDenseHeights(off, views, pairs, ground_only, progress);
   ASSERT_EQ(without.report.status, StageStatus::kOk) << without.report.message;
   EXPECT_LT(without.report.metrics.at("height_max_m"), 1.0 + off.height_margin_m + 1e-9);
@@ -374,11 +374,11 @@ TEST(Dense, ARoofAboveEveryTiePointIsFoundByTheRangeProbe) {
   // (range_probe_min_gsd_m), and the report says so.
   const DenseResult by_default = RunDenseHeights(DenseOptions{}, views, pairs, ground_only, progress);
   ASSERT_EQ(by_default.report.status, StageStatus::kOk) << by_default.report.message;
-  EXPECT_LT(by_default.report.metrics.at("finest_gsd_m"), DenseOptions{}.range_probe_min_gsd_m);
+  EXPECT_LT(by_default.report.metrics.at("finest_gsd_m"), DenseOptions{}.range_probe.min_gsd_m);
   EXPECT_EQ(by_default.report.metrics.at("range_probe_ran"), 0.0);
   EXPECT_DOUBLE_EQ(by_default.report.metrics.at("height_max_m"), without.report.metrics.at("height_max_m"));
   DenseOptions probing;  // as for a coarse sensor
-  probing.range_probe_min_gsd_m = 0;
+  probing.range_probe.min_gsd_m = 0;
   const DenseResult with = RunDenseHeights(probing, views, pairs, ground_only, progress);
   ASSERT_EQ(with.report.status, StageStatus::kOk) << with.report.message;
   EXPECT_EQ(with.report.metrics.at("range_probe_ran"), 1.0);
@@ -427,9 +427,9 @@ TEST(Dense, ATiledRoofNoFineWindowMatchesIsMeasuredAtTheCoarseScale) {
   const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
   const std::vector<Eigen::Vector3d> points = {{-30, -30, 0}, {30, -30, 0}, {-30, 30, 0}, {30, 30, 0}, {0, 0, kRoofM}};
   DenseOptions o;
-  o.coarse_factor = 1;
+  o.coarse.factor = 1;
   const DenseResult fine_only = RunDenseHeights(o, views, pairs, points, progress);
-  o.coarse_factor = 3;
+  o.coarse.factor = 3;
   const DenseResult with_coarse = RunDenseHeights(o, views, pairs, points, progress);
   ASSERT_EQ(with_coarse.report.status, StageStatus::kOk) << with_coarse.report.message;
   // Share of the cells in a region (of those the fine sweep did not measure,
@@ -585,10 +585,10 @@ TEST(Dense, FilledCellsTakeTheSideTheViewsMatchBetter) {
   };
   auto run = [&](bool decide, const HeightGrid* compare) {
     DenseOptions o;
-    o.coarse_factor = 1;             // the patch stays a hole
+    o.coarse.factor = 1;             // the patch stays a hole
     o.fill.roof_rim_fraction = 0.0;  // and the fill takes the ground within reach
     o.fill.roof_enclosed = false;    // (the patch is enclosed by roof)
-    o.decide_filled_sides = decide;
+    o.steps.decide_filled_sides = decide;
     const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     const HeightGrid& g = r.grid;
@@ -631,7 +631,7 @@ TEST(Dense, TheFattenedBandBesideAStepDoesNotHideItsOwnGround) {
   auto measured = [&](int near_cells) {
     DenseOptions o;
     o.fill_holes = false;  // only what the sweeps measured
-    o.visibility_near_cells = near_cells;
+    o.visibility.near_cells = near_cells;
     const DenseResult r = RunDenseHeights(o, scene.views, scene.pairs, scene.points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     return r.grid;

@@ -24,7 +24,7 @@ struct SupportScratch {
 // the image or is not finite.
 bool SampleSupportWindow(const Sweep& s, std::size_t v, int i, int j, double height_m, float* out) {
   const HeightGrid& g = s.grid;
-  const int r = s.o.support_radius_cells, w = 2 * r + 1;
+  const int r = s.o.support.radius_cells, w = 2 * r + 1;
   const GreyImage& image = s.grey[v];
   for (int b = -r; b <= r; ++b)
     for (int a = -r; a <= r; ++a) {
@@ -47,9 +47,9 @@ bool SampleSupportWindow(const Sweep& s, std::size_t v, int i, int j, double hei
 // The window's support weights from the reference view's samples `ref`
 // (see above) into t.weights; returns their sum.
 float SupportWeights(const Sweep& s, const float* ref, SupportScratch& t) {
-  const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
+  const int r = s.o.support.radius_cells, w = 2 * r + 1, n = w * w;
   const float centre = ref[r * w + r];
-  const float inv_sigma = static_cast<float>(1.0 / s.o.support_grey_sigma);
+  const float inv_sigma = static_cast<float>(1.0 / s.o.support.grey_sigma);
   for (int b = -r; b <= r; ++b)
     for (int a = -r; a <= r; ++a) {
       const int q = (b + r) * w + (a + r);
@@ -96,7 +96,7 @@ void WeightedViewStatistics(const Sweep& s, int n, float inv_weight, SupportScra
 // view can serve as the reference.
 float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
                           const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
-  const int r = s.o.support_radius_cells, w = 2 * r + 1, n = w * w;
+  const int r = s.o.support.radius_cells, w = 2 * r + 1, n = w * w;
   const std::size_t views = s.grey.size();
   const std::size_t centre_cell = s.grid.Index(i, j);
   t.samples.resize(views * n);
@@ -127,7 +127,7 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
     const float covariance = sxy * inv_weight - t.mean[va] * t.mean[vb];
     sum += std::min(trunc, 1.0f - covariance * t.inv_std[va] * t.inv_std[vb]);
   }
-  const float prior = seen_above ? static_cast<float>(s.o.visibility_prior_pairs) : 0.0f;
+  const float prior = seen_above ? static_cast<float>(s.o.visibility.prior_pairs) : 0.0f;
   return count + prior > 0 ? (sum + prior * trunc) / (count + prior) : trunc;
 }
 
@@ -161,8 +161,8 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
                               const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
                               int reach_cells, std::vector<float>& height_m, Progress& progress) {
   const HeightGrid& g = s.grid;
-  const float step_min = static_cast<float>(s.o.step_min_m);
-  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.step_cost_margin);
+  const float step_min = static_cast<float>(s.o.steps.min_m);
+  const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.steps.cost_margin);
   // The measured heights raised above the ground, and their lowest within
   // the two reaches (the fill's first and largest, 5 and 20 m by default).
   std::vector<float> raised(measured_m.size(), kNan);
@@ -176,10 +176,10 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
   for (std::size_t k = 0; k < ground_cells.size(); ++k)
     if (std::abs(measured_m[k] - terrain_m[k]) <= step_min) ground_cells[k] = 0.0f;
   const std::vector<float> ground_near =
-      MinFilter(ground_cells, g.nx, g.ny, s.o.step_reach_cells, WindowEdge::kClip);
+      MinFilter(ground_cells, g.nx, g.ny, s.o.steps.reach_cells, WindowEdge::kClip);
   const std::vector<std::vector<float>> seen_above =
-      SeenAbove(g, measured_m, to_cameras, s.z_lo, s.o.visibility_tolerance_m,
-                s.o.visibility_near_cells >= 0 ? s.o.visibility_near_cells : s.o.window_cells / 2);
+      SeenAbove(g, measured_m, to_cameras, s.z_lo, s.o.visibility.tolerance_m,
+                s.o.visibility.near_cells >= 0 ? s.o.visibility.near_cells : s.o.window_cells / 2);
   progress.Begin("dense: deciding filled cells between ground and roof", g.ny);
   std::atomic<int> rows_done{0};
   std::atomic<std::size_t> changed{0};

@@ -282,7 +282,7 @@ void StripCosts(const Sweep& s, const std::vector<std::vector<float>>* seen_abov
                         b.inv_std.data(), nullptr, nullptr, g.nx, rows, r, trunc, t.sum.data(), nullptr,
                         t.ring.data());
   }
-  const float prior = static_cast<float>(s.o.visibility_prior_pairs);
+  const float prior = static_cast<float>(s.o.visibility.prior_pairs);
   const float inv_pairs = 1.0f / static_cast<float>(s.pairs.size());
   const std::size_t keep = static_cast<std::size_t>(j0 - s0) * g.nx;
   const std::size_t keep_n = static_cast<std::size_t>(j1 - j0) * g.nx;
@@ -344,7 +344,7 @@ CellHeights PickHeights(const Sweep& s, const std::vector<float>& cost, Progress
   const int nh = s.nh;
   progress.Begin("dense: semi-global matching", 0);
   const std::vector<float> total =
-      AggregateSgm(cost, g.nx, g.ny, nh, static_cast<float>(o.sgm_p1), static_cast<float>(o.sgm_p2));
+      AggregateSgm(cost, g.nx, g.ny, nh, static_cast<float>(o.sgm.p1), static_cast<float>(o.sgm.p2));
   progress.End();
   CellHeights out;
   out.height_m.assign(cells, kNan);
@@ -439,7 +439,7 @@ std::vector<float> CoarseSweepHeights(const Sweep& fine, const CoarseViews& view
   std::vector<float> out(fine.Cells(), kNan);
   const HeightGrid c = CoarseGrid(g, f);
   DenseOptions coarse_options = fine.o;
-  coarse_options.window_cells = fine.o.coarse_window_cells;
+  coarse_options.window_cells = fine.o.coarse.window_cells;
   if (c.nx <= coarse_options.window_cells || c.ny <= coarse_options.window_cells) return out;
   const Sweep coarse{coarse_options, c, fine.z_lo, fine.step_m, fine.nh, fine.pairs, fine.slot, views.grey, fine.projection};
   const std::vector<float> cost = CostVolume(coarse, nullptr, "dense: sweeping holes at a coarser scale", progress);
@@ -465,7 +465,7 @@ std::optional<double> ProbeTopHeight(const Sweep& fine, const CoarseViews& views
                                      Progress& progress) {
   const HeightGrid c = CoarseGrid(fine.grid, views.factor);
   DenseOptions probe_options = fine.o;
-  probe_options.window_cells = fine.o.coarse_window_cells;
+  probe_options.window_cells = fine.o.coarse.window_cells;
   if (c.nx <= probe_options.window_cells || c.ny <= probe_options.window_cells) return std::nullopt;
   // Half a coarse cell per step: a pair 20 deg apart shifts a fifth of a
   // coarse cell per step, enough to find a surface that the fine sweep

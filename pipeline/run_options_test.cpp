@@ -36,7 +36,7 @@ TEST(RunOptions, DefaultsPassTheirCheckAndAreTheStagesOwnDefaults) {
   const RunOptions o;
   EXPECT_NO_THROW(o.Check());
   // One place per default: the run's sections are the stages' own structs.
-  EXPECT_EQ(o.dense.sgm_p2, DenseOptions{}.sgm_p2);
+  EXPECT_EQ(o.dense.sgm.p2, DenseOptions{}.sgm.p2);
   EXPECT_EQ(o.train.optimizer.iterations, TrainOptions{}.iterations);
   EXPECT_EQ(o.tiling.tile_m, TilingOptions{}.tile_m);
   const json doc = json::parse(RunOptionsToJson(o));
@@ -50,7 +50,7 @@ TEST(RunOptions, JsonRoundTripKeepsEveryChangedField) {
   RunOptions o;
   o.tiling.tile_m = 300;
   o.sfm.features.max_features = 1234;
-  o.dense.visibility_pass = false;
+  o.dense.visibility.pass = false;
   o.train.optimizer.appearance.hidden = 64;
   o.train.optimizer.raster.background = Eigen::Vector3d(0.25, 0.5, 1);
   o.train.optimizer.seed = 18446744073709551615ull;  // the largest seed survives JSON
@@ -68,7 +68,7 @@ TEST(RunOptions, JsonRoundTripKeepsEveryChangedField) {
 
 TEST(RunOptions, MissingFieldsKeepTheirDefaults) {
   const RunOptions o = RunOptionsFromJson(R"({"dense": {"sgm_p2": 1.5}})", "partial.json");
-  EXPECT_EQ(o.dense.sgm_p2, 1.5);
+  EXPECT_EQ(o.dense.sgm.p2, 1.5);
   EXPECT_EQ(o.dense.cell_m, DenseOptions{}.cell_m);
   EXPECT_EQ(RunOptionsToJson(RunOptionsFromJson("{}", "empty.json")), RunOptionsToJson(RunOptions{}));
 }
@@ -139,7 +139,7 @@ TEST(RunOptions, SetReachesAnyFieldByItsPath) {
   SetRunOption(&o, "train.appearance_model.hidden=64");
   SetRunOption(&o, "merge.lod.max_levels=3");
   SetRunOption(&o, "train.raster.background=[1,1,1]");
-  EXPECT_EQ(o.dense.sgm_p2, 1.5);
+  EXPECT_EQ(o.dense.sgm.p2, 1.5);
   EXPECT_EQ(o.train.depth_prior, "none");
   EXPECT_EQ(o.train.optimizer.appearance.hidden, 64);
   EXPECT_EQ(o.merge.lod.max_levels, 3);
@@ -155,7 +155,7 @@ TEST(RunOptions, TileOptionsFollowWhatDecidesATilesProducts) {
   const RunOptions base;
   RunOptions trained = base, dense = base, executed = base, merged = base;
   trained.train.optimizer.iterations += 1;
-  dense.dense.sgm_p1 *= 2;
+  dense.dense.sgm.p1 *= 2;
   executed.executor.jobs = 7;
   merged.merge.stitch.voxel_m = 2;
   EXPECT_NE(TileOptionsJson(trained), TileOptionsJson(base));

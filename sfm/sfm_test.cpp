@@ -187,13 +187,13 @@ TEST(Sfm, DenseHeightsFollowTheSyntheticSurface) {
     f.mean_dz_all = sum_all / static_cast<double>(with_height);
     std::printf("[figures] synthetic dense heights (visibility pass %s): %d x %d cells, %.0f pairs, %.1f%% of the AOI "
                 "with a height, median |dz| %.3f m, %.1f%% within 1 m; mean |dz| with filled cells %.3f m; %.1f s\n",
-                options.visibility_pass ? "on" : "off", g.nx, g.ny, r.report.metrics.at("pairs"), 100 * f.valid,
+                options.visibility.pass ? "on" : "off", g.nx, g.ny, r.report.metrics.at("pairs"), 100 * f.valid,
                 f.median_dz, 100 * f.within_1m, f.mean_dz_all, f.seconds);
     return f;
   };
   const Figures with = measure(DenseOptions{});
   DenseOptions one_pass;
-  one_pass.visibility_pass = false;
+  one_pass.visibility.pass = false;
   const Figures without = measure(one_pass);
   // Tolerances: a height step is 0.25 m and the truth is sampled at the cell
   // centre while the cell's window spans 2.5 m, so walls blur over a window;
