@@ -170,8 +170,8 @@ TEST(RunOptions, TrainCheckpointStampHoldsEveryTrainingOption) {
   // under another value resume the old run's checkpoint.
   const RunOptions base;
   RunOptions rate = base, weight = base, when = base;
-  rate.train.optimizer.lr_mean_initial *= 0.25;
-  weight.train.optimizer.lambda_surface_height = 0;
+  rate.train.optimizer.lr.mean_initial *= 0.25;
+  weight.train.optimizer.surface.lambda_height = 0;
   when.train.optimizer.checkpoint_interval = 7;
   when.train.optimizer.eval_interval = 3;
   when.train.optimizer.keep_snapshots = true;

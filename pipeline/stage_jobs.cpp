@@ -327,7 +327,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   DenseCells dense;
   if (decided.dense_start) {
     dense = ReadDenseCells(dense_path.string());
-    if (options.lambda_surface_depth > 0 || options.lambda_surface_alpha > 0)
+    if (options.surface.lambda_depth > 0 || options.surface.lambda_alpha > 0)
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
                                                     AnchorCellWeights(dense, stage.anchor));
     ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);

@@ -99,13 +99,13 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
   ++adam.step;
   const AdamStepScale scale = ScaleAtStep(adam.step);
   AdamField(c.means, adam.m.means, adam.v.means, g.means, lr_mean, scale);
-  AdamField(c.log_scales, adam.m.log_scales, adam.v.log_scales, g.log_scales, o.lr_scale, scale);
-  AdamField(c.rotations, adam.m.rotations, adam.v.rotations, g.rotations, o.lr_rotation, scale);
-  AdamField(c.opacity_logits, adam.m.opacity_logits, adam.v.opacity_logits, g.opacity_logits, o.lr_opacity, scale);
+  AdamField(c.log_scales, adam.m.log_scales, adam.v.log_scales, g.log_scales, o.lr.scale, scale);
+  AdamField(c.rotations, adam.m.rotations, adam.v.rotations, g.rotations, o.lr.rotation, scale);
+  AdamField(c.opacity_logits, adam.m.opacity_logits, adam.v.opacity_logits, g.opacity_logits, o.lr.opacity, scale);
   // SH: per channel, 4 coefficients, the degree-0 one at its own rate.
   static_assert(kShCoeffsPerChannel == 4, "the rate pattern below has period 4");
-  const float step_dc = static_cast<float>(o.lr_sh_dc) * scale.step_per_lr;
-  const float step_rest = static_cast<float>(o.lr_sh_rest) * scale.step_per_lr;
+  const float step_dc = static_cast<float>(o.lr.sh_dc) * scale.step_per_lr;
+  const float step_rest = static_cast<float>(o.lr.sh_rest) * scale.step_per_lr;
   AdamParallel(Flat(c.sh), Flat(adam.m.sh), Flat(adam.v.sh), Flat(g.sh), FlatSize(c.sh), scale.inv_sqrt_bc2,
                [step_dc, step_rest](std::size_t j) { return j % 4 == 0 ? step_dc : step_rest; });
 }

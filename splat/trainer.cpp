@@ -60,7 +60,7 @@ void AddGeometryGradients(const GaussianGradients<float>& extra, const RasterSta
 // relative to the render's reference depth).
 double SurfaceAnchorLoss(const RenderOutput<float>& r, const DepthMap& surface, const TrainOptions& o,
                          std::vector<float>* d_alpha, std::vector<float>* d_depth) {
-  const SurfaceAnchorOptions anchor{o.lambda_surface_depth, o.lambda_surface_alpha, o.surface_huber_m};
+  const SurfaceAnchorOptions anchor{o.surface.lambda_depth, o.surface.lambda_alpha, o.surface.huber_m};
   return SurfaceAnchorLoss(r.depth, r.alpha, surface.depth, surface.valid, anchor, d_depth, d_alpha,
                            surface.weight.empty() ? nullptr : &surface.weight);
 }
@@ -79,7 +79,7 @@ double SurfaceHeightTerm(const SurfaceDepthPrior& surface, const GaussianCloud& 
       weight[i] = surface.WeightAt(m.x(), m.y());
     }
   });
-  const double loss = SurfaceHeightLoss(z, height, {o.lambda_surface_height, o.surface_height_band_m}, &d_z, &weight);
+  const double loss = SurfaceHeightLoss(z, height, {o.surface.lambda_height, o.surface.height_band_m}, &d_z, &weight);
   for (std::size_t i = 0; i < n; ++i) d->means[i].z() += d_z[i];
   return loss;
 }
@@ -162,16 +162,16 @@ void TrainOptions::Check() const {
   need(iterations >= 1, "iterations", iterations);
   need(lambda_dssim >= 0 && lambda_dssim <= 1, "lambda_dssim", lambda_dssim);
   need(lambda_opacity >= 0, "lambda_opacity", lambda_opacity);
-  need(lambda_surface_depth >= 0, "lambda_surface_depth", lambda_surface_depth);
-  need(lambda_surface_alpha >= 0, "lambda_surface_alpha", lambda_surface_alpha);
-  need(surface_huber_m > 0, "surface_huber_m", surface_huber_m);
-  need(lambda_surface_height >= 0, "lambda_surface_height", lambda_surface_height);
-  need(surface_height_band_m > 0, "surface_height_band_m", surface_height_band_m);
-  need(surface_nadir_interval >= 0, "surface_nadir_interval", surface_nadir_interval);
-  need(surface_nadir_size_px >= 16, "surface_nadir_size_px", surface_nadir_size_px);
-  need(surface_nadir_gsd_m > 0, "surface_nadir_gsd_m", surface_nadir_gsd_m);
-  for (double lr : {lr_mean_initial, lr_mean_final, lr_scale, lr_rotation, lr_opacity, lr_sh_dc, lr_sh_rest})
-    need(lr > 0 && std::isfinite(lr), "learning rate", lr);
+  need(surface.lambda_depth >= 0, "lambda_surface_depth", surface.lambda_depth);
+  need(surface.lambda_alpha >= 0, "lambda_surface_alpha", surface.lambda_alpha);
+  need(surface.huber_m > 0, "surface_huber_m", surface.huber_m);
+  need(surface.lambda_height >= 0, "lambda_surface_height", surface.lambda_height);
+  need(surface.height_band_m > 0, "surface_height_band_m", surface.height_band_m);
+  need(surface.nadir_interval >= 0, "surface_nadir_interval", surface.nadir_interval);
+  need(surface.nadir_size_px >= 16, "surface_nadir_size_px", surface.nadir_size_px);
+  need(surface.nadir_gsd_m > 0, "surface_nadir_gsd_m", surface.nadir_gsd_m);
+  for (double rate : {lr.mean_initial, lr.mean_final, lr.scale, lr.rotation, lr.opacity, lr.sh_dc, lr.sh_rest})
+    need(rate > 0 && std::isfinite(rate), "learning rate", rate);
   density.Check();
   need(eval_interval >= 1, "eval_interval", eval_interval);
   need(opacity_reg_from >= 0, "opacity_reg_from", opacity_reg_from);
@@ -420,7 +420,7 @@ class TrainingRun {
       s.loss = std::numeric_limits<double>::quiet_NaN();
       result_.series.push_back(s);
     }
-    anchored_ = surface_ && (o_.lambda_surface_depth > 0 || o_.lambda_surface_alpha > 0);
+    anchored_ = surface_ && (o_.surface.lambda_depth > 0 || o_.surface.lambda_alpha > 0);
     surface_depth_.resize(views_.size());
     if (anchored_) {
       tbb::parallel_for(std::size_t{0}, ids_.train.size(), [&](std::size_t k) {
@@ -554,15 +554,15 @@ class TrainingRun {
       for (std::size_t i = 0; i < cloud_.size(); ++i)
         g->d.opacity_logits[i] += static_cast<float>(o_.lambda_opacity) * d_op[i];
     }
-    if (surface_ && o_.lambda_surface_height > 0) loss += SurfaceHeightTerm(*surface_, cloud_, o_, &g->d);
+    if (surface_ && o_.surface.lambda_height > 0) loss += SurfaceHeightTerm(*surface_, cloud_, o_, &g->d);
     phase_.Lap(kLoss);
-    if (anchored_ && o_.surface_nadir_interval > 0 && it % o_.surface_nadir_interval == 0) {
+    if (anchored_ && o_.surface.nadir_interval > 0 && it % o_.surface.nadir_interval == 0) {
       // A nadir patch around a look-at point drawn like the pseudo views'.
       std::mt19937_64 pick(0xA11C0000ull + static_cast<std::uint64_t>(it));
       std::normal_distribution<double> offset(0.0, o_.pseudo.look_at_sigma_m);
       const Eigen::Vector3d look_at = scene_centre_ + Eigen::Vector3d(offset(pick), offset(pick), 0.0);
       constexpr double kNadirHeightM = 1.0e5;  // far: rays tilt < 0.1 deg over the patch
-      const PinholeCamera nadir = NadirCamera(look_at, o_.surface_nadir_gsd_m, o_.surface_nadir_size_px, kNadirHeightM);
+      const PinholeCamera nadir = NadirCamera(look_at, o_.surface.nadir_gsd_m, o_.surface.nadir_size_px, kNadirHeightM);
       const RenderOutput<float> nr = RenderGaussians(cloud_, nadir, o_.raster);
       const DepthMap target = surface_->NadirDepthRelativeTo(nadir, nr.reference_depth_m);
       std::vector<float> n_alpha, n_depth;
@@ -587,7 +587,7 @@ class TrainingRun {
   // decaying exponentially; Gaussians with a non-finite gradient skip it.
   void Optimize(int it, StepGradients* s) {
     const double t = static_cast<double>(it) / o_.iterations;
-    const double lr_mean = extent_ * std::exp((1 - t) * std::log(o_.lr_mean_initial) + t * std::log(o_.lr_mean_final));
+    const double lr_mean = extent_ * std::exp((1 - t) * std::log(o_.lr.mean_initial) + t * std::log(o_.lr.mean_final));
     s->dropped += DropNonFiniteGradients(&s->g);  // and those the regularizer views added
     if (s->dropped > 0) {
       if (nonfinite_steps_ == 0) {

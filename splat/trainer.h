@@ -47,6 +47,46 @@ struct TrainView {
 // without a time count as one unknown date.
 int DistinctAcquisitionDates(const std::vector<TrainView>& views);
 
+// Adam learning rates (3DGS defaults; scaling 0.001 as in the paper).
+struct TrainLearningRates {
+  double mean_initial = 1.6e-4;  // times the scene extent; decays exponentially...
+  double mean_final = 1.6e-6;    // ...to this, times the extent
+  // A larger rate renders held-out views better over 1000 steps but does
+  // not keep the DSM's accuracy across scenes: the DSM comes first
+  // (decision D-085).
+  double scale = 0.001;
+  double rotation = 0.001;
+  double opacity = 0.05;
+  double sh_dc = 0.0025;
+  double sh_rest = 0.0025 / 20;
+};
+
+// Anchoring to a known surface (needs a surface, e.g. the dense heights): on
+// every training view, lambda_depth times the Huber loss (scale huber_m) of
+// the expected depth against the surface's depth, and lambda_alpha times
+// (1 - accumulated opacity), both averaged over the pixels that see the
+// surface. The photometric loss alone lets Gaussians drift off the surface
+// and fade (the DSM then loses accuracy and completeness); the Pearson depth
+// loss cannot hold absolute heights.
+struct TrainSurfaceOptions {
+  double lambda_depth = 1.0;  // per metre of depth error
+  double lambda_alpha = 0.5;
+  double huber_m = 1.0;       // [m] errors beyond this count linearly
+  // And each Gaussian whose centre is within height_band_m of the surface
+  // height below it: lambda_height times half its squared height error
+  // (SurfaceHeightLoss), weighted like the anchor's depth. The anchor holds
+  // the blend of a pixel's Gaussians, not each centre, and the DSM is read
+  // from centres (decision D-046).
+  double lambda_height = 10.0;  // per m^2, averaged over the Gaussians
+  double height_band_m = 1.0;
+  // Every this many iterations the anchor also holds a nadir view of a patch
+  // (the view the DSM is exported from; the satellite views alone leave its
+  // coverage free to thin out): 0 = never.
+  int nadir_interval = 2;
+  int nadir_size_px = 192;
+  double nadir_gsd_m = 0.5;
+};
+
 struct TrainOptions {
   int iterations = 1000;
   std::uint64_t seed = 1;
@@ -56,17 +96,7 @@ struct TrainOptions {
   // Gaussians' opacities (they start at 0.1, nearer the 0 pole): from the
   // first iteration it would drive every opacity to 0.
   int opacity_reg_from = 1000;
-  // Adam learning rates (3DGS defaults; scaling 0.001 as in the paper).
-  double lr_mean_initial = 1.6e-4;  // times the scene extent; decays exponentially...
-  double lr_mean_final = 1.6e-6;    // ...to this, times the extent
-  // A larger rate renders held-out views better over 1000 steps but does
-  // not keep the DSM's accuracy across scenes: the DSM comes first
-  // (decision D-085).
-  double lr_scale = 0.001;
-  double lr_rotation = 0.001;
-  double lr_opacity = 0.05;
-  double lr_sh_dc = 0.0025;
-  double lr_sh_rest = 0.0025 / 20;
+  TrainLearningRates lr;
   DensityControlOptions density;  // adaptive density control (clone, split, prune)
   // Bookkeeping.
   int eval_interval = 250;        // held-out PSNR into the report
@@ -79,29 +109,7 @@ struct TrainOptions {
   double lambda_depth = 0.5;
   int pseudo_interval = 4;  // 0 disables; needs a DepthPrior to take effect
   PseudoCameraOptions pseudo;
-  // Anchoring to a known surface (needs a surface, e.g. the dense heights):
-  // on every training view, lambda_surface_depth times the Huber loss (scale
-  // surface_huber_m) of the expected depth against the surface's depth, and
-  // lambda_surface_alpha times (1 - accumulated opacity), both averaged over
-  // the pixels that see the surface. The photometric loss alone lets
-  // Gaussians drift off the surface and fade (the DSM then loses accuracy
-  // and completeness); the Pearson depth loss cannot hold absolute heights.
-  double lambda_surface_depth = 1.0;   // per metre of depth error
-  double lambda_surface_alpha = 0.5;
-  double surface_huber_m = 1.0;        // [m] errors beyond this count linearly
-  // And each Gaussian whose centre is within surface_height_band_m of the
-  // surface height below it: lambda_surface_height times half its squared
-  // height error (SurfaceHeightLoss), weighted like the anchor's depth.
-  // The anchor holds the blend of a pixel's Gaussians, not each centre, and
-  // the DSM is read from centres (decision D-046).
-  double lambda_surface_height = 10.0;  // per m^2, averaged over the Gaussians
-  double surface_height_band_m = 1.0;
-  // Every this many iterations the anchor also holds a nadir view of a patch
-  // (the view the DSM is exported from; the satellite views alone leave its
-  // coverage free to thin out): 0 = never.
-  int surface_nadir_interval = 2;
-  int surface_nadir_size_px = 192;
-  double surface_nadir_gsd_m = 0.5;
+  TrainSurfaceOptions surface;  // holding the Gaussians to a known surface (the dense heights)
   // Synthesis stage: the share of iterations that draw a synthetic view
   // when there are any (paper: 75 % refined views, 25 % satellite views),
   // and the weight of the Pearson depth loss on views with a depth target.

@@ -292,8 +292,8 @@ TEST(Trainer, SurfaceHeightTermHoldsCentresOnTheSurface) {
     TrainOptions o = ShortRun(60);
     o.density.from_step = o.iterations + 1;
     o.lambda_opacity = 0;
-    o.lambda_surface_depth = o.lambda_surface_alpha = 0;  // the term alone
-    o.lambda_surface_height = lambda;
+    o.surface.lambda_depth = o.surface.lambda_alpha = 0;  // the term alone
+    o.surface.lambda_height = lambda;
     return TrainGaussians(o, scattered, f.views, "", progress, nullptr, &surface).cloud;
   };
   const double before = off_surface_m(scattered), without = off_surface_m(run(0.0)), with = off_surface_m(run(10.0));
@@ -302,7 +302,7 @@ TEST(Trainer, SurfaceHeightTermHoldsCentresOnTheSurface) {
   EXPECT_GT(without, 0.8 * before);
   EXPECT_LT(with, 0.5 * without);
   TrainOptions bad = ShortRun(1);
-  bad.surface_height_band_m = 0;
+  bad.surface.height_band_m = 0;
   EXPECT_THROW(TrainGaussians(bad, scattered, f.views, "", progress, nullptr, &surface), Error);
 }
 

@@ -380,7 +380,7 @@ TEST(Idu, EpisodesCheckpointAndAKilledRunResumesAfterTheLastFinishedOne) {
   std::vector<TrainView> satellite = {NadirSatellite(0.5, 64)};
   ReprojectRefiner reproject(satellite, ReprojectOptions{});
   TrainOptions train;
-  train.lambda_surface_depth = train.lambda_surface_alpha = 0;
+  train.surface.lambda_depth = train.surface.lambda_alpha = 0;
   const IduOptions o = TinyIdu();
   const GroundBox core = Box(-16, -16, 16, 16);
   auto flat = [](double, double) { return 0.0; };
@@ -420,7 +420,7 @@ TEST(Idu, HolesWhereTheHeightFieldHasASurfaceGetGaussiansOfTheRefinedColour) {
   std::vector<TrainView> satellite = {NadirSatellite(0.5, 64)};
   ReprojectRefiner reproject(satellite, ReprojectOptions{}, RasterOptions{}, &surface);
   TrainOptions train;
-  train.lambda_surface_depth = train.lambda_surface_alpha = 0;
+  train.surface.lambda_depth = train.surface.lambda_alpha = 0;
   IduOptions o = TinyIdu();
   o.orbit.episodes = 1;
   o.fill_voxel_m = 1.0;
