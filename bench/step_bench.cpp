@@ -75,7 +75,7 @@ int Main(int argc, char** argv) {
   o.eval_interval = 1000000;      // the one evaluation at the end is excluded below
   o.density.from_step = 1000000;       // densification is not part of a step
   o.appearance.enabled = args.appearance != "off";
-  if (o.appearance.enabled) o.appearance.model = args.appearance;
+  if (o.appearance.enabled) o.appearance.model = *EnumFromName<AppearanceModelKind>(args.appearance);  // checked above
   NullProgress progress;
   const TrainResult r = TrainGaussians(o, cloud, views, "", progress, &surface, &surface);
   const StepProfile& p = r.profile;

@@ -105,7 +105,7 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
                    {"appearance_model", o.appearance.enabled},
                    {"pseudo_camera_depth", o.pseudo_interval > 0}}},
       {"appearance", {{"reason", appearance_reason},
-                      {"model", o.appearance.enabled ? nlohmann::json(o.appearance.model) : nlohmann::json()},
+                      {"model", o.appearance.enabled ? nlohmann::json(EnumName(o.appearance.model)) : nlohmann::json()},
                       {"fused_image", r.appearance_image.empty() ? nlohmann::json() : nlohmann::json(r.appearance_image)}}},
       {"held_out", HeldOutJson(r.held_out)},
       {"step_ms", StepMsJson(r.profile)},

@@ -280,7 +280,6 @@ Vec<T> BackwardBilinear(const AppearanceModelT<T>& m, const Vec<T>& embedding, c
 
 void AppearanceOptions::Check() const {
   CheckOptionRanges(*this, "appearance");
-  if (model != "mlp" && model != "bilinear") throw Error("appearance", "model", "'" + model + "' is not 'mlp' or 'bilinear'");
 }
 
 template <typename T>
@@ -319,7 +318,7 @@ AppearanceModel InitAppearance(const AppearanceOptions& o, int images, std::size
                                             1.0f / std::sqrt(static_cast<float>(fan_in)));
     return Eigen::MatrixXf(Eigen::MatrixXf::NullaryExpr(rows, cols, [&] { return u(rng); }));
   };
-  if (o.model == "bilinear") {
+  if (o.model == AppearanceModelKind::kBilinear) {
     const int out = 6 * (o.gaussian_dim + 4);
     m.w1 = uniform(o.hidden, o.image_dim, o.image_dim);
     m.b1 = uniform(o.hidden, 1, o.image_dim);

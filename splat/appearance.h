@@ -26,14 +26,23 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_codec.h"
 #include "core/gaussians.h"
 #include "core/option_range.h"
 
 namespace skyfall {
 
+// Which appearance network (see above).
+enum class AppearanceModelKind { kMlp, kBilinear };
+template <>
+struct EnumNames<AppearanceModelKind> {
+  static constexpr std::array<std::pair<AppearanceModelKind, const char*>, 2> kNames = {
+      {{AppearanceModelKind::kMlp, "mlp"}, {AppearanceModelKind::kBilinear, "bilinear"}}};
+};
+
 struct AppearanceOptions {
   bool enabled = false;
-  std::string model = "mlp";  // "mlp" or "bilinear" (see above)
+  AppearanceModelKind model = AppearanceModelKind::kMlp;
   int image_dim = 32;        // per-image embedding size (paper: 32)
   int gaussian_dim = 24;     // per-Gaussian embedding size (paper: 24)
   // Width of the hidden layers. The paper has 2 x 128; 32 gives about the

@@ -55,7 +55,7 @@ Cloud SmallCloud(int n, std::uint64_t seed) {
 // identity start, so every weight has a gradient).
 Model RandomModel(int gaussians, std::uint64_t seed, const std::string& kind) {
   AppearanceOptions o;
-  o.model = kind;
+  o.model = *EnumFromName<AppearanceModelKind>(kind);
   o.image_dim = 5;
   o.gaussian_dim = 4;
   o.hidden = 16;
@@ -149,7 +149,7 @@ TEST(Appearance, FreshModelIsTheIdentityTransform) {
   EXPECT_EQ(m.w2.rows(), 32);
   EXPECT_STREQ(m.kind(), "mlp");
   AppearanceOptions bilinear;
-  bilinear.model = "bilinear";
+  bilinear.model = AppearanceModelKind::kBilinear;
   const AppearanceModel b = InitAppearance(bilinear, 4, cloud.size(), 3);
   EXPECT_STREQ(b.kind(), "bilinear");
   EXPECT_EQ(b.w1.cols(), 32);

@@ -400,7 +400,7 @@ class TrainingRun {
     loss_count_ = static_cast<int>(ck.loss_count);
     if (ck.appearance.enabled != o_.appearance.enabled ||
         (ck.appearance.enabled && (ck.appearance.model.image_embeddings.cols() != static_cast<Eigen::Index>(views_.size()) ||
-                                   ck.appearance.model.kind() != o_.appearance.model))) {
+                                   std::string(ck.appearance.model.kind()) != EnumName(o_.appearance.model)))) {
       throw Error("train", ck_path,
                   "was written with different appearance-model settings (on/off, model or image count); delete it to "
                   "start again");
