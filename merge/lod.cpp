@@ -47,74 +47,105 @@ bool MergeGaussians(const GaussianCloud& cloud, const std::vector<std::size_t>& 
   return wanted_opacity <= kMaxOpacity;
 }
 
-std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& finest) {
+namespace {
+
+// The level's count and the bounds of its means.
+void Measure(const GaussianCloud& cloud, LodLevel* l) {
+  l->count = cloud.size();
+  l->min_m = Eigen::Vector3d::Constant(1e300);
+  l->max_m = -l->min_m;
+  for (const auto& p : cloud.means) {
+    l->min_m = l->min_m.cwiseMin(p.cast<double>());
+    l->max_m = l->max_m.cwiseMax(p.cast<double>());
+  }
+  if (cloud.size() == 0) l->min_m = l->max_m = Eigen::Vector3d::Zero();
+}
+
+// `prev` merged by voxels of `voxel_m`; parent[i]: the merged Gaussian that
+// stands in for prev's Gaussian i. Grouped by sorted (voxel key, index), a
+// deterministic order; doubling grids anchored at 0 nest, so a voxel's
+// members stay in one coarser voxel.
+LodLevel MergeByVoxel(const GaussianCloud& prev, double voxel_m, std::vector<std::size_t>* parent) {
+  std::vector<std::pair<std::array<std::int64_t, 3>, std::size_t>> keyed(prev.size());
+  for (std::size_t i = 0; i < prev.size(); ++i) {
+    std::array<std::int64_t, 3> key;
+    for (int a = 0; a < 3; ++a) key[a] = static_cast<std::int64_t>(std::floor(prev.means[i][a] / voxel_m));
+    keyed[i] = {key, i};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  LodLevel level;
+  level.voxel_m = voxel_m;
+  parent->assign(prev.size(), 0);
+  for (std::size_t a = 0; a < keyed.size();) {
+    std::size_t b = a;
+    std::vector<std::size_t> members;
+    while (b < keyed.size() && keyed[b].first == keyed[a].first) members.push_back(keyed[b++].second);
+    for (std::size_t i : members) (*parent)[i] = level.cloud.size();
+    level.saturated += !MergeGaussians(prev, members, &level.cloud);
+    a = b;
+  }
+  return level;
+}
+
+}  // namespace
+
+void BuildLodLevels(const LodOptions& options, const GaussianCloud& finest, const LodSink& emit) {
   options.Check();
-  auto bounds = [](LodLevel* l) {
-    l->min_m = Eigen::Vector3d::Constant(1e300);
-    l->max_m = -l->min_m;
-    for (const auto& p : l->cloud.means) {
-      l->min_m = l->min_m.cwiseMin(p.cast<double>());
-      l->max_m = l->max_m.cwiseMax(p.cast<double>());
-    }
-    if (l->cloud.size() == 0) l->min_m = l->max_m = Eigen::Vector3d::Zero();
-  };
-  std::vector<LodLevel> levels(1);
-  levels[0].cloud = finest;
-  bounds(&levels[0]);
+  LodLevel base;
+  Measure(finest, &base);
+  emit(base, finest);
   // representative[i]: index, in the current level, of finest Gaussian i's stand-in.
   std::vector<std::size_t> representative(finest.size());
   for (std::size_t i = 0; i < finest.size(); ++i) representative[i] = i;
 
-  const double extent_m = (levels[0].max_m - levels[0].min_m).norm();
+  const double extent_m = (base.max_m - base.min_m).norm();
+  GaussianCloud previous;  // the last level handed on, once there is one
+  const GaussianCloud* prev = &finest;
   double voxel_m = options.base_voxel_m;
+  std::vector<std::size_t> parent;
   for (int k = 1; k <= options.max_levels; voxel_m *= 2) {
-    const GaussianCloud& prev = levels.back().cloud;
-    if (prev.size() <= options.min_gaussians || voxel_m > 2 * extent_m + options.base_voxel_m) break;
-    // Group by voxel: sort (voxel key, index); deterministic order. Doubling
-    // grids anchored at 0 nest, so a voxel's members stay in one coarser voxel.
-    std::vector<std::pair<std::array<std::int64_t, 3>, std::size_t>> keyed(prev.size());
-    for (std::size_t i = 0; i < prev.size(); ++i) {
-      std::array<std::int64_t, 3> key;
-      for (int a = 0; a < 3; ++a) key[a] = static_cast<std::int64_t>(std::floor(prev.means[i][a] / voxel_m));
-      keyed[i] = {key, i};
-    }
-    std::sort(keyed.begin(), keyed.end());
-    LodLevel level;
+    if (prev->size() <= options.min_gaussians || voxel_m > 2 * extent_m + options.base_voxel_m) break;
+    LodLevel level = MergeByVoxel(*prev, voxel_m, &parent);
     level.level = k;
-    level.voxel_m = voxel_m;
-    std::vector<std::size_t> parent(prev.size());
-    for (std::size_t a = 0; a < keyed.size();) {
-      std::size_t b = a;
-      std::vector<std::size_t> members;
-      while (b < keyed.size() && keyed[b].first == keyed[a].first) members.push_back(keyed[b++].second);
-      for (std::size_t i : members) parent[i] = level.cloud.size();
-      level.saturated += !MergeGaussians(prev, members, &level.cloud);
-      a = b;
-    }
     // Too little simplification at this voxel size: try the next one.
-    if (static_cast<double>(level.cloud.size()) > options.min_reduction * prev.size()) continue;
+    if (static_cast<double>(level.cloud.size()) > options.min_reduction * prev->size()) continue;
     for (std::size_t i = 0; i < finest.size(); ++i) {
       representative[i] = parent[representative[i]];
       const double d = (finest.means[i] - level.cloud.means[representative[i]]).cast<double>().norm();
       level.geometric_error_m = std::max(level.geometric_error_m, d);
     }
-    bounds(&level);
-    levels.push_back(std::move(level));
+    Measure(level.cloud, &level);
+    emit(level, level.cloud);
+    previous = std::move(level.cloud);
+    prev = &previous;
     ++k;
   }
+}
+
+std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& finest) {
+  std::vector<LodLevel> levels;
+  BuildLodLevels(options, finest, [&](const LodLevel& level, const GaussianCloud& cloud) {
+    levels.push_back(level);
+    if (&cloud != &level.cloud) levels.back().cloud = cloud;
+  });
   return levels;
 }
 
-void WriteLod(const std::string& dir, const std::vector<LodLevel>& levels) {
+void LodWriter::Add(const LodLevel& level, const GaussianCloud& cloud) {
+  const std::string file = "lod_" + std::to_string(level.level) + ".ply";
+  WriteGaussiansPly((std::filesystem::path(dir_) / file).string(), cloud);
+  levels_.push_back(level);
+  levels_.back().cloud = GaussianCloud();
+}
+
+void LodWriter::Finish() const {
   nlohmann::json list = nlohmann::json::array();
-  for (const LodLevel& l : levels) {
-    const std::string file = "lod_" + std::to_string(l.level) + ".ply";
-    WriteGaussiansPly((std::filesystem::path(dir) / file).string(), l.cloud);
+  for (const LodLevel& l : levels_) {
     list.push_back({{"level", l.level},
-                    {"file", file},
+                    {"file", "lod_" + std::to_string(l.level) + ".ply"},
                     {"voxel_m", l.voxel_m},
                     {"geometric_error_m", l.geometric_error_m},
-                    {"count", l.cloud.size()},
+                    {"count", l.count},
                     {"saturated", l.saturated},
                     {"bounds_min_m", {l.min_m.x(), l.min_m.y(), l.min_m.z()}},
                     {"bounds_max_m", {l.max_m.x(), l.max_m.y(), l.max_m.z()}}});
@@ -122,7 +153,7 @@ void WriteLod(const std::string& dir, const std::vector<LodLevel>& levels) {
   const nlohmann::json doc = {{"schema", "skyfall.lod/1"},
                               {"frame", "city ENU (see the scene's frame.json)"},
                               {"levels", list}};
-  WriteFileAtomic((std::filesystem::path(dir) / "lod.json").string(), doc.dump(2) + "\n");
+  WriteFileAtomic((std::filesystem::path(dir_) / "lod.json").string(), doc.dump(2) + "\n");
 }
 
 }  // namespace skyfall

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,7 +43,8 @@ struct LodLevel {
   double geometric_error_m = 0;
   std::size_t saturated = 0;     // merged Gaussians whose opacity hit the cap (mass not kept)
   Eigen::Vector3d min_m = Eigen::Vector3d::Zero(), max_m = Eigen::Vector3d::Zero();  // bounds of the means
-  GaussianCloud cloud;
+  std::size_t count = 0;         // Gaussians in the level
+  GaussianCloud cloud;           // empty where a level is handed on without its Gaussians
 };
 
 // The "mass" a Gaussian carries: opacity x the product of its standard
@@ -55,11 +57,28 @@ double GaussianMass(const GaussianCloud& cloud, std::size_t i);
 // Returns false when the opacity had to be capped (mass not preserved).
 bool MergeGaussians(const GaussianCloud& cloud, const std::vector<std::size_t>& members, GaussianCloud* out);
 
-// Level 0 is `finest` itself.
+// Builds the levels one after another and hands each to `emit` when it is
+// done, level 0 (`finest` itself) first: `level` holds the figures (its own
+// cloud may be empty), `cloud` its Gaussians. Memory holds `finest`, the
+// previous level and the one being built, not the whole pyramid.
+using LodSink = std::function<void(const LodLevel& level, const GaussianCloud& cloud)>;
+void BuildLodLevels(const LodOptions& options, const GaussianCloud& finest, const LodSink& emit);
+// Every level in memory, each with its cloud; level 0 is a copy of `finest`.
 std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& finest);
 
-// Writes DIR/lod_<k>.ply per level and DIR/lod.json (levels, voxel size,
-// geometric error, counts, bounds).
-void WriteLod(const std::string& dir, const std::vector<LodLevel>& levels);
+// Writes DIR/lod_<k>.ply as each level comes (Add), then DIR/lod.json
+// (levels, voxel size, geometric error, counts, bounds) on Finish.
+class LodWriter {
+ public:
+  explicit LodWriter(std::string dir) : dir_(std::move(dir)) {}
+  void Add(const LodLevel& level, const GaussianCloud& cloud);
+  void Finish() const;
+  // The levels written so far, without their Gaussians.
+  const std::vector<LodLevel>& levels() const { return levels_; }
+
+ private:
+  std::string dir_;
+  std::vector<LodLevel> levels_;
+};
 
 }  // namespace skyfall

@@ -4,12 +4,19 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <random>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
+#include "splat/ply.h"
+#include "tests/test_support.h"
 
 namespace skyfall {
 namespace {
+
+namespace fs = std::filesystem;
 
 // Scene parameters are stored in float: masses and means recomputed from
 // them agree to float round-off (~1e-7 relative), accumulated over
@@ -119,6 +126,37 @@ TEST(Lod, CoincidentOpaqueGaussiansSaturateAndSaySo) {
   EXPECT_EQ(levels[1].cloud.size(), 1u);
   EXPECT_EQ(levels[1].saturated, 1u);
   EXPECT_NEAR(1.0 / (1.0 + std::exp(-levels[1].cloud.opacity_logits[0])), 0.99, 1e-6);
+}
+
+TEST(Lod, LevelsAreHandedOnOneByOneAndWrittenAsTheyCome) {
+  const GaussianCloud finest = RandomCloud(5000, 3);
+  LodOptions o;
+  o.max_levels = 4;
+  const std::vector<LodLevel> whole = BuildLod(o, finest);
+  ASSERT_GE(whole.size(), 3u);
+  const fs::path dir = testing::ScratchDir("lod_writer");
+  LodWriter writer(dir.string());
+  int next = 0;
+  BuildLodLevels(o, finest, [&](const LodLevel& level, const GaussianCloud& cloud) {
+    EXPECT_EQ(level.level, next++);
+    if (level.level == 0) EXPECT_EQ(&cloud, &finest);  // the finest level is not copied
+    EXPECT_EQ(level.count, cloud.size());
+    writer.Add(level, cloud);
+  });
+  writer.Finish();
+  ASSERT_EQ(static_cast<std::size_t>(next), whole.size());
+  const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "lod.json").string()));
+  ASSERT_EQ(doc["levels"].size(), whole.size());
+  for (std::size_t k = 0; k < whole.size(); ++k) {
+    SCOPED_TRACE("level " + std::to_string(k));
+    EXPECT_EQ(doc["levels"][k]["count"], whole[k].cloud.size());
+    EXPECT_EQ(doc["levels"][k]["geometric_error_m"], whole[k].geometric_error_m);
+    EXPECT_TRUE(writer.levels()[k].cloud.size() == 0);  // figures only
+    const GaussianCloud back = ReadGaussiansPly((dir / doc["levels"][k]["file"].get<std::string>()).string());
+    ASSERT_EQ(back.size(), whole[k].cloud.size());
+    EXPECT_EQ(back.means.back(), whole[k].cloud.means.back());
+    EXPECT_EQ(back.sh.front(), whole[k].cloud.sh.front());
+  }
 }
 
 TEST(Lod, OptionsAreChecked) {

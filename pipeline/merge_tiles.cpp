@@ -146,7 +146,7 @@ std::optional<StitchResult> StitchReconstructions(const MergeOptions& options, c
 json LodLevelsJson(const std::vector<LodLevel>& lod) {
   json levels = json::array();
   for (const LodLevel& l : lod) {
-    levels.push_back({{"level", l.level}, {"count", l.cloud.size()}, {"voxel_m", l.voxel_m},
+    levels.push_back({{"level", l.level}, {"count", l.count}, {"voxel_m", l.voxel_m},
                       {"geometric_error_m", l.geometric_error_m}});
   }
   return levels;
@@ -203,10 +203,12 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   WriteGaussiansPly(summary.scene_path, stitched.cloud);
   json lod_levels;
   {
-    // The levels are on disk once written; only their figures stay.
-    const std::vector<LodLevel> lod = BuildLod(options.lod, stitched.cloud);
-    WriteLod(out_dir, lod);
-    lod_levels = LodLevelsJson(lod);
+    // Each level goes to disk as it is built; only their figures stay.
+    LodWriter writer(out_dir);
+    BuildLodLevels(options.lod, stitched.cloud,
+                   [&](const LodLevel& level, const GaussianCloud& cloud) { writer.Add(level, cloud); });
+    writer.Finish();
+    lod_levels = LodLevelsJson(writer.levels());
   }
   summary.surface_path = summary.scene_path;
   summary.surface_source = "final";
