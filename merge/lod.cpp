@@ -131,9 +131,12 @@ std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& f
   return levels;
 }
 
+namespace {
+std::string LodFileName(int level) { return "lod_" + std::to_string(level) + ".ply"; }
+}  // namespace
+
 void LodWriter::Add(const LodLevel& level, const GaussianCloud& cloud) {
-  const std::string file = "lod_" + std::to_string(level.level) + ".ply";
-  WriteGaussiansPly((std::filesystem::path(dir_) / file).string(), cloud);
+  WriteGaussiansPly((std::filesystem::path(dir_) / LodFileName(level.level)).string(), cloud);
   levels_.push_back(level);
   levels_.back().cloud = GaussianCloud();
 }
@@ -142,7 +145,7 @@ void LodWriter::Finish() const {
   nlohmann::json list = nlohmann::json::array();
   for (const LodLevel& l : levels_) {
     list.push_back({{"level", l.level},
-                    {"file", "lod_" + std::to_string(l.level) + ".ply"},
+                    {"file", LodFileName(l.level)},
                     {"voxel_m", l.voxel_m},
                     {"geometric_error_m", l.geometric_error_m},
                     {"count", l.count},

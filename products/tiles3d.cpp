@@ -3,12 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cmath>
-#include <filesystem>
-#include <nlohmann/json.hpp>
 #include <array>
+#include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <unordered_map>
 #include <unordered_set>
@@ -59,12 +59,19 @@ struct ZRange {
   bool Empty() const { return !(lo <= hi); }
 };
 
-// The quadrants of `a` (west-south, east-south, west-north, east-north), or
-// `a` alone once it is no wider than a leaf: the next level refines in place.
+// Quadrant q of `a`: bit 0 east, bit 1 north (0 west-south, 1 east-south,
+// 2 west-north, 3 east-north).
+Area Quadrant(const Area& a, int q) {
+  const double mx = 0.5 * (a.x0 + a.x1), my = 0.5 * (a.y0 + a.y1);
+  const bool east = q & 1, north = q & 2;
+  return {east ? mx : a.x0, north ? my : a.y0, east ? a.x1 : mx, north ? a.y1 : my};
+}
+
+// The quadrants of `a` in Quadrant's order, or `a` alone once it is no wider
+// than a leaf: the next level refines in place.
 std::vector<Area> Split(const Area& a, double leaf_m) {
   if (a.Width() <= leaf_m) return {a};
-  const double mx = 0.5 * (a.x0 + a.x1), my = 0.5 * (a.y0 + a.y1);
-  return {{a.x0, a.y0, mx, my}, {mx, a.y0, a.x1, my}, {a.x0, my, mx, a.y1}, {mx, my, a.x1, a.y1}};
+  return {Quadrant(a, 0), Quadrant(a, 1), Quadrant(a, 2), Quadrant(a, 3)};
 }
 
 // The node `depth` levels below `root` whose half-open area holds `p`, named
@@ -78,10 +85,9 @@ std::string NodeKey(Area area, int depth, const Eigen::Vector3f& p, double leaf_
       key += 's';
       continue;
     }
-    const double mx = 0.5 * (area.x0 + area.x1), my = 0.5 * (area.y0 + area.y1);
-    const bool east = p.x() >= mx, north = p.y() >= my;
-    key += static_cast<char>('0' + (east ? 1 : 0) + (north ? 2 : 0));
-    area = {east ? mx : area.x0, north ? my : area.y0, east ? area.x1 : mx, north ? area.y1 : my};
+    const int q = (p.x() >= 0.5 * (area.x0 + area.x1) ? 1 : 0) + (p.y() >= 0.5 * (area.y0 + area.y1) ? 2 : 0);
+    key += static_cast<char>('0' + q);
+    area = Quadrant(area, q);
   }
   return key;
 }
