@@ -49,5 +49,31 @@ TEST(AtomicFile, FailureNamesThePathAndKeepsTheOldFile) {
   fs::remove_all(dir);
 }
 
+TEST(AtomicFile, AWriterInPiecesShowsNothingUntilCommitted) {
+  const fs::path dir = TempDir("pieces");
+  const std::string path = (dir / "out.bin").string();
+  const std::string source = (dir / "body.bin").string();
+  WriteFileAtomic(path, "old");
+  WriteFileAtomic(source, std::string(3 << 20, 'b'));  // over the copy's 1 MB buffer
+  {
+    AtomicFileWriter out(path);
+    out.Write("head");
+    out.CopyFrom(source);
+    EXPECT_EQ(ReadTextFile(path), "old");
+  }  // dropped uncommitted, as when a throw leaves the scope
+  EXPECT_EQ(ReadTextFile(path), "old");
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir)) entries += e.is_regular_file();
+  EXPECT_EQ(entries, 2);  // no temporary file left
+  AtomicFileWriter out(path);
+  out.Write("head");
+  out.CopyFrom(source);
+  out.Commit();
+  EXPECT_EQ(ReadTextFile(path), "head" + std::string(3 << 20, 'b'));
+  EXPECT_THROW(out.Write("late"), Error);
+  EXPECT_THROW(out.CopyFrom((dir / "missing").string()), Error);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace skyfall

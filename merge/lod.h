@@ -10,6 +10,7 @@
 
 #include "core/gaussians.h"
 #include "core/option_range.h"
+#include "splat/ply.h"
 
 namespace skyfall {
 
@@ -21,6 +22,11 @@ struct LodOptions {
   // the voxel sizes at which nothing merges).
   double min_reduction = 0.7;
   std::size_t min_gaussians = 16;  // no level coarser than this count
+  // [m] side of the ground blocks the levels are built in, one at a time
+  // (raised to base_voxel_m times a power of two, so that voxels nest in
+  // blocks; a level whose voxel is larger uses blocks of its voxel).
+  double block_m = 128;
+  double spill_buffer_mb = 64;  // [MB] Gaussians waiting in memory for their block's file
   void Check() const;  // throws Error("lod", field, ...)
 };
 template <class IO> void Visit(IO& io, LodOptions& o) {
@@ -33,6 +39,11 @@ template <class IO> void Visit(IO& io, LodOptions& o) {
      "doubles again", range::AboveUpTo(0, 1));
   io("min_gaussians", o.min_gaussians,
      "No coarser level is built from a level of this many Gaussians or fewer", range::AtLeast(1));
+  io("block_m", o.block_m,
+     "Side of the ground blocks the levels are built in, one block at a time (memory holds one block, not the city)",
+     range::Above(0));
+  io("spill_buffer_mb", o.spill_buffer_mb,
+     "Gaussians held in memory while they are sorted into their blocks' files", range::Above(0));
 }
 
 struct LodLevel {
@@ -44,7 +55,6 @@ struct LodLevel {
   std::size_t saturated = 0;     // merged Gaussians whose opacity hit the cap (mass not kept)
   Eigen::Vector3d min_m = Eigen::Vector3d::Zero(), max_m = Eigen::Vector3d::Zero();  // bounds of the means
   std::size_t count = 0;         // Gaussians in the level
-  GaussianCloud cloud;           // empty where a level is handed on without its Gaussians
 };
 
 // The "mass" a Gaussian carries: opacity x the product of its standard
@@ -57,28 +67,20 @@ double GaussianMass(const GaussianCloud& cloud, std::size_t i);
 // Returns false when the opacity had to be capped (mass not preserved).
 bool MergeGaussians(const GaussianCloud& cloud, const std::vector<std::size_t>& members, GaussianCloud* out);
 
-// Builds the levels one after another and hands each to `emit` when it is
-// done, level 0 (`finest` itself) first: `level` holds the figures (its own
-// cloud may be empty), `cloud` its Gaussians. Memory holds `finest`, the
-// previous level and the one being built, not the whole pyramid.
-using LodSink = std::function<void(const LodLevel& level, const GaussianCloud& cloud)>;
-void BuildLodLevels(const LodOptions& options, const GaussianCloud& finest, const LodSink& emit);
-// Every level in memory, each with its cloud; level 0 is a copy of `finest`.
-std::vector<LodLevel> BuildLod(const LodOptions& options, const GaussianCloud& finest);
+// The finest level, handed to `visit` a chunk at a time in order (a PLY
+// file read in chunks, or a cloud in memory as one chunk).
+using GaussianChunks = std::function<void(const GaussianChunkVisitor& visit)>;
 
-// Writes DIR/lod_<k>.ply as each level comes (Add), then DIR/lod.json
-// (levels, voxel size, geometric error, counts, bounds) on Finish.
-class LodWriter {
- public:
-  explicit LodWriter(std::string dir) : dir_(std::move(dir)) {}
-  void Add(const LodLevel& level, const GaussianCloud& cloud);
-  void Finish() const;
-  // The levels written so far, without their Gaussians.
-  const std::vector<LodLevel>& levels() const { return levels_; }
-
- private:
-  std::string dir_;
-  std::vector<LodLevel> levels_;
-};
+// Writes DIR/lod_<k>.ply for every level, level 0 being `finest` as given,
+// and DIR/lod.json (levels, voxel size, geometric error, counts, bounds);
+// returns the levels' figures. Level k merges level k-1's Gaussians that
+// share a voxel (the edge doubling per attempt) into one with the same
+// moments; the voxels of one level are independent, so each level is built
+// block by block (`block_m`) from the previous one's Gaussians sorted into
+// blocks on disk (DIR/.lod_spill, removed at the end). Memory holds one
+// block and the spill's buffer, whatever the city's size. Within a level
+// the Gaussians come block by block (blocks by x then y), each block's in
+// voxel order (x, y, z).
+std::vector<LodLevel> WriteLodLevels(const LodOptions& options, const GaussianChunks& finest, const std::string& dir);
 
 }  // namespace skyfall

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <random>
 
 #include "core/atomic_file.h"
@@ -86,26 +87,140 @@ TEST(Lod, MergingTwoGaussiansMatchesTheMixtureMoments) {
   EXPECT_NEAR(out.rotations[0].norm(), 1.0, 1e-6);
 }
 
+// The levels of `finest` written to a scratch folder and read back.
+struct Built {
+  std::vector<LodLevel> levels;
+  std::vector<GaussianCloud> clouds;
+  fs::path dir;
+};
+Built BuildInScratch(const LodOptions& o, const GaussianCloud& finest, const std::string& name = "lod") {
+  Built b;
+  b.dir = testing::ScratchDir(name);
+  b.levels = WriteLodLevels(o, [&](const GaussianChunkVisitor& visit) { visit(finest); }, b.dir.string());
+  for (const LodLevel& l : b.levels)
+    b.clouds.push_back(ReadGaussiansPly((b.dir / ("lod_" + std::to_string(l.level) + ".ply")).string()));
+  return b;
+}
+
+// The pyramid as one global pass per level builds it (the definition the
+// blocked build must reproduce): every level merged by voxel over the whole
+// cloud, groups in sorted (voxel, index) order, a level kept when it
+// reduces enough, the geometric error over every finest Gaussian's chain of
+// stand-ins.
+struct ReferenceLevel {
+  double voxel_m = 0, geometric_error_m = 0;
+  std::size_t saturated = 0;
+  GaussianCloud cloud;
+};
+std::vector<ReferenceLevel> ReferencePyramid(const LodOptions& o, const GaussianCloud& finest) {
+  std::vector<ReferenceLevel> levels(1);
+  levels[0].cloud = finest;
+  Eigen::Vector3f lo = finest.means[0], hi = lo;
+  for (const auto& p : finest.means) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double extent_m = (hi - lo).cast<double>().norm();
+  std::vector<std::size_t> rep(finest.size());
+  std::iota(rep.begin(), rep.end(), 0);
+  double voxel_m = o.base_voxel_m;
+  for (int k = 1; k <= o.max_levels; voxel_m *= 2) {
+    const GaussianCloud& prev = levels.back().cloud;
+    if (prev.size() <= o.min_gaussians || voxel_m > 2 * extent_m + o.base_voxel_m) break;
+    std::vector<std::pair<std::array<std::int64_t, 3>, std::size_t>> keyed(prev.size());
+    for (std::size_t i = 0; i < prev.size(); ++i) {
+      for (int a = 0; a < 3; ++a) keyed[i].first[a] = static_cast<std::int64_t>(std::floor(prev.means[i][a] / voxel_m));
+      keyed[i].second = i;
+    }
+    std::sort(keyed.begin(), keyed.end());
+    ReferenceLevel level;
+    level.voxel_m = voxel_m;
+    std::vector<std::size_t> parent(prev.size());
+    for (std::size_t a = 0; a < keyed.size();) {
+      std::vector<std::size_t> members;
+      std::size_t b = a;
+      while (b < keyed.size() && keyed[b].first == keyed[a].first) members.push_back(keyed[b++].second);
+      for (std::size_t i : members) parent[i] = level.cloud.size();
+      level.saturated += !MergeGaussians(prev, members, &level.cloud);
+      a = b;
+    }
+    if (static_cast<double>(level.cloud.size()) > o.min_reduction * prev.size()) continue;
+    for (std::size_t i = 0; i < finest.size(); ++i) {
+      rep[i] = parent[rep[i]];
+      level.geometric_error_m =
+          std::max(level.geometric_error_m, (finest.means[i] - level.cloud.means[rep[i]]).cast<double>().norm());
+    }
+    levels.push_back(std::move(level));
+    ++k;
+  }
+  return levels;
+}
+
+// A cloud's Gaussians as sorted byte records: equal when the clouds hold
+// the same Gaussians, bit for bit, in any order.
+std::vector<std::string> SortedRecords(const GaussianCloud& c) {
+  std::vector<std::string> records;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    GaussianCloud one;
+    one.Append(c, i);
+    records.push_back(GaussiansToPly(one).substr(GaussiansToPly(GaussianCloud()).size()));
+  }
+  std::sort(records.begin(), records.end());
+  return records;
+}
+
+// Built block by block through a spill that writes every record to disk,
+// on blocks much smaller than the scene (and than the coarse levels'
+// voxels), the pyramid holds the very Gaussians of the global build.
+TEST(Lod, BlockByBlockEqualsTheGlobalBuildBitForBit) {
+  GaussianCloud finest = RandomCloud(20000, 11);
+  for (std::size_t i = 0; i < 50; ++i) finest.means[i] = {2.0f, -4.0f, 0.25f};  // on block and voxel corners
+  LodOptions o;
+  o.base_voxel_m = 0.5;
+  o.max_levels = 7;
+  o.block_m = 3;               // raised to 4 m: 16 x 16 blocks over the 64 m scene
+  o.spill_buffer_mb = 1e-6;    // every record goes to disk at once
+  const Built built = BuildInScratch(o, finest, "lod_blocks");
+  const std::vector<ReferenceLevel> ref = ReferencePyramid(o, finest);
+  ASSERT_EQ(built.levels.size(), ref.size());
+  ASSERT_GE(ref.size(), 6u);
+  EXPECT_GT(ref.back().voxel_m, 4.0);  // the coarse levels' voxels exceed the blocks
+  for (std::size_t k = 0; k < ref.size(); ++k) {
+    SCOPED_TRACE("level " + std::to_string(k));
+    EXPECT_EQ(built.levels[k].voxel_m, ref[k].voxel_m);
+    EXPECT_EQ(built.levels[k].count, ref[k].cloud.size());
+    EXPECT_EQ(built.levels[k].saturated, ref[k].saturated);
+    EXPECT_EQ(built.levels[k].geometric_error_m, ref[k].geometric_error_m);
+    EXPECT_EQ(SortedRecords(built.clouds[k]), SortedRecords(ref[k].cloud));
+  }
+  EXPECT_FALSE(fs::exists(built.dir / ".lod_spill"));
+  // The default blocks (one block for this scene) give the same Gaussians.
+  LodOptions whole = o;
+  whole.block_m = 128;
+  whole.spill_buffer_mb = 64;
+  const Built one = BuildInScratch(whole, finest, "lod_one_block");
+  for (std::size_t k = 0; k < ref.size(); ++k) EXPECT_EQ(SortedRecords(one.clouds[k]), SortedRecords(built.clouds[k]));
+}
+
 TEST(Lod, EveryLevelPreservesMassAndMeanAndBoundsItsError) {
   const GaussianCloud finest = RandomCloud(20000, 7);
   LodOptions o;
   o.base_voxel_m = 0.5;  // too fine to merge anything: the first levels come from doubled voxels
   o.max_levels = 5;
-  const std::vector<LodLevel> levels = BuildLod(o, finest);
+  const Built built = BuildInScratch(o, finest);
+  const std::vector<LodLevel>& levels = built.levels;
   ASSERT_GE(levels.size(), 4u);
   const Moments ref = MomentsOf(finest);
-  EXPECT_EQ(levels[0].cloud.size(), finest.size());  // the finest level is the scene itself
+  EXPECT_EQ(built.clouds[0].size(), finest.size());  // the finest level is the scene itself
   EXPECT_EQ(levels[0].geometric_error_m, 0.0);
   for (std::size_t k = 1; k < levels.size(); ++k) {
     const LodLevel& l = levels[k];
     SCOPED_TRACE("level " + std::to_string(k));
     EXPECT_EQ(l.saturated, 0u);
-    const Moments got = MomentsOf(l.cloud);
+    EXPECT_EQ(l.count, built.clouds[k].size());
+    const Moments got = MomentsOf(built.clouds[k]);
     EXPECT_NEAR(got.mass, ref.mass, kMassRelTol * ref.mass);
     EXPECT_NEAR((got.mean - ref.mean).norm(), 0.0, kMeanTolM);
     EXPECT_NEAR(got.sh0, ref.sh0, 1e-4);
-    EXPECT_LT(l.cloud.size(), levels[k - 1].cloud.size());
-    EXPECT_LE(static_cast<double>(l.cloud.size()), o.min_reduction * levels[k - 1].cloud.size());
+    EXPECT_LT(l.count, levels[k - 1].count);
+    EXPECT_LE(static_cast<double>(l.count), o.min_reduction * levels[k - 1].count);
     EXPECT_GE(l.voxel_m, 2.0 * levels[k - 1].voxel_m);
     // Every finest Gaussian and its stand-in share a voxel of this level.
     EXPECT_GT(l.geometric_error_m, levels[k - 1].geometric_error_m);
@@ -121,48 +236,43 @@ TEST(Lod, CoincidentOpaqueGaussiansSaturateAndSaySo) {
   }
   LodOptions o;
   o.min_gaussians = 1;
-  const std::vector<LodLevel> levels = BuildLod(o, c);
-  ASSERT_GE(levels.size(), 2u);
-  EXPECT_EQ(levels[1].cloud.size(), 1u);
-  EXPECT_EQ(levels[1].saturated, 1u);
-  EXPECT_NEAR(1.0 / (1.0 + std::exp(-levels[1].cloud.opacity_logits[0])), 0.99, 1e-6);
+  const Built built = BuildInScratch(o, c);
+  ASSERT_GE(built.levels.size(), 2u);
+  EXPECT_EQ(built.clouds[1].size(), 1u);
+  EXPECT_EQ(built.levels[1].saturated, 1u);
+  EXPECT_NEAR(1.0 / (1.0 + std::exp(-built.clouds[1].opacity_logits[0])), 0.99, 1e-6);
 }
 
-TEST(Lod, LevelsAreHandedOnOneByOneAndWrittenAsTheyCome) {
+TEST(Lod, TheIndexListsEveryLevelFileWithItsFigures) {
   const GaussianCloud finest = RandomCloud(5000, 3);
   LodOptions o;
   o.max_levels = 4;
-  const std::vector<LodLevel> whole = BuildLod(o, finest);
-  ASSERT_GE(whole.size(), 3u);
-  const fs::path dir = testing::ScratchDir("lod_writer");
-  LodWriter writer(dir.string());
-  int next = 0;
-  BuildLodLevels(o, finest, [&](const LodLevel& level, const GaussianCloud& cloud) {
-    EXPECT_EQ(level.level, next++);
-    if (level.level == 0) EXPECT_EQ(&cloud, &finest);  // the finest level is not copied
-    EXPECT_EQ(level.count, cloud.size());
-    writer.Add(level, cloud);
-  });
-  writer.Finish();
-  ASSERT_EQ(static_cast<std::size_t>(next), whole.size());
-  const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "lod.json").string()));
-  ASSERT_EQ(doc["levels"].size(), whole.size());
-  for (std::size_t k = 0; k < whole.size(); ++k) {
+  const Built built = BuildInScratch(o, finest, "lod_index");
+  ASSERT_GE(built.levels.size(), 3u);
+  const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((built.dir / "lod.json").string()));
+  ASSERT_EQ(doc["levels"].size(), built.levels.size());
+  for (std::size_t k = 0; k < built.levels.size(); ++k) {
     SCOPED_TRACE("level " + std::to_string(k));
-    EXPECT_EQ(doc["levels"][k]["count"], whole[k].cloud.size());
-    EXPECT_EQ(doc["levels"][k]["geometric_error_m"], whole[k].geometric_error_m);
-    EXPECT_TRUE(writer.levels()[k].cloud.size() == 0);  // figures only
-    const GaussianCloud back = ReadGaussiansPly((dir / doc["levels"][k]["file"].get<std::string>()).string());
-    ASSERT_EQ(back.size(), whole[k].cloud.size());
-    EXPECT_EQ(back.means.back(), whole[k].cloud.means.back());
-    EXPECT_EQ(back.sh.front(), whole[k].cloud.sh.front());
+    EXPECT_EQ(doc["levels"][k]["level"], k);
+    EXPECT_EQ(doc["levels"][k]["count"], built.clouds[k].size());
+    EXPECT_EQ(doc["levels"][k]["geometric_error_m"], built.levels[k].geometric_error_m);
+    EXPECT_EQ(doc["levels"][k]["file"], "lod_" + std::to_string(k) + ".ply");
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (const auto& p : built.clouds[k].means) lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
+    EXPECT_EQ(doc["levels"][k]["bounds_min_m"][0], lo.x());
+    EXPECT_EQ(doc["levels"][k]["bounds_max_m"][2], hi.z());
   }
+  // Level 0 is the finest cloud, in its order.
+  EXPECT_EQ(ReadTextFile((built.dir / "lod_0.ply").string()), GaussiansToPly(finest));
 }
 
 TEST(Lod, OptionsAreChecked) {
   LodOptions o;
   o.base_voxel_m = 0;
-  EXPECT_THROW(BuildLod(o, RandomCloud(10, 1)), Error);
+  EXPECT_THROW(BuildInScratch(o, RandomCloud(10, 1)), Error);
+  o = LodOptions();
+  o.block_m = 0;
+  EXPECT_THROW(BuildInScratch(o, RandomCloud(10, 1)), Error);
 }
 
 }  // namespace

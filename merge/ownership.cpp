@@ -224,17 +224,27 @@ TileOwnership PlanSeamLines(const SeamLineOptions& options, const std::vector<Ti
   return out;
 }
 
-TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const std::vector<TileCloud>& tiles) {
-  if (tiles.empty()) return TileOwnership();
-  if (!options.enabled) return TileOwnership(tiles[0].tile.grid);
+TileSource TilesInMemory(const std::vector<TileCloud>& tiles) {
+  TileSource source;
+  for (const TileCloud& t : tiles) source.specs.push_back(t.tile);
+  source.visit = [&tiles](std::size_t k, const CloudUser& use) { use(tiles.at(k).cloud); };
+  return source;
+}
+
+TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const TileSource& tiles) {
+  if (tiles.size() == 0) return TileOwnership();
+  if (!options.enabled) return TileOwnership(tiles.specs[0].grid);
   constexpr double kSurfaceOpacity = 0.5;
-  std::vector<TileSpec> specs;
   std::vector<SurfaceHeight> surfaces;
-  for (const TileCloud& t : tiles) {
-    specs.push_back(t.tile);
-    surfaces.push_back(SurfaceOfCentres(t.cloud, options.cell_m, kSurfaceOpacity));
-  }
-  return PlanSeamLines(options, specs, surfaces);
+  for (std::size_t k = 0; k < tiles.size(); ++k)
+    tiles.visit(k, [&](const GaussianCloud& cloud) {
+      surfaces.push_back(SurfaceOfCentres(cloud, options.cell_m, kSurfaceOpacity));
+    });
+  return PlanSeamLines(options, tiles.specs, surfaces);
+}
+
+TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const std::vector<TileCloud>& tiles) {
+  return PlanSeamLinesOnCentres(options, TilesInMemory(tiles));
 }
 
 }  // namespace skyfall

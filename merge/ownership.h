@@ -25,6 +25,19 @@ struct TileCloud {
   GaussianCloud cloud;  // in the ENU frame at tile.enu_origin
 };
 
+// Tiles as the merge streams them: their specs, and tile k's Gaussians (in
+// the frame at specs[k].enu_origin) handed to `use` for one call, so that a
+// reader may load them from disk for that call only: memory then holds one
+// tile, whatever the city's size.
+using CloudUser = std::function<void(const GaussianCloud& cloud)>;
+struct TileSource {
+  std::vector<TileSpec> specs;
+  std::function<void(std::size_t k, const CloudUser& use)> visit;
+  std::size_t size() const { return specs.size(); }
+};
+// A source over tiles in memory (which must outlive it).
+TileSource TilesInMemory(const std::vector<TileCloud>& tiles);
+
 // A tile's surface height at a ground point of the tiles' shared frame
 // [m, any datum common to all tiles]; NaN where the tile has no surface.
 using SurfaceHeight = std::function<float(double east_m, double north_m)>;
@@ -111,6 +124,7 @@ TileOwnership PlanSeamLines(const SeamLineOptions& options, const std::vector<Ti
 // Gaussian per square metre, most of them translucent: render its DSM
 // instead (pipeline/merge_tiles.cpp). Nothing is computed when the lines
 // are disabled.
+TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const TileSource& tiles);
 TileOwnership PlanSeamLinesOnCentres(const SeamLineOptions& options, const std::vector<TileCloud>& tiles);
 
 }  // namespace skyfall

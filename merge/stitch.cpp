@@ -87,109 +87,104 @@ GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d
 
 namespace {
 
-void CheckOneTiling(const std::vector<TileCloud>& tiles) {
+void CheckOneTiling(const std::vector<TileSpec>& tiles) {
   if (tiles.empty()) throw Error("merge", "", "no tile to merge");
-  const TileGrid& grid = tiles[0].tile.grid;
-  for (const TileCloud& t : tiles) {
-    if (t.tile.grid.cols != grid.cols || t.tile.grid.rows != grid.rows || t.tile.grid.tile_m != grid.tile_m ||
-        !t.tile.grid.origin_m.isApprox(grid.origin_m, 1e-9)) {
-      throw Error("merge", t.tile.id, "comes from another tiling than " + tiles[0].tile.id + " (grids differ)");
+  const TileGrid& grid = tiles[0].grid;
+  for (const TileSpec& t : tiles) {
+    if (t.grid.cols != grid.cols || t.grid.rows != grid.rows || t.grid.tile_m != grid.tile_m ||
+        !t.grid.origin_m.isApprox(grid.origin_m, 1e-9)) {
+      throw Error("merge", t.id, "comes from another tiling than " + tiles[0].id + " (grids differ)");
     }
   }
 }
 
-// One tile's Gaussians in the city frame, sorted into what its core owns and
-// what lies in its overlap band. A tile planned in the city's frame (every
-// tile of one tiling) is used as it is: a copy of the city's Gaussians would
-// double the merge's memory.
-struct TileSplit {
-  const GaussianCloud* in_place = nullptr;  // the tile itself, when it is already in the city frame
-  GaussianCloud moved;                      // else the tile moved to the city frame
-  std::vector<std::size_t> core, overlap;
-  // Resolved on use, not stored: a pointer into `moved` would dangle once
-  // the split is moved into its vector.
-  const GaussianCloud& cloud() const { return in_place ? *in_place : moved; }
-};
-
-TileSplit SplitByOwner(const StitchOptions& options, const GeodeticPoint& city_origin, const TileCloud& tile,
-                       StitchResult* result) {
-  TileSplit split;
-  const TileSpec& spec = tile.tile;
-  // Tile boxes are in the frame the tiles were planned in.
-  const Eigen::Isometry3d to_city = FrameChange(spec.enu_origin, city_origin);
-  if (to_city.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
-    split.in_place = &tile.cloud;
-  } else {
-    split.moved = TransformCloud(tile.cloud, to_city);
-  }
-  for (std::size_t i = 0; i < tile.cloud.size(); ++i) {
-    const Eigen::Vector3f& p = tile.cloud.means[i];
-    const Eigen::Vector2i owner = result->ownership.Owner(p.x(), p.y());
-    if (owner.x() == spec.col && owner.y() == spec.row) {
-      split.core.push_back(i);
-    } else if (!spec.extent.Contains(p.x(), p.y())) {
-      ++result->outside_extent;
-    } else if (OpacityOfLogit(tile.cloud.opacity_logits[i]) < options.min_opacity) {
-      ++result->transparent_dropped;
+// Hands `use` tile k's Gaussians twice over: as the tile has them (its
+// boxes and the ownership are in the frame it was planned in) and in the
+// city frame. A tile planned in the city's frame (every tile of one tiling)
+// is not copied.
+using TwoFrameUser = std::function<void(const GaussianCloud& own, const GaussianCloud& city)>;
+void VisitInBothFrames(const TileSource& tiles, std::size_t k, const GeodeticPoint& city_origin,
+                       const TwoFrameUser& use) {
+  const Eigen::Isometry3d to_city = FrameChange(tiles.specs[k].enu_origin, city_origin);
+  tiles.visit(k, [&](const GaussianCloud& own) {
+    if (to_city.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
+      use(own, own);
     } else {
-      split.overlap.push_back(i);
+      use(own, TransformCloud(own, to_city));
     }
-  }
-  return split;
+  });
 }
 
-// Keeps every core Gaussian; returns the occupancy of the opaque ones.
-openvdb::MaskGrid::Ptr KeepCores(const StitchOptions& options, const std::vector<TileSplit>& split,
-                                 StitchResult* result) {
+bool OwnsIt(const TileOwnership& ownership, const TileSpec& spec, const Eigen::Vector3f& p) {
+  const Eigen::Vector2i owner = ownership.Owner(p.x(), p.y());
+  return owner.x() == spec.col && owner.y() == spec.row;
+}
+
+// First pass: every core Gaussian is kept; returns the occupancy of the
+// opaque ones.
+openvdb::MaskGrid::Ptr KeepCores(const StitchOptions& options, const GeodeticPoint& city_origin,
+                                 const TileSource& tiles, const StitchSink& keep, StitchResult* result) {
   openvdb::MaskGrid::Ptr occupied = NewMask(options.voxel_m);
-  for (std::size_t k = 0; k < split.size(); ++k) {
-    openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
-    auto acc = mine->getAccessor();
-    for (std::size_t i : split[k].core) {
-      if (OpacityOfLogit(split[k].cloud().opacity_logits[i]) >= options.min_opacity) {
-        acc.setValueOn(VoxelOf(*mine, split[k].cloud().means[i], options.occupancy_columns));
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    VisitInBothFrames(tiles, k, city_origin, [&](const GaussianCloud& own, const GaussianCloud& city) {
+      openvdb::MaskGrid::Ptr mine = NewMask(options.voxel_m);
+      auto acc = mine->getAccessor();
+      for (std::size_t i = 0; i < own.size(); ++i) {
+        if (!OwnsIt(result->ownership, tiles.specs[k], own.means[i])) continue;
+        if (OpacityOfLogit(city.opacity_logits[i]) >= options.min_opacity) {
+          acc.setValueOn(VoxelOf(*mine, city.means[i], options.occupancy_columns));
+        }
+        keep(k, city, i);
+        ++result->kept_in_core;
       }
-      result->cloud.Append(split[k].cloud(), i);
-      result->source_tile.push_back(static_cast<int>(k));
-    }
-    result->occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
-    occupied->topologyUnion(*mine);
+      result->occupied_voxels_per_tile.push_back(mine->activeVoxelCount());
+      occupied->topologyUnion(*mine);
+    });
   }
-  result->kept_in_core = result->cloud.size();
   return occupied;
 }
 
-// Overlap bands: duplicates of the owners' geometry go; Gaussians where no
-// core has geometry fill the hole, once (fills of earlier tiles count as
-// occupied for later ones).
-void FillFromOverlaps(const StitchOptions& options, const std::vector<TileSplit>& split,
-                      const openvdb::MaskGrid& occupied, StitchResult* result) {
+// Second pass, over the overlap bands: duplicates of the owners' geometry
+// go; Gaussians where no core has geometry fill the hole, once (fills of
+// earlier tiles count as occupied for later ones).
+void FillFromOverlaps(const StitchOptions& options, const GeodeticPoint& city_origin, const TileSource& tiles,
+                      const openvdb::MaskGrid& occupied, const StitchSink& keep, StitchResult* result) {
   openvdb::MaskGrid::Ptr filled = NewMask(options.voxel_m);
-  for (std::size_t k = 0; k < split.size(); ++k) {
-    const auto occupied_acc = occupied.getConstAccessor();
-    const auto filled_acc = filled->getConstAccessor();
-    std::vector<std::size_t> fills;
-    for (std::size_t i : split[k].overlap) {
-      const openvdb::Coord c = VoxelOf(occupied, split[k].cloud().means[i], options.occupancy_columns);
-      if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
-          AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
-        ++result->duplicates_removed;
-      } else {
-        fills.push_back(i);
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    const TileSpec& spec = tiles.specs[k];
+    VisitInBothFrames(tiles, k, city_origin, [&](const GaussianCloud& own, const GaussianCloud& city) {
+      const auto occupied_acc = occupied.getConstAccessor();
+      const auto filled_acc = filled->getConstAccessor();
+      std::vector<std::size_t> fills;
+      for (std::size_t i = 0; i < own.size(); ++i) {
+        const Eigen::Vector3f& p = own.means[i];
+        if (OwnsIt(result->ownership, spec, p)) continue;
+        if (!spec.extent.Contains(p.x(), p.y())) {
+          ++result->outside_extent;
+        } else if (OpacityOfLogit(own.opacity_logits[i]) < options.min_opacity) {
+          ++result->transparent_dropped;
+        } else {
+          const openvdb::Coord c = VoxelOf(occupied, city.means[i], options.occupancy_columns);
+          if (AnyActiveNear(occupied_acc, c, options.match_radius_voxels) ||
+              AnyActiveNear(filled_acc, c, options.match_radius_voxels)) {
+            ++result->duplicates_removed;
+          } else {
+            fills.push_back(i);
+          }
+        }
       }
-    }
-    auto fill_acc = filled->getAccessor();
-    for (std::size_t i : fills) {
-      fill_acc.setValueOn(VoxelOf(*filled, split[k].cloud().means[i], options.occupancy_columns));
-      result->cloud.Append(split[k].cloud(), i);
-      result->source_tile.push_back(static_cast<int>(k));
-    }
-    result->holes_filled += fills.size();
+      auto fill_acc = filled->getAccessor();
+      for (std::size_t i : fills) {
+        fill_acc.setValueOn(VoxelOf(*filled, city.means[i], options.occupancy_columns));
+        keep(k, city, i);
+      }
+      result->holes_filled += fills.size();
+    });
   }
 }
 
 std::map<std::string, double> StitchMetrics(const StitchResult& r) {
-  return {{"gaussians", static_cast<double>(r.cloud.size())},
+  return {{"gaussians", static_cast<double>(r.kept_in_core + r.holes_filled)},
           {"kept_in_core", static_cast<double>(r.kept_in_core)},
           {"duplicates_removed", static_cast<double>(r.duplicates_removed)},
           {"holes_filled", static_cast<double>(r.holes_filled)},
@@ -202,24 +197,38 @@ std::map<std::string, double> StitchMetrics(const StitchResult& r) {
 
 }  // namespace
 
-StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
-                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership) {
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin, const TileSource& tiles,
+                         const TileOwnership& ownership, const StitchSink& keep) {
   options.Check();
   InitOpenVdb();
   Stopwatch clock;
-  CheckOneTiling(tiles);
+  CheckOneTiling(tiles.specs);
   StitchResult result;
   result.report.stage = "merge";
-  // Who owns what: core boundaries bent to where neighbours agree.
-  result.ownership = ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, tiles);
-  std::vector<TileSplit> split;
-  split.reserve(tiles.size());
-  for (const TileCloud& tile : tiles) split.push_back(SplitByOwner(options, city_origin, tile, &result));
-  const openvdb::MaskGrid::Ptr occupied = KeepCores(options, split, &result);
-  FillFromOverlaps(options, split, *occupied, &result);
+  result.ownership = ownership;
+  const openvdb::MaskGrid::Ptr occupied = KeepCores(options, city_origin, tiles, keep, &result);
+  FillFromOverlaps(options, city_origin, tiles, *occupied, keep, &result);
   result.occupied_voxels_union = occupied->activeVoxelCount();
   result.report.metrics = StitchMetrics(result);
   result.report.seconds = clock.Seconds();
+  return result;
+}
+
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin,
+                         const std::vector<TileCloud>& tiles, const TileOwnership* ownership) {
+  const TileSource source = TilesInMemory(tiles);
+  if (tiles.empty()) CheckOneTiling(source.specs);
+  GaussianCloud cloud;
+  std::vector<int> source_tile;
+  StitchResult result =
+      StitchTiles(options, city_origin, source,
+                  ownership ? *ownership : PlanSeamLinesOnCentres(options.seam_lines, source),
+                  [&](std::size_t k, const GaussianCloud& from, std::size_t i) {
+                    cloud.Append(from, i);
+                    source_tile.push_back(static_cast<int>(k));
+                  });
+  result.cloud = std::move(cloud);
+  result.source_tile = std::move(source_tile);
   return result;
 }
 

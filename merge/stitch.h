@@ -8,6 +8,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <functional>
 #include <vector>
 
 #include "core/gaussians.h"
@@ -51,8 +52,8 @@ template <class IO> void Visit(IO& io, StitchOptions& o) {
 }
 
 struct StitchResult {
-  GaussianCloud cloud;              // in the city frame
-  std::vector<int> source_tile;     // per kept Gaussian: index into the input tiles
+  GaussianCloud cloud;              // in the city frame (the in-memory stitch only)
+  std::vector<int> source_tile;     // per kept Gaussian: index into the input tiles (the in-memory stitch only)
   TileOwnership ownership;          // who kept what where (the seam metric judges steps across it)
   std::size_t kept_in_core = 0;     // owned by the tile they came from (core up to the seam lines)
   std::size_t duplicates_removed = 0;
@@ -70,6 +71,18 @@ Eigen::Isometry3d FrameChange(const GeodeticPoint& from_origin, const GeodeticPo
 // Applies it to means, rotations and the degree-1 SH (which rotate with the frame).
 GaussianCloud TransformCloud(const GaussianCloud& cloud, const Eigen::Isometry3d& to_from);
 
+// Receives each Gaussian the stitch keeps, in order: the tile it came from
+// (index into the source) and the Gaussian (i of `cloud`, city frame).
+using StitchSink = std::function<void(std::size_t tile, const GaussianCloud& cloud, std::size_t i)>;
+
+// The streamed stitch: two passes over the tiles (the cores, then the
+// overlap bands), each tile visited once per pass; memory holds one tile,
+// the occupancy grids and the ownership, whatever the city's size. Kept
+// Gaussians go to `keep`, cores first (tile by tile), then the fills.
+StitchResult StitchTiles(const StitchOptions& options, const GeodeticPoint& city_origin, const TileSource& tiles,
+                         const TileOwnership& ownership, const StitchSink& keep);
+
+// The same in memory: the kept Gaussians in `cloud` and `source_tile`.
 // All tiles must come from one tiling (same grid). Output frame: `city_origin`.
 // `ownership`: seam lines planned on the tiles' rendered surfaces; without
 // it they are planned on the opaque Gaussian centres (PlanSeamLinesOnCentres),

@@ -29,10 +29,11 @@ namespace {
 
 // A tile's DSM rendered as the merge's own DSM is (median depth from a
 // nadir camera) on a UTM grid over its extent, read back at ENU points.
-SurfaceHeight RenderedSurface(const TileCloud& tile, int epsg, double gsd_m, const DsmExportOptions& dsm_options) {
-  auto dsm = std::make_shared<DsmGrid>(GridCovering(tile.tile.extent, tile.tile.enu_origin, epsg, gsd_m));
-  RasterizeDsm(tile.cloud, tile.tile.enu_origin, dsm_options, dsm.get());
-  const EnuFrame frame(tile.tile.enu_origin);
+SurfaceHeight RenderedSurface(const TileSpec& tile, const GaussianCloud& cloud, int epsg, double gsd_m,
+                              const DsmExportOptions& dsm_options) {
+  auto dsm = std::make_shared<DsmGrid>(GridCovering(tile.extent, tile.enu_origin, epsg, gsd_m));
+  RasterizeDsm(cloud, tile.enu_origin, dsm_options, dsm.get());
+  const EnuFrame frame(tile.enu_origin);
   const UtmZone zone = UtmZoneFromEpsg(epsg);
   return [dsm, frame, zone](double east_m, double north_m) {
     const GeodeticPoint g = frame.GeodeticFromEnu({east_m, north_m, 0.0});
@@ -47,19 +48,16 @@ SurfaceHeight RenderedSurface(const TileCloud& tile, int epsg, double gsd_m, con
 // Seam lines on the tiles' rendered surfaces (on their Gaussian centres
 // when no CRS is known).
 TileOwnership PlanOwnership(const MergeOptions& options, const DsmExportOptions& dsm_options,
-                            const std::vector<TileCloud>& clouds, int epsg, Progress& progress) {
+                            const TileSource& tiles, int epsg) {
   const SeamLineOptions& o = options.stitch.seam_lines;
-  if (!o.enabled || epsg == 0) return PlanSeamLinesOnCentres(o, clouds);
-  std::vector<TileSpec> specs;
+  if (!o.enabled || epsg == 0) return PlanSeamLinesOnCentres(o, tiles);
   std::vector<SurfaceHeight> surfaces;
-  progress.Begin("merge: rendering tile surfaces for the seam lines", clouds.size());
-  for (std::size_t k = 0; k < clouds.size(); ++k) {
-    specs.push_back(clouds[k].tile);
-    surfaces.push_back(RenderedSurface(clouds[k], epsg, o.cell_m, dsm_options));
-    progress.Advance(k + 1, clouds[k].tile.id);
+  for (std::size_t k = 0; k < tiles.size(); ++k) {
+    tiles.visit(k, [&](const GaussianCloud& cloud) {
+      surfaces.push_back(RenderedSurface(tiles.specs[k], cloud, epsg, o.cell_m, dsm_options));
+    });
   }
-  progress.End();
-  return PlanSeamLines(o, specs, surfaces);
+  return PlanSeamLines(o, tiles.specs, surfaces);
 }
 
 json ReadTileIndex(const std::string& tiles_dir) {
@@ -71,75 +69,76 @@ json ReadTileIndex(const std::string& tiles_dir) {
   }
 }
 
-// The finished tiles' scenes; per tile, its reconstruction when the DSMs
-// come from it and it differs from the tile's scene (the synthesis stage
-// ran), else empty; and the tiles that have no finished scene.
+// The finished tiles: their specs and scene files; per tile, its
+// reconstruction when the DSMs come from it and it differs from the tile's
+// scene (the synthesis stage ran), else empty; and the tiles that have no
+// finished scene. Nothing is read beyond the tiles' small JSON files: the
+// stitch reads each tile's Gaussians when it needs them.
 struct TileScenes {
-  std::vector<TileCloud> clouds;
+  std::vector<TileSpec> specs;
+  std::vector<std::string> scenes;
   std::vector<std::string> reconstruction_of;
   std::vector<std::string> missing;
 };
 
-TileScenes ReadTileScenes(const std::string& tiles_dir, const json& index, bool from_reconstruction,
+TileScenes FindTileScenes(const std::string& tiles_dir, const json& index, bool from_reconstruction,
                           Progress& progress, MergeSummary* summary) {
-  TileScenes read;
-  const json& tiles = index.at("tiles");
-  progress.Begin("merge: reading tiles", tiles.size());
-  std::size_t k = 0;
-  for (const json& t : tiles) {
+  TileScenes found;
+  for (const json& t : index.at("tiles")) {
     const fs::path dir = fs::path(tiles_dir) / t.at("id").get<std::string>();
     const TileSpec spec = ReadTileSpec((dir / "tile.json").string());
     if (summary->epsg == 0 && fs::exists(dir / "aoi.json")) summary->epsg = ReadAoiCatalog((dir / "aoi.json").string()).epsg;
     const fs::path scene = TileScenePath(dir.string());
     const std::optional<TileReport> report = ReadTileReport(dir.string());
     if (report && report->status == StageStatus::kOk && fs::exists(scene)) {
-      read.clouds.push_back({spec, ReadGaussiansPly(scene.string())});
+      found.specs.push_back(spec);
+      found.scenes.push_back(scene.string());
       const std::string reconstruction = TileReconstructionPath(dir.string());
       const bool differs = from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction);
-      read.reconstruction_of.push_back(differs ? reconstruction : std::string());
+      found.reconstruction_of.push_back(differs ? reconstruction : std::string());
     } else {
-      read.missing.push_back(spec.id);
+      found.missing.push_back(spec.id);
       progress.Warn("merge: tile " + spec.id + " has no finished scene; its area is left to its neighbours");
     }
-    progress.Advance(++k, spec.id);
   }
-  progress.End();
-  return read;
+  return found;
 }
 
 // True when some tile's reconstruction differs from its scene (its synthesis
 // stage ran) and the DSMs come from the reconstructions.
-bool SurfaceDiffers(const TileScenes& read) {
-  return std::any_of(read.reconstruction_of.begin(), read.reconstruction_of.end(),
+bool SurfaceDiffers(const TileScenes& found) {
+  return std::any_of(found.reconstruction_of.begin(), found.reconstruction_of.end(),
                      [](const std::string& p) { return !p.empty(); });
 }
 
-// The surface the DSMs come from: the reconstructions stitched alike when
-// some tile's synthesis stage changed its scene (written to surface.ply),
-// else none (the merged scene is the surface). The tiles' scenes are not
-// needed past the stitch: they become the reconstructions where those are
-// the same, so one city's worth of tiles is held at a time.
-std::optional<StitchResult> StitchReconstructions(const MergeOptions& options, const DsmExportOptions& dsm_options,
-                                                  const std::string& out_dir, TileScenes* read, Progress& progress,
-                                                  MergeSummary* summary) {
-  const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
-  if (!SurfaceDiffers(*read)) {
-    fs::remove(surface_ply);  // an earlier run's would no longer match the scene
-    return std::nullopt;
-  }
-  std::vector<TileCloud> reconstructions;
-  for (std::size_t k = 0; k < read->clouds.size(); ++k) {
-    if (read->reconstruction_of[k].empty())
-      reconstructions.push_back(std::move(read->clouds[k]));
-    else
-      reconstructions.push_back({read->clouds[k].tile, ReadGaussiansPly(read->reconstruction_of[k])});
-    read->clouds[k].cloud = GaussianCloud();
-  }
-  const TileOwnership ownership = PlanOwnership(options, dsm_options, reconstructions, summary->epsg, progress);
-  StitchResult stitched = StitchTiles(options.stitch, summary->enu_origin, reconstructions, &ownership);
-  summary->surface_path = surface_ply.string();
-  WriteGaussiansPly(summary->surface_path, stitched.cloud);
-  summary->surface_source = "reconstruction";
+// The tiles' scenes (or their reconstructions), each read from its file
+// when the stitch visits it; every visit advances `progress`.
+TileSource TileFiles(const TileScenes& found, bool reconstructions, Progress& progress) {
+  TileSource source;
+  source.specs = found.specs;
+  auto visits = std::make_shared<std::size_t>(0);
+  source.visit = [&found, reconstructions, &progress, visits](std::size_t k, const CloudUser& use) {
+    const std::string& path = reconstructions && !found.reconstruction_of[k].empty() ? found.reconstruction_of[k]
+                                                                                      : found.scenes[k];
+    use(ReadGaussiansPly(path));
+    progress.Advance(++*visits, found.specs[k].id);
+  };
+  return source;
+}
+
+// Stitches the tiles of `source` into the PLY at `path`, streamed: seam
+// lines on their rendered surfaces, then the cores, then the overlap
+// bands; each pass reads each tile once.
+StitchResult StitchToFile(const MergeOptions& options, const DsmExportOptions& dsm_options,
+                          const GeodeticPoint& city_origin, int epsg, const TileSource& source,
+                          const std::string& path, const std::string& what, Progress& progress) {
+  progress.Begin("merge: stitching " + what + " (seam lines, cores, overlaps)", 3 * source.size());
+  const TileOwnership ownership = PlanOwnership(options, dsm_options, source, epsg);
+  GaussiansPlyWriter file(path);
+  StitchResult stitched = StitchTiles(options.stitch, city_origin, source, ownership,
+                                      [&](std::size_t, const GaussianCloud& cloud, std::size_t i) { file.Add(cloud, i); });
+  file.Finish();
+  progress.End();
   return stitched;
 }
 
@@ -190,53 +189,54 @@ MergeSummary MergeTiles(const std::string& tiles_dir, const std::string& out_dir
   MergeSummary summary;
   summary.report.stage = "merge";
   const json index = ReadTileIndex(tiles_dir);
-  TileScenes read =
-      ReadTileScenes(tiles_dir, index, dsm.source == DsmSource::kReconstruction, progress, &summary);
-  if (read.clouds.empty()) throw Error("merge", tiles_dir, "no finished tile to merge (run `skyfall run-tile` first)");
+  const TileScenes found =
+      FindTileScenes(tiles_dir, index, dsm.source == DsmSource::kReconstruction, progress, &summary);
+  if (found.specs.empty()) throw Error("merge", tiles_dir, "no finished tile to merge (run `skyfall run-tile` first)");
   const json& o = index.at("enu_origin");
   summary.enu_origin = {o.at("lon_deg").get<double>(), o.at("lat_deg").get<double>(), o.at("height_m").get<double>()};
-
-  const TileOwnership ownership = PlanOwnership(options, dsm_options, read.clouds, summary.epsg, progress);
-  StitchResult stitched = StitchTiles(options.stitch, summary.enu_origin, read.clouds, &ownership);
   fs::create_directories(out_dir);
+
+  // Everything below streams: memory holds one tile, one LOD block or one
+  // DSM block at a time, never the city's Gaussians.
   summary.scene_path = (fs::path(out_dir) / "scene.ply").string();
-  WriteGaussiansPly(summary.scene_path, stitched.cloud);
-  json lod_levels;
-  {
-    // Each level goes to disk as it is built; only their figures stay.
-    LodWriter writer(out_dir);
-    BuildLodLevels(options.lod, stitched.cloud,
-                   [&](const LodLevel& level, const GaussianCloud& cloud) { writer.Add(level, cloud); });
-    writer.Finish();
-    lod_levels = LodLevelsJson(writer.levels());
-  }
+  const StitchResult stitched = StitchToFile(options, dsm_options, summary.enu_origin, summary.epsg,
+                                             TileFiles(found, false, progress), summary.scene_path, "the scenes",
+                                             progress);
+  progress.Info("merge: building the LOD levels");
+  const std::vector<LodLevel> levels = WriteLodLevels(
+      options.lod, [&](const GaussianChunkVisitor& visit) { ForEachGaussiansPlyChunk(summary.scene_path, visit); },
+      out_dir);
   summary.surface_path = summary.scene_path;
   summary.surface_source = "final";
-  // When the DSMs come from the reconstructions, the merged scene is done
-  // with (it is on disk): one city's worth of Gaussians less while they are
-  // stitched.
-  if (SurfaceDiffers(read)) stitched.cloud = GaussianCloud();
-  const std::optional<StitchResult> surface_stitched =
-      StitchReconstructions(options, dsm_options, out_dir, &read, progress, &summary);
-  summary.tiles_merged = read.clouds.size();
-  read.clouds.clear();  // stitched: what is left to do needs the city's cloud only
+  std::optional<StitchResult> surface_stitched;
+  const fs::path surface_ply = fs::path(out_dir) / "surface.ply";
+  if (SurfaceDiffers(found)) {
+    surface_stitched = StitchToFile(options, dsm_options, summary.enu_origin, summary.epsg,
+                                    TileFiles(found, true, progress), surface_ply.string(),
+                                    "the reconstructions (the DSMs' surface)", progress);
+    summary.surface_path = surface_ply.string();
+    summary.surface_source = "reconstruction";
+  } else {
+    fs::remove(surface_ply);  // an earlier run's would no longer match the scene
+  }
+  summary.tiles_merged = found.specs.size();
   const StitchResult& surface = surface_stitched ? *surface_stitched : stitched;
 
-  // Seam metric on a city DSM rendered from that surface.
+  // Seam metric on a city DSM rendered from that surface, in blocks, each
+  // from the Gaussians that can reach it.
   DsmGrid city = GridCovering(BoxFromJson(index.at("bounds")), summary.enu_origin, summary.epsg, options.seam_gsd_m);
-  // In blocks: the render's buffers follow a block, not the city.
-  RasterizeDsmInBlocks([&](const GaussianFilter& keep) { return CropCloud(surface.cloud, keep); },
+  RasterizeDsmInBlocks([&](const GaussianFilter& keep) { return ReadGaussiansPly(summary.surface_path, keep); },
                        summary.enu_origin, dsm_options, &city);
   WriteDsm((fs::path(out_dir) / "dsm_city.tif").string(), city);
   summary.seam = MeasureSeams(city, surface.ownership, summary.enu_origin);
-  summary.tiles_missing = read.missing.size();
-  summary.lod_levels = static_cast<int>(lod_levels.size());
+  summary.tiles_missing = found.missing.size();
+  summary.lod_levels = static_cast<int>(levels.size());
   const json frame = {{"enu_origin", o}, {"epsg", summary.epsg}, {"city", index.at("city")}};
   WriteFileAtomic((fs::path(out_dir) / "frame.json").string(), frame.dump(2) + "\n");
   summary.report.seconds = clock.Seconds();
   summary.report.metrics = stitched.report.metrics;
   summary.report.metrics["seam_ratio"] = summary.seam.ratio;
-  WriteMergeReport(out_dir, index, stitched, lod_levels, read.missing, summary);
+  WriteMergeReport(out_dir, index, stitched, LodLevelsJson(levels), found.missing, summary);
   return summary;
 }
 

@@ -282,8 +282,12 @@ GaussianCloud CropCloud(const GaussianCloud& cloud, const GaussianFilter& keep) 
 }
 
 DsmGrid SubGrid(const DsmGrid& grid, int col0, int row0, int width_px, int height_px) {
-  DsmGrid part = grid;
-  part.height_m.clear();
+  // The grid's figures, not its pixels: a copy cleared would keep the whole
+  // grid's capacity in every block (a city's raster once per block).
+  DsmGrid part;
+  part.gsd_m = grid.gsd_m;
+  part.epsg = grid.epsg;
+  part.reference = grid.reference;
   part.width_px = width_px;
   part.height_px = height_px;
   part.upper_left_easting_m = grid.upper_left_easting_m + col0 * grid.gsd_m;

@@ -224,6 +224,14 @@ TEST(Dsm, ARenderInBlocksMatchesOneRender) {
                        /*block_px=*/64);
   EXPECT_EQ(reads, 16u);  // 200 px in blocks of 64: 4 x 4
   EXPECT_EQ(visited, 16u);
+  // Blocks carry the grid's figures, never its pixels (a city's raster
+  // once per block was the merge's peak).
+  for (const GridBlock& block : GridBlocks(blocks, 64)) {
+    EXPECT_EQ(block.grid.height_m.capacity(), 0u);
+    EXPECT_EQ(block.grid.epsg, blocks.epsg);
+    EXPECT_EQ(block.grid.gsd_m, blocks.gsd_m);
+    EXPECT_EQ(block.grid.upper_left_easting_m, blocks.upper_left_easting_m + block.col0 * blocks.gsd_m);
+  }
   // A window of one camera's image: the same Gaussians blend in the same
   // order and only the float rounding of their image positions differs
   // (their float offsets from a window's corner, not the image's). Heights

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "core/format.h"
 #include "products/spz.h"
+#include "splat/gaussian_spill.h"
 #include "splat/ply.h"
 #include "ingest/geo.h"
 
@@ -98,79 +99,26 @@ std::string NodeKey(Area area, int depth, const Eigen::Vector3f& p, double leaf_
 // file. The folder is removed when the spill is destroyed.
 class NodeSpill {
  public:
-  NodeSpill(fs::path dir, std::size_t budget_bytes) : dir_(std::move(dir)), budget_bytes_(budget_bytes) {
-    fs::remove_all(dir_);  // a killed export's leftovers
-    fs::create_directories(dir_);
-  }
-  ~NodeSpill() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  NodeSpill(const NodeSpill&) = delete;
-  NodeSpill& operator=(const NodeSpill&) = delete;
+  NodeSpill(fs::path dir, std::size_t budget_bytes) : spill_(std::move(dir), kSpilledGaussianBytes, budget_bytes) {}
 
   void Add(const std::string& key, const GaussianCloud& chunk, std::size_t i) {
-    auto [it, first] = buffers_.try_emplace(key);
-    if (first && occupied_.insert(key).second) {
+    if (occupied_.insert(key).second) {
       for (std::size_t n = 0; n < key.size(); ++n) occupied_.insert(key.substr(0, n));  // its ancestors
     }
-    std::array<float, kFloats> r;
-    std::copy_n(chunk.means[i].data(), 3, r.begin());
-    std::copy_n(chunk.log_scales[i].data(), 3, r.begin() + 3);
-    std::copy_n(chunk.rotations[i].data(), 4, r.begin() + 6);
-    r[10] = chunk.opacity_logits[i];
-    std::copy(chunk.sh[i].begin(), chunk.sh[i].end(), r.begin() + 11);
-    it->second.append(reinterpret_cast<const char*>(r.data()), sizeof(r));
-    buffered_bytes_ += sizeof(r);
-    if (buffered_bytes_ >= budget_bytes_) Flush();
+    SpillGaussian(spill_, key, chunk, i);
   }
-
-  // Appends every buffer to its node's file and frees the buffers.
-  void Flush() {
-    for (const auto& [key, bytes] : buffers_) {
-      const fs::path path = File(key);
-      std::ofstream out(path, std::ios::binary | std::ios::app);
-      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-      if (!out) throw Error("3dtiles", path.string(), "cannot be written (disk full?)");
-    }
-    buffers_.clear();
-    buffered_bytes_ = 0;
-  }
-
+  void Flush() { spill_.Flush(); }
   // Whether the node or one below it holds a Gaussian.
   bool Occupied(const std::string& key) const { return occupied_.count(key) > 0; }
-
-  // The node's Gaussians (none when it holds none); its file is removed.
+  // The node's Gaussians (none when it holds none), then forgotten.
   GaussianCloud Take(const std::string& key) {
-    GaussianCloud cloud;
-    const fs::path path = File(key);
-    if (!fs::exists(path)) return cloud;
-    const std::string bytes = ReadTextFile(path.string());
-    if (bytes.size() % sizeof(std::array<float, kFloats>) != 0)
-      throw Error("3dtiles", path.string(), "holds a partial record");
-    const std::size_t n = bytes.size() / sizeof(std::array<float, kFloats>);
-    cloud.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      std::array<float, kFloats> r;
-      std::memcpy(r.data(), bytes.data() + i * sizeof(r), sizeof(r));
-      cloud.means[i] = Eigen::Vector3f(r[0], r[1], r[2]);
-      cloud.log_scales[i] = Eigen::Vector3f(r[3], r[4], r[5]);
-      cloud.rotations[i] = Eigen::Vector4f(r[6], r[7], r[8], r[9]);
-      cloud.opacity_logits[i] = r[10];
-      std::copy(r.begin() + 11, r.end(), cloud.sh[i].begin());
-    }
-    fs::remove(path);
+    GaussianCloud cloud = ReadSpilledGaussians(spill_, key);
+    spill_.Remove(key);
     return cloud;
   }
 
  private:
-  static constexpr std::size_t kFloats = 11 + 3 * kShCoeffsPerChannel;  // mean, log scale, rotation, logit, SH
-  fs::path File(const std::string& key) const { return dir_ / ("n" + key + ".bin"); }
-
-  fs::path dir_;
-  std::size_t budget_bytes_;
-  std::size_t buffered_bytes_ = 0;
-  std::unordered_map<std::string, std::string> buffers_;
+  KeyedSpill spill_;
   std::unordered_set<std::string> occupied_;
 };
 

@@ -1,5 +1,6 @@
 #include "splat/ply.h"
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,11 +13,16 @@
 
 namespace skyfall {
 
-std::string GaussiansToPly(const GaussianCloud& c, int sh_degree) {
+namespace {
+
+int RestCoefficients(int sh_degree) {
   if (sh_degree != 0 && sh_degree != 1) throw Error("ply", "sh_degree", "must be 0 or 1");
-  const int rest = sh_degree == 1 ? 9 : 0;
+  return sh_degree == 1 ? 9 : 0;
+}
+
+std::string PlyHeader(std::size_t count, int rest) {
   std::ostringstream head;
-  head << "ply\nformat binary_little_endian 1.0\nelement vertex " << c.size() << "\n";
+  head << "ply\nformat binary_little_endian 1.0\nelement vertex " << count << "\n";
   for (const char* name : {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"})
     head << "property float " << name << "\n";
   for (int k = 0; k < rest; ++k) head << "property float f_rest_" << k << "\n";
@@ -24,30 +30,88 @@ std::string GaussiansToPly(const GaussianCloud& c, int sh_degree) {
   for (int k = 0; k < 3; ++k) head << "property float scale_" << k << "\n";
   for (int k = 0; k < 4; ++k) head << "property float rot_" << k << "\n";
   head << "end_header\n";
-  std::string out = head.str();
-  const int floats = 9 + rest + 1 + 3 + 4;
-  std::vector<float> row(floats);
-  const size_t header_size = out.size();
-  out.resize(header_size + c.size() * floats * sizeof(float));
-  char* dst = out.data() + header_size;
-  for (size_t i = 0; i < c.size(); ++i) {
-    int k = 0;
-    for (int a = 0; a < 3; ++a) row[k++] = c.means[i][a];
-    for (int a = 0; a < 3; ++a) row[k++] = 0.0f;  // normals: unused by 3DGS viewers
-    for (int ch = 0; ch < 3; ++ch) row[k++] = c.sh[i][ch * 4];
-    for (int ch = 0; ch < 3 && rest; ++ch)
-      for (int j = 1; j < 4; ++j) row[k++] = c.sh[i][ch * 4 + j];
-    row[k++] = c.opacity_logits[i];
-    for (int a = 0; a < 3; ++a) row[k++] = c.log_scales[i][a];
-    for (int a = 0; a < 4; ++a) row[k++] = c.rotations[i][a];
-    std::memcpy(dst, row.data(), floats * sizeof(float));  // x86-64 is little endian
-    dst += floats * sizeof(float);
-  }
+  return head.str();
+}
+
+std::size_t RecordBytes(int rest) { return (9 + rest + 1 + 3 + 4) * sizeof(float); }
+
+// Gaussian i's record at `dst` (RecordBytes(rest) bytes).
+void EncodeRecord(const GaussianCloud& c, std::size_t i, int rest, char* dst) {
+  std::array<float, 9 + 9 + 1 + 3 + 4> row;
+  int k = 0;
+  for (int a = 0; a < 3; ++a) row[k++] = c.means[i][a];
+  for (int a = 0; a < 3; ++a) row[k++] = 0.0f;  // normals: unused by 3DGS viewers
+  for (int ch = 0; ch < 3; ++ch) row[k++] = c.sh[i][ch * 4];
+  for (int ch = 0; ch < 3 && rest; ++ch)
+    for (int j = 1; j < 4; ++j) row[k++] = c.sh[i][ch * 4 + j];
+  row[k++] = c.opacity_logits[i];
+  for (int a = 0; a < 3; ++a) row[k++] = c.log_scales[i][a];
+  for (int a = 0; a < 4; ++a) row[k++] = c.rotations[i][a];
+  std::memcpy(dst, row.data(), k * sizeof(float));  // x86-64 is little endian
+}
+
+}  // namespace
+
+std::string GaussiansToPly(const GaussianCloud& c, int sh_degree) {
+  const int rest = RestCoefficients(sh_degree);
+  std::string out = PlyHeader(c.size(), rest);
+  const std::size_t header_size = out.size(), record = RecordBytes(rest);
+  out.resize(header_size + c.size() * record);
+  for (std::size_t i = 0; i < c.size(); ++i) EncodeRecord(c, i, rest, out.data() + header_size + i * record);
   return out;
 }
 
 void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int sh_degree) {
   WriteFileAtomic(path, GaussiansToPly(cloud, sh_degree));
+}
+
+GaussiansPlyWriter::GaussiansPlyWriter(std::string path, int sh_degree)
+    : path_(std::move(path)), body_path_(path_ + ".body.tmp"), rest_(RestCoefficients(sh_degree)) {
+  std::error_code ec;
+  const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  body_.open(body_path_, std::ios::binary | std::ios::trunc);
+  if (!body_) throw Error("ply", body_path_, "cannot be created");
+}
+
+GaussiansPlyWriter::~GaussiansPlyWriter() {
+  if (finished_) return;
+  body_.close();
+  std::error_code ec;
+  std::filesystem::remove(body_path_, ec);
+}
+
+void GaussiansPlyWriter::Add(const GaussianCloud& cloud, std::size_t i) {
+  if (finished_) throw Error("ply", path_, "written after it was finished");
+  const std::size_t record = RecordBytes(rest_);
+  buffer_.resize(buffer_.size() + record);
+  EncodeRecord(cloud, i, rest_, buffer_.data() + buffer_.size() - record);
+  ++count_;
+  constexpr std::size_t kBufferBytes = 4 << 20;
+  if (buffer_.size() >= kBufferBytes) FlushBuffer();
+}
+
+void GaussiansPlyWriter::AddAll(const GaussianCloud& cloud) {
+  for (std::size_t i = 0; i < cloud.size(); ++i) Add(cloud, i);
+}
+
+void GaussiansPlyWriter::FlushBuffer() {
+  body_.write(buffer_.data(), static_cast<std::streamsize>(buffer_.size()));
+  if (!body_) throw Error("ply", body_path_, "cannot be written (disk full?)");
+  buffer_.clear();
+}
+
+void GaussiansPlyWriter::Finish() {
+  if (finished_) throw Error("ply", path_, "finished twice");
+  FlushBuffer();
+  body_.close();
+  if (!body_) throw Error("ply", body_path_, "cannot be written (disk full?)");
+  AtomicFileWriter out(path_);
+  out.Write(PlyHeader(count_, rest_));
+  out.CopyFrom(body_path_);
+  out.Commit();
+  finished_ = true;
+  std::filesystem::remove(body_path_);
 }
 
 namespace {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <fstream>
 #include <functional>
 #include <string>
 
@@ -16,6 +17,32 @@ namespace skyfall {
 std::string GaussiansToPly(const GaussianCloud& cloud, int sh_degree = 1);
 // Atomic write (temporary file + rename).
 void WriteGaussiansPly(const std::string& path, const GaussianCloud& cloud, int sh_degree = 1);
+
+// Writes a PLY a Gaussian at a time, for clouds larger than memory: the
+// records go to `path`.body.tmp, and Finish writes the header (which needs
+// the count) and the records to `path` atomically: the same bytes as
+// WriteGaussiansPly of the same Gaussians. Dropped unfinished (a throw), it
+// removes its temporary file and leaves `path` as it was.
+class GaussiansPlyWriter {
+ public:
+  explicit GaussiansPlyWriter(std::string path, int sh_degree = 1);
+  ~GaussiansPlyWriter();
+  GaussiansPlyWriter(const GaussiansPlyWriter&) = delete;
+  GaussiansPlyWriter& operator=(const GaussiansPlyWriter&) = delete;
+  void Add(const GaussianCloud& cloud, std::size_t i);
+  void AddAll(const GaussianCloud& cloud);
+  std::size_t count() const { return count_; }
+  void Finish();
+
+ private:
+  void FlushBuffer();
+  std::string path_, body_path_;
+  int rest_;
+  std::size_t count_ = 0;
+  std::string buffer_;
+  std::ofstream body_;
+  bool finished_ = false;
+};
 
 // Which Gaussians a read keeps, by centre [m] and log standard deviations.
 using GaussianFilter = std::function<bool(const Eigen::Vector3f& mean, const Eigen::Vector3f& log_scale)>;

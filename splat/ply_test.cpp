@@ -148,5 +148,50 @@ TEST(Ply, AChunkedReadHandsEveryGaussianOnceInFileOrder) {
   EXPECT_NE(error.find("none.ply"), std::string::npos) << error;
 }
 
+TEST(Ply, AStreamedWriteEqualsTheWholeWriteByteForByte) {
+  const fs::path dir = ScratchDir("plystream");
+  GaussianCloud c;
+  constexpr std::size_t kCount = 50000;  // 4.8 MB of records: past the writer's 4 MB buffer
+  c.resize(kCount);
+  for (std::size_t i = 0; i < kCount; ++i) {
+    c.means[i] = Eigen::Vector3f(0.25f * i, -1.0f * (i % 7), 2.0f);
+    c.log_scales[i] = Eigen::Vector3f(-1.0f, -2.0f, -0.001f * i);
+    c.rotations[i] = Eigen::Vector4f(1.0f, 0.1f, 0.0f, 0.0f);
+    c.opacity_logits[i] = static_cast<float>(i % 13) - 6;
+    for (int k = 0; k < 12; ++k) c.sh[i][k] = 0.001f * k * (i % 17);
+  }
+  for (int degree : {0, 1}) {
+    const std::string whole = (dir / "whole.ply").string(), streamed = (dir / "streamed.ply").string();
+    WriteGaussiansPly(whole, c, degree);
+    fs::remove(streamed);
+    {
+      GaussiansPlyWriter writer(streamed, degree);
+      for (std::size_t i = 0; i < 3; ++i) writer.Add(c, i);
+      GaussianCloud rest;
+      for (std::size_t i = 3; i < kCount; ++i) rest.Append(c, i);
+      writer.AddAll(rest);
+      EXPECT_EQ(writer.count(), kCount);
+      EXPECT_FALSE(fs::exists(streamed));  // nothing shows before Finish
+      writer.Finish();
+    }
+    EXPECT_EQ(ReadTextFile(streamed), ReadTextFile(whole)) << "degree " << degree;
+  }
+  // Dropped unfinished: the earlier file stays, and no temporary file is left.
+  const std::string before = ReadTextFile((dir / "streamed.ply").string());
+  {
+    GaussiansPlyWriter writer((dir / "streamed.ply").string());
+    writer.Add(c, 0);
+  }
+  EXPECT_EQ(ReadTextFile((dir / "streamed.ply").string()), before);
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 2);
+  // An empty cloud is a valid PLY.
+  GaussiansPlyWriter empty((dir / "empty.ply").string());
+  empty.Finish();
+  EXPECT_EQ(ReadGaussiansPly((dir / "empty.ply").string()).size(), 0u);
+  EXPECT_THROW(empty.Add(c, 0), Error);
+}
+
 }  // namespace
 }  // namespace skyfall
