@@ -36,8 +36,8 @@ struct IduOptions {
   OrbitOptions orbit;
   // Training iterations per episode (paper: 10,000 on a GPU; a CPU tile
   // affords a few hundred within the stage-time budget of at most twice the
-  // reconstruction; decision D-043).
-  int iterations_per_episode = 300;
+  // reconstruction; decisions D-043 and D-130).
+  int iterations_per_episode = 150;
   int samples = 2;                    // N_s refined samples per view (paper: 2)
   double synthetic_fraction = 0.75;   // share of iterations on refined views (paper: 75 %)
   double lambda_depth = 0.5;          // Pearson depth loss on refined views

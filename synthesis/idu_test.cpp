@@ -54,6 +54,7 @@ TEST(Orbit, LookAtCameraSeesTheTargetAtThePrincipalPointFromTheOrbit) {
 
 TEST(Orbit, EpisodesDescendFromHighToLowAndLookAtAGridOnTheSurface) {
   OrbitOptions o;  // paper: 85 -> 45 deg over 5 episodes, radii 0.59 -> 0.49 of the side
+  o.episodes = 5;
   const GroundBox core = Box(0, 0, 200, 200);
   const double expected[] = {85, 75, 65, 55, 45};
   for (int e = 0; e < 5; ++e) EXPECT_NEAR(EpisodeElevationDeg(o, e), expected[e], kGeometryTol);
