@@ -237,6 +237,9 @@ std::vector<LodLevel> WriteLodLevels(const LodOptions& options, const GaussianCh
   const double base_block_m = BaseBlockM(options);
   const auto budget = static_cast<std::size_t>(options.spill_buffer_mb * 1e6);
   std::vector<LodLevel> levels;
+  // A merge killed while it built the pyramid leaves its spill behind: a
+  // fresh build starts from an empty one.
+  fs::remove_all(spill_root);
   // Level 0: written as given; each finest Gaussian is its own stand-in.
   int spills = 0;
   auto prev = std::make_unique<LevelSpill>(spill_root / std::to_string(spills++), budget);

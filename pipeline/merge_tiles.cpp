@@ -132,7 +132,11 @@ TileSource TileFiles(const TileScenes& found, bool reconstructions, Progress& pr
 StitchResult StitchToFile(const MergeOptions& options, const DsmExportOptions& dsm_options,
                           const GeodeticPoint& city_origin, int epsg, const TileSource& source,
                           const std::string& path, const std::string& what, Progress& progress) {
-  progress.Begin("merge: stitching " + what + " (seam lines, cores, overlaps)", 3 * source.size());
+  // Seam lines read every tile once more, unless they are off (or no tile
+  // reaches them).
+  const bool plans_seams = options.stitch.seam_lines.enabled && source.size() > 0;
+  progress.Begin("merge: stitching " + what + (plans_seams ? " (seam lines, cores, overlaps)" : " (cores, overlaps)"),
+                 (plans_seams ? 3 : 2) * source.size());
   const TileOwnership ownership = PlanOwnership(options, dsm_options, source, epsg);
   GaussiansPlyWriter file(path);
   StitchResult stitched = StitchTiles(options.stitch, city_origin, source, ownership,
