@@ -18,8 +18,13 @@
 #   SKYFALL_BIN, SKYFALL_RUN_ARGS as for the other benchmarks (bench_env.sh)
 #   SKYFALL_CITY_BLOCK_M   AOI side [m], default 256
 # The synthetic city is made once (about 7 min for 1 km on 2 cores) and kept.
-# A finished run is reused (delete OUT/run to measure again); an interrupted
-# one resumes, and the JSON then says `resumed` (its time is not a whole run).
+# A finished run is reused (delete OUT/run to measure again). A run can be
+# stopped part way (kill the script's process group: TERM or INT) and
+# finished by calling the script again: each sitting's time is recorded in
+# OUT/run.sittings, the run's time is their sum, and the JSON says how many
+# sittings it took. That sum is an upper bound: the tiles a stop cut short
+# are redone. A run interrupted without a record (killed outright) resumes
+# too, and the JSON then says `resumed` (its time is not a whole run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 KM=1
@@ -54,8 +59,11 @@ fi
 if [ -f "$run/wall_seconds" ]; then
   echo "bench_city: reusing the finished run in $run" >&2
 else
+  sittings="$run.sittings"
+  # Time spent before the first recorded sitting is unknown.
   resumed=false
-  [ -d "$run" ] && resumed=true
+  [ -d "$run" ] && [ ! -s "$sittings" ] && resumed=true
+  [ -d "$run" ] || rm -f "$sittings" "$run.log"
   if [ "$EXECUTOR" = slurm ]; then
     bash scripts/slurm_local.sh start "$OUT/cluster" >&2
     trap 'bash scripts/slurm_local.sh stop "$OUT/cluster" >/dev/null 2>&1 || true' EXIT
@@ -63,9 +71,15 @@ else
   fi
   echo "bench_city: skyfall run on ${N} x ${N} AOIs, $EXECUTOR executor (log: $run.log) ..." >&2
   start=$(date +%s.%N)
-  "$B" run "$root" --out "$run" --3dtiles "${EXEC_ARGS[@]}" "${RUN_ARGS[@]}" 2> "$run.log" || {
-    echo "bench_city: skyfall run failed (exit $?); see $run.log" >&2; exit 1; }
-  awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' > "$run/wall_seconds"
+  record_sitting() { awk -v a="$(date +%s.%N)" -v b="$start" 'BEGIN { printf "%.1f\n", a - b }' >> "$sittings"; }
+  trap 'record_sitting; echo "bench_city: stopped; run the same command again to finish the run" >&2; exit 143' TERM INT
+  rc=0
+  "$B" run "$root" --out "$run" --3dtiles "${EXEC_ARGS[@]}" "${RUN_ARGS[@]}" 2>> "$run.log" || rc=$?
+  trap - TERM INT
+  record_sitting
+  [ "$rc" -eq 0 ] || { echo "bench_city: skyfall run failed (exit $rc); see $run.log" >&2; exit 1; }
+  awk '{ s += $1 } END { printf "%.1f\n", s }' "$sittings" > "$run/wall_seconds"
+  wc -l < "$sittings" | tr -d ' ' > "$run/sittings"
   echo "$resumed" > "$run/resumed"
 fi
 

@@ -175,6 +175,9 @@ def viewer_figures(path):
 def figures(km, n, block_m, root, run, out, json_name, executor):
     wall = float(open(os.path.join(run, "wall_seconds")).read())
     resumed = os.path.exists(os.path.join(run, "resumed")) and open(os.path.join(run, "resumed")).read().strip() == "true"
+    # Sittings: the run stopped and finished again (bench_city.sh), its time their sum.
+    sittings_file = os.path.join(run, "sittings")
+    sittings = int(open(sittings_file).read()) if os.path.exists(sittings_file) else 1
     area_km2 = (n * block_m / 1000.0) ** 2
     cities = city_dirs(run)
     if len(cities) != 1:
@@ -235,7 +238,7 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
     seam = merge_report["seam"]
     doc = {
         "km": km, "executor": executor, "aois": n * n, "aoi_side_m": block_m, "area_km2": area_km2, "cores": os.cpu_count(),
-        "resumed": resumed,
+        "resumed": resumed, "sittings": sittings,
         "seconds": wall, "seconds_per_km2": wall / area_km2,
         "stage_seconds": stage_seconds, "tile_stage_seconds_summed": tile_stage_seconds,
         "tiles": len(report["tiles"]), "tiles_ok": len(tiles_ok),
@@ -278,7 +281,8 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
 
     fmt = lambda v, f="{:.3f}": "n/a" if v is None else f.format(v)
     print(f"city {n}x{n} AOIs of {block_m:.0f} m ({area_km2:.3f} km^2), {doc['tiles_ok']}/{doc['tiles']} tiles ok"
-          + (" (resumed: the time is not a whole run)" if resumed else ""))
+          + (" (resumed: the time is not a whole run)" if resumed else "")
+          + (f" (in {sittings} sittings: the time is their sum, tiles a stop cut short redone)" if sittings > 1 else ""))
     print(f"  time {wall:.0f} s = {wall / area_km2 / 60:.1f} min per km^2; stages: "
           + ", ".join(f"{k} {v:.0f} s" for k, v in stage_seconds.items()))
     print("  tile stages summed: " + ", ".join(f"{k} {v:.0f} s" for k, v in tile_stage_seconds.items()))
