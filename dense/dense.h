@@ -228,22 +228,7 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("decide_filled_sides", o.steps.decide_filled_sides,
      "After filling, score each filled cell at the ground and at a roof, and let it take the other side where that "
      "matches clearly better");
-  io("fill_radius_m", o.fill.radius_m,
-     "A seen hole takes the lowest height above the ground within this distance (doubled while nothing is in reach)",
-     range::Above(0));
-  io("fill_roof_rim_fraction", o.fill.roof_rim_fraction,
-     "A seen hole whose rim of measured cells is at least this share roof takes the roof, even with ground in reach; "
-     "0 = off", range::In(0, 1));
-  io("fill_roof_rim_occluded", o.fill.roof_rim_occluded,
-     "The roof-rim rule also counts holes whose ground no pair sees (a hole in the middle of a roof)");
-  io("fill_roof_enclosed", o.fill.roof_enclosed,
-     "A hole cell enclosed by roof on all sides takes the roof, even where its hole reaches hidden ground beyond the "
-     "roof's edge");
-  io("fill_far_raised_ground", o.fill.far_raised_takes_ground,
-     "A seen hole cell with nothing measured within fill_radius_m, whose lowest measured neighbour further out is "
-     "raised, takes the ground");
-  io("fill_seen_ground_terrain", o.fill.seen_ground_takes_terrain,
-     "A seen hole cell whose lowest measured neighbour in reach is ground takes the terrain model's height");
+  Visit(io, o.fill);  // the hole filling's options, under dense.fill_*
   io("fill_edge_hides", o.fill_edge_hides,
      "Ground whose ray toward a view leaves the grid counts as hidden from that view (the city goes on beyond the "
      "grid)");
@@ -252,22 +237,6 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "floating_patch_min_rise_m above the terrain model become holes; 0 = off", range::AtLeast(0));
   io("floating_patch_min_rise_m", o.floating_patch_min_rise_m,
      "Height above the terrain model beyond which a small patch counts as floating (see floating_patch_max_m2)",
-     range::AtLeast(0));
-  io("max_fill_reach_m", o.fill.max_reach_m,
-     "Cells further than this from every measured cell stay empty", range::Above(0));
-  io("fill_ground_radius_m", o.fill.ground_radius_m,
-     "Radius of the morphological opening that gives the ground surface (larger than half the widest building)",
-     range::Above(0));
-  io("fill_ground_max_rise_m", o.fill.ground_max_rise_m,
-     "Where the ground surface stands more than this above the opening of twice fill_ground_radius_m, it holds roofs "
-     "only and the terrain model spans it; 0 = off", range::AtLeast(0));
-  io("fill_ground_tolerance_m", o.fill.ground_tolerance_m,
-     "Measured cells at most this far above the ground surface are ground and shape the terrain model",
-     range::AtLeast(0));
-  io("fill_terrain_block_cells", o.fill.terrain_block_cells,
-     "Block side of the terrain model that spans hidden ground, in grid cells", range::AtLeast(1));
-  io("fill_roof_rim_min_m", o.fill.roof_rim_min_m,
-     "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules",
      range::AtLeast(0));
   io("visibility_pass", o.visibility.pass,
      "Run a second sweep that scores each height only with the pairs whose two views see that point");

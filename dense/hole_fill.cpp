@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
+#include "core/format.h"
 #include "core/stats.h"
 
 namespace skyfall {
@@ -670,19 +671,9 @@ HoleFillGrid HoleFillOptions::OnGrid(double cell_m) const {
 }
 
 void HoleFillOptions::Check() const {
-  auto positive = [](double v, const char* name) {
-    if (!(v > 0) || !std::isfinite(v)) throw Error("dense", name, "must be a finite value > 0, got " + std::to_string(v));
-  };
-  positive(radius_m, "fill_radius_m");
-  if (!(roof_rim_fraction >= 0 && roof_rim_fraction <= 1))
-    throw Error("dense", "fill_roof_rim_fraction", "must be in [0, 1] (0 = off), got " + std::to_string(roof_rim_fraction));
-  if (!(max_reach_m >= radius_m)) throw Error("dense", "max_fill_reach_m", "must be >= fill_radius_m");
-  positive(ground_radius_m, "fill_ground_radius_m");
-  if (!(ground_tolerance_m >= 0)) throw Error("dense", "fill_ground_tolerance_m", "must be >= 0");
-  if (!(ground_max_rise_m >= 0)) throw Error("dense", "fill_ground_max_rise_m", "must be >= 0 (0 = off)");
-  if (terrain_block_cells < 1)
-    throw Error("dense", "fill_terrain_block_cells", "must be >= 1, got " + std::to_string(terrain_block_cells));
-  if (!(roof_rim_min_m >= 0)) throw Error("dense", "fill_roof_rim_min_m", "must be >= 0");
+  CheckOptionRanges(*this, "dense");
+  if (!(max_reach_m >= radius_m))
+    throw Error("dense", "max_fill_reach_m", FormatDouble(max_reach_m) + " must be >= fill_radius_m " + FormatDouble(radius_m));
 }
 
 }  // namespace skyfall

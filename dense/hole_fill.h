@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/option_range.h"
+
 namespace skyfall {
 
 // How a window meets the grid's edge: cut to the cells inside, or moved
@@ -113,6 +115,42 @@ struct HoleFillOptions {
   HoleFillGrid OnGrid(double cell_m) const;
   void Check() const;  // throws Error("dense", "fill_...", ...)
 };
+
+// As the run lists them (dense.fill_* in run_config.json).
+template <class IO> void Visit(IO& io, HoleFillOptions& f) {
+  io("fill_radius_m", f.radius_m,
+     "A seen hole takes the lowest height above the ground within this distance (doubled while nothing is in reach)",
+     range::Above(0));
+  io("fill_roof_rim_fraction", f.roof_rim_fraction,
+     "A seen hole whose rim of measured cells is at least this share roof takes the roof, even with ground in reach; "
+     "0 = off", range::In(0, 1));
+  io("fill_roof_rim_occluded", f.roof_rim_occluded,
+     "The roof-rim rule also counts holes whose ground no pair sees (a hole in the middle of a roof)");
+  io("fill_roof_enclosed", f.roof_enclosed,
+     "A hole cell enclosed by roof on all sides takes the roof, even where its hole reaches hidden ground beyond the "
+     "roof's edge");
+  io("fill_far_raised_ground", f.far_raised_takes_ground,
+     "A seen hole cell with nothing measured within fill_radius_m, whose lowest measured neighbour further out is "
+     "raised, takes the ground");
+  io("fill_seen_ground_terrain", f.seen_ground_takes_terrain,
+     "A seen hole cell whose lowest measured neighbour in reach is ground takes the terrain model's height");
+  io("max_fill_reach_m", f.max_reach_m,
+     "Cells further than this from every measured cell stay empty", range::Above(0));
+  io("fill_ground_radius_m", f.ground_radius_m,
+     "Radius of the morphological opening that gives the ground surface (larger than half the widest building)",
+     range::Above(0));
+  io("fill_ground_max_rise_m", f.ground_max_rise_m,
+     "Where the ground surface stands more than this above the opening of twice fill_ground_radius_m, it holds roofs "
+     "only and the terrain model spans it; 0 = off", range::AtLeast(0));
+  io("fill_ground_tolerance_m", f.ground_tolerance_m,
+     "Measured cells at most this far above the ground surface are ground and shape the terrain model",
+     range::AtLeast(0));
+  io("fill_terrain_block_cells", f.terrain_block_cells,
+     "Block side of the terrain model that spans hidden ground, in grid cells", range::AtLeast(1));
+  io("fill_roof_rim_min_m", f.roof_rim_min_m,
+     "A measured cell more than this above the ground is raised (a roof) for the roof-rim and enclosure rules",
+     range::AtLeast(0));
+}
 
 // The ground under a height grid: its opening (GroundSurface), which tells
 // ground cells from raised ones; the terrain model through the ground cells

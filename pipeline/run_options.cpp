@@ -227,8 +227,6 @@ void CheckSection(const char* section, F check) {
 void TrainStageOptions::Check() const {
   CheckOptionRanges(*this, "train");
   optimizer.Check();
-  optimizer.appearance.Check();
-  optimizer.raster.Check();
   if (depth_prior != "surface" && depth_prior != "none" && depth_prior.rfind("cmd:", 0) != 0)
     throw Error("train", "depth_prior", "'" + depth_prior + "' is not one of surface, none, cmd:COMMAND");
   if (depth_prior == "cmd:") throw Error("train", "depth_prior", "'cmd:' names no command");

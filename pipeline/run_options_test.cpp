@@ -324,6 +324,40 @@ TEST(OptionRegistry, EveryRangeIsWhatTheRunAccepts) {
   EXPECT_GT(probed, 400);
 }
 
+// A stage's own Check(), as a library caller runs it without the run's
+// options around it, derives its ranges from the same Visit() the registry
+// lists: a value the registry declares out of range fails there too, named.
+TEST(OptionRegistry, StageChecksFollowTheDeclaredRanges) {
+  auto fails_naming = [](const std::string& field, auto mutate) {
+    return ErrorOf([&] { mutate(); }).find(field) != std::string::npos;
+  };
+  TrainOptions t;
+  t.lambda_dssim = 1.5;
+  EXPECT_TRUE(fails_naming("lambda_dssim", [&] { t.Check(); }));
+  TrainOptions dense_start;
+  dense_start.density.percent_dense = 0;  // once unchecked by the stage's hand-written checks
+  EXPECT_TRUE(fails_naming("percent_dense", [&] { dense_start.Check(); }));
+  DensityControlOptions d;
+  d.max_gaussians = 0;
+  EXPECT_TRUE(fails_naming("max_gaussians", [&] { d.Check(); }));
+  IduOptions i;
+  i.fill_voxel_m = 0;
+  EXPECT_TRUE(fails_naming("fill_voxel_m", [&] { i.Check(); }));
+  HoleFillOptions f;
+  f.terrain_block_cells = 0;
+  EXPECT_TRUE(fails_naming("fill_terrain_block_cells", [&] { f.Check(); }));
+  HoleFillOptions reach;
+  reach.max_reach_m = reach.radius_m / 2;  // two fields: the stage's own check
+  EXPECT_TRUE(fails_naming("max_fill_reach_m", [&] { reach.Check(); }));
+  DsmBreakdownOptions b;
+  b.edge_bands = 101;
+  EXPECT_TRUE(fails_naming("edge_bands", [&] { b.Check(); }));
+  EXPECT_NO_THROW(TrainOptions{}.Check());
+  EXPECT_NO_THROW(IduOptions{}.Check());
+  EXPECT_NO_THROW(HoleFillOptions{}.Check());
+  EXPECT_NO_THROW(DsmBreakdownOptions{}.Check());
+}
+
 TEST(OptionRegistry, RangesReadAsTheyAreMeant) {
   EXPECT_EQ(range::AtLeast(1).Text(), ">= 1");
   EXPECT_EQ(range::Above(0).Text(), "> 0");

@@ -128,7 +128,6 @@ struct DsmCompareOptions {
   void Check() const;          // throws Error("dsm", field, ...)
 };
 template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
-  io.NotAnOption(o.breakdown.building_class);  // the LiDAR classes' code (ASPRS 6), not a choice
   io("max_shift_px", o.max_shift_px,
      "Search radius of the horizontal alignment shift per pyramid level", range::AtLeast(0));
   io("pyramid_levels", o.pyramid_levels,
@@ -137,13 +136,7 @@ template <class IO> void Visit(IO& io, DsmCompareOptions& o) {
      "Leave water (class 9) out of the comparison");
   io("within_m", o.within_m,
      "The comparison reports the fraction of pixels whose error is at most this", range::Above(0));
-  io("rim_width_m", o.breakdown.rim_width_m,
-     "With classes: width of the bands inside and outside building outlines whose error is reported apart",
-     range::Above(0));
-  io("edge_band_m", o.breakdown.edge_band_m,
-     "With classes: width of each band of the edge profile", range::Above(0));
-  io("edge_bands", o.breakdown.edge_bands,
-     "With classes: bands of the edge profile on each side of the building outlines", range::In(1, 100));
+  Visit(io, o.breakdown);  // the error breakdown's options, under the same keys
 }
 
 struct DsmComparison {

@@ -68,14 +68,7 @@ std::vector<DsmErrorGroup> DsmBreakdown::Groups() const {
   return groups;
 }
 
-void DsmBreakdownOptions::Check() const {
-  if (!(rim_width_m > 0) || !std::isfinite(rim_width_m))
-    throw Error("dsm", "rim_width_m", "must be a finite value > 0, got " + FormatDouble(rim_width_m));
-  if (!(edge_band_m > 0) || !std::isfinite(edge_band_m))
-    throw Error("dsm", "edge_band_m", "must be a finite value > 0, got " + FormatDouble(edge_band_m));
-  if (edge_bands < 1 || edge_bands > 100)
-    throw Error("dsm", "edge_bands", "must be in 1..100, got " + std::to_string(edge_bands));
-}
+void DsmBreakdownOptions::Check() const { CheckOptionRanges(*this, "dsm"); }
 
 int ClassCodeOf(float value) {
   if (!(value >= 0.0f && value <= 255.0f)) return -1;  // NaN fails both

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "core/option_range.h"
+
 namespace skyfall {
 
 struct DsmErrorGroup {
@@ -39,6 +41,18 @@ struct DsmBreakdownOptions {
   int building_class = 6;  // ASPRS "building"
   void Check() const;      // throws Error("dsm", field, ...)
 };
+
+// As the run lists them (dsm.compare.* in run_config.json).
+template <class IO> void Visit(IO& io, DsmBreakdownOptions& b) {
+  io.NotAnOption(b.building_class);  // the LiDAR classes' code (ASPRS 6), not a choice
+  io("rim_width_m", b.rim_width_m,
+     "With classes: width of the bands inside and outside building outlines whose error is reported apart",
+     range::Above(0));
+  io("edge_band_m", b.edge_band_m,
+     "With classes: width of each band of the edge profile", range::Above(0));
+  io("edge_bands", b.edge_bands,
+     "With classes: bands of the edge profile on each side of the building outlines", range::In(1, 100));
+}
 
 struct DsmBreakdown {
   std::vector<DsmErrorGroup> classes;        // one per class with compared cells, ascending code

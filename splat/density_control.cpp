@@ -34,18 +34,7 @@ std::uint32_t SpreadBits(std::uint32_t v) {
 
 }  // namespace
 
-void DensityControlOptions::Check() const {
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("train", field, FormatDouble(v) + " is out of range");
-  };
-  need(interval_steps >= 1, "densify_interval", interval_steps);
-  need(grad_threshold > 0, "densify_grad_threshold", grad_threshold);
-  need(min_opacity >= 0 && min_opacity < 1, "min_opacity", min_opacity);
-  need(max_scale_m > 0, "max_scale_m", max_scale_m);
-  need(merge_within_m >= 0 && std::isfinite(merge_within_m), "merge_within_m", merge_within_m);
-  need(merge_interval_steps >= 1, "merge_interval", merge_interval_steps);
-  need(merge_max_shape_difference >= 0, "merge_max_shape_difference", merge_max_shape_difference);
-}
+void DensityControlOptions::Check() const { CheckOptionRanges(*this, "train"); }
 
 CentreGrid::CentreGrid(const GaussianCloud& cloud, double within_m) : cloud_(cloud), within_m_(within_m) {
   if (!(within_m > 0) || !std::isfinite(within_m))

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 
 namespace skyfall {
 
@@ -38,6 +39,35 @@ struct DensityControlOptions {
   double merge_max_shape_difference = 0.25;
   void Check() const;  // throws Error("train", field, ...)
 };
+
+// As the run lists them (train.* in run_config.json).
+template <class IO> void Visit(IO& io, DensityControlOptions& d) {
+  io("densify_from", d.from_step,
+     "First step of adaptive density control (clone, split, prune)", range::AtLeast(0));
+  io("densify_until", d.until_step,
+     "Last step that adds Gaussians by cloning or splitting", range::AtLeast(0));
+  io("densify_interval", d.interval_steps,
+     "Steps between densification passes", range::AtLeast(1));
+  io("densify_grad_threshold", d.grad_threshold,
+     "Mean view-space gradient of a Gaussian's centre above which it is cloned or split, in the 3DGS reference's "
+     "normalized units", range::Above(0));
+  io("percent_dense", d.percent_dense,
+     "Gaussians smaller than this fraction of the scene extent are cloned, larger ones split", range::AboveUpTo(0, 1));
+  io("min_opacity", d.min_opacity,
+     "Gaussians more transparent than this are pruned", range::FromBelow(0, 1));
+  io("max_scale_m", d.max_scale_m,
+     "Gaussians larger than this are pruned", range::Above(0));
+  io("max_gaussians", d.max_gaussians,
+     "Densification adds no Gaussians beyond this count", range::AtLeast(1));
+  io("merge_within_m", d.merge_within_m,
+     "Gaussians whose centres are closer than this and whose shapes are alike are merged into one, every "
+     "merge_interval steps (0 = off)", range::AtLeast(0));
+  io("merge_interval", d.merge_interval_steps,
+     "Steps between merges of coincident Gaussians; none on the last step", range::AtLeast(1));
+  io("merge_max_shape_difference", d.merge_max_shape_difference,
+     "Coincident Gaussians merge only when their covariances differ by at most this fraction (relative Frobenius "
+     "norm)", range::AtLeast(0));
+}
 
 // The mean view-space gradient's sums since the last densification, per Gaussian.
 struct DensifyStats {

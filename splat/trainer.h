@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/gaussians.h"
+#include "core/option_range.h"
 #include "core/pinhole.h"
 #include "core/stage.h"
 #include "splat/appearance.h"
@@ -123,6 +124,73 @@ struct TrainOptions {
   RasterOptions raster;
   void Check() const;  // throws Error("train", field, ...)
 };
+
+// The optimizer's options as the run lists them (train.* in run_config.json).
+template <class IO> void Visit(IO& io, TrainOptions& t) {
+  // Set by the synthesis stage for its episodes from idu.* (IduOptions).
+  io.NotAnOption(t.synthetic_fraction);
+  io.NotAnOption(t.lambda_view_depth);
+  io("iterations", t.iterations,
+     "Splat training steps per tile", range::AtLeast(1));
+  io("seed", t.seed,
+     "Random seed of training");
+  io("lambda_dssim", t.lambda_dssim,
+     "Weight of the (1 - SSIM) term of the photometric loss; L1 weighs 1 minus this", range::In(0, 1));
+  io("lambda_opacity", t.lambda_opacity,
+     "Weight of the entropy opacity regularization; 0 = off", range::AtLeast(0));
+  io("opacity_reg_from", t.opacity_reg_from,
+     "First step of the entropy opacity term", range::AtLeast(0));
+  io("lr_mean_initial", t.lr.mean_initial,
+     "Adam learning rate of the centres at the first step, times the scene extent; it decays exponentially to "
+     "lr_mean_final", range::Above(0));
+  io("lr_mean_final", t.lr.mean_final,
+     "Learning rate of the centres at the last step, times the scene extent", range::Above(0));
+  io("lr_scale", t.lr.scale,
+     "Adam learning rate of the Gaussians' scales", range::Above(0));
+  io("lr_rotation", t.lr.rotation,
+     "Adam learning rate of the Gaussians' rotations", range::Above(0));
+  io("lr_opacity", t.lr.opacity,
+     "Adam learning rate of the Gaussians' opacities", range::Above(0));
+  io("lr_sh_dc", t.lr.sh_dc,
+     "Adam learning rate of the degree-0 spherical-harmonics colour", range::Above(0));
+  io("lr_sh_rest", t.lr.sh_rest,
+     "Adam learning rate of the higher spherical-harmonics coefficients", range::Above(0));
+  Visit(io, t.density);
+  io("eval_interval", t.eval_interval,
+     "Steps between held-out PSNR evaluations, recorded in the report", range::AtLeast(1));
+  io("checkpoint_interval", t.checkpoint_interval,
+     "Steps between resumable checkpoints", range::AtLeast(1));
+  io("keep_snapshots", t.keep_snapshots,
+     "Also keep scene_<iteration>.ply under checkpoints/snapshots at every checkpoint (for skyfall report)");
+  io("lambda_depth", t.lambda_depth,
+     "Weight of the pseudo views' Pearson depth loss", range::AtLeast(0));
+  io("pseudo_interval", t.pseudo_interval,
+     "Steps between pseudo views; 0 = none (takes effect only with a depth prior)", range::AtLeast(0));
+  io("pseudo_cameras", t.pseudo);
+  io("lambda_surface_depth", t.surface.lambda_depth,
+     "Weight of the surface anchor's Huber depth loss, per metre of depth error; 0 = off", range::AtLeast(0));
+  io("lambda_surface_alpha", t.surface.lambda_alpha,
+     "Weight of the surface anchor's (1 - accumulated opacity) term where the surface is seen; 0 = off",
+     range::AtLeast(0));
+  io("surface_huber_m", t.surface.huber_m,
+     "Scale of the surface anchor's Huber loss: depth errors beyond it count linearly", range::Above(0));
+  io("lambda_surface_height", t.surface.lambda_height,
+     "Weight of the loss that holds Gaussian centres near the dense surface to its height, per m^2 and averaged over "
+     "the Gaussians; 0 = off", range::AtLeast(0));
+  io("surface_height_band_m", t.surface.height_band_m,
+     "Gaussians whose centre is within this of the surface height below it are held by lambda_surface_height",
+     range::Above(0));
+  io("surface_nadir_interval", t.surface.nadir_interval,
+     "Steps between the nadir patches the surface anchor also holds; 0 = never", range::AtLeast(0));
+  io("surface_nadir_size_px", t.surface.nadir_size_px,
+     "Side of the surface anchor's square nadir patch", range::AtLeast(16));
+  io("surface_nadir_gsd_m", t.surface.nadir_gsd_m,
+     "Ground pixel size of the surface anchor's nadir patch", range::Above(0));
+  io("appearance_model", t.appearance);
+  io("appearance_image", t.appearance_image,
+     "Training view whose appearance is fused into scene.ply (empty = the view whose embedding is nearest the mean)");
+  io("raster", t.raster);
+}
 
 // One point of the error-versus-time series.
 struct TrainSample {

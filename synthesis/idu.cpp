@@ -272,19 +272,8 @@ std::string IduEpisodesJson(const std::vector<IduEpisode>& episodes) {
 }
 
 void IduOptions::Check() const {
-  orbit.Check();
-  auto need = [](bool ok, const char* field, double v) {
-    if (!ok) throw Error("idu", field, FormatDouble(v) + " is out of range");
-  };
-  need(iterations_per_episode >= 1, "iterations_per_episode", iterations_per_episode);
-  need(samples >= 1 && samples <= 16, "samples", samples);
-  need(synthetic_fraction >= 0 && synthetic_fraction <= 1, "synthetic_fraction", synthetic_fraction);
-  need(lambda_depth >= 0, "lambda_depth", lambda_depth);
-  need(lambda_opacity >= 0, "lambda_opacity", lambda_opacity);
-  need(densify_from_fraction >= 0 && densify_from_fraction <= 1, "densify_from_fraction", densify_from_fraction);
-  need(densify_until_fraction >= 0 && densify_until_fraction <= 1, "densify_until_fraction", densify_until_fraction);
-  need(densify_interval >= 1, "densify_interval", densify_interval);
-  need(fill_voxel_m > 0 && std::isfinite(fill_voxel_m), "fill_voxel_m", fill_voxel_m);
+  orbit.Check();  // what involves two of its fields
+  CheckOptionRanges(*this, "idu");
 }
 
 namespace {

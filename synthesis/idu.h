@@ -77,6 +77,40 @@ struct IduOptions {
   void Check() const;                 // throws Error("idu", field, ...)
 };
 
+// As the run lists them (idu.* in run_config.json).
+template <class IO> void Visit(IO& io, IduOptions& i) {
+  io("orbit", i.orbit);
+  io("iterations_per_episode", i.iterations_per_episode,
+     "Training steps per episode", range::AtLeast(1));
+  io("samples", i.samples,
+     "Refined images per orbit view", range::In(1, 16));
+  io("synthetic_fraction", i.synthetic_fraction,
+     "Share of the training steps on refined views; the others use satellite views", range::In(0, 1));
+  io("lambda_depth", i.lambda_depth,
+     "Weight of the Pearson depth loss on refined views", range::AtLeast(0));
+  io("lambda_opacity", i.lambda_opacity,
+     "Weight of the entropy opacity regularization during the episodes; 0 = off", range::AtLeast(0));
+  io("densify", i.densify,
+     "Adaptive density control (clone, split, prune) within each episode");
+  io("densify_from_fraction", i.densify_from_fraction,
+     "Densification starts at this fraction of each episode", range::In(0, 1));
+  io("densify_until_fraction", i.densify_until_fraction,
+     "Densification ends at this fraction of each episode", range::In(0, 1));
+  io("densify_interval", i.densify_interval,
+     "Steps between densification passes within an episode", range::AtLeast(1));
+  io("geometry", i.geometry,
+     "Where refined views get their geometry: 'surface' (the dense heights' height field, walls included) or "
+     "'render' (the depth the scene renders at the episode's start)");
+  io("fill_holes", i.fill_holes,
+     "With geometry 'surface', also refine and train on orbit pixels where the height field has a surface but the "
+     "scene is transparent, adding Gaussians there");
+  io("fill_voxel_m", i.fill_voxel_m,
+     "Edge of the cubes in which fill_holes adds one Gaussian each", range::Above(0));
+  io("seed", i.seed,
+     "Random seed of the stage's training and refined samples");
+  io("prompts", i.request);
+}
+
 struct IduEpisode {
   int episode = 0;
   double elevation_deg = 0, radius_m = 0;
