@@ -242,14 +242,7 @@ void IduStageOptions::Check() const {
 
 void MergeOptions::Check() const { CheckOptionRanges(*this, "merge"); }
 
-void DsmOptions::Check() const {
-  CheckOptionRanges(*this, "dsm");
-  try {
-    compare.breakdown.Check();
-  } catch (const Error& e) {
-    throw Error("dsm", "compare." + e.subject(), e.detail());
-  }
-}
+void DsmOptions::Check() const { CheckOptionRanges(*this, "dsm"); }
 
 void ExportOptions::Check() const { CheckOptionRanges(*this, "exports"); }
 

@@ -517,9 +517,8 @@ DsmGrid SampleOnGrid(const DsmGrid& source, const DsmGrid& target, const std::st
 
 void DsmExportOptions::Check() const { CheckOptionRanges(*this, "dsm"); }
 
-void DsmCompareOptions::Check() const {
-  CheckOptionRanges(*this, "dsm");
-  breakdown.Check();  // its own checks, also for callers that build it alone
-}
+// The breakdown's options are visited under the comparison's keys, so its
+// ranges are checked here too.
+void DsmCompareOptions::Check() const { CheckOptionRanges(*this, "dsm"); }
 
 }  // namespace skyfall

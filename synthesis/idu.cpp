@@ -272,8 +272,7 @@ std::string IduEpisodesJson(const std::vector<IduEpisode>& episodes) {
 }
 
 void IduOptions::Check() const {
-  orbit.Check();  // what involves two of its fields
-  CheckOptionRanges(*this, "idu");
+  CheckOptionRanges(*this, "idu");  // the orbit's ranges too, as idu.orbit.*
 }
 
 namespace {
