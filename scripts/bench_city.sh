@@ -118,7 +118,13 @@ if [ -d "$city_dir/3dtiles" ] && [ ! -f "$OUT/viewer/check.json" ]; then
   port=$((20000 + $$ % 20000))
   "$B" -q view "$run" --port "$port" > "$OUT/view.log" 2>&1 &
   server=$!
-  sleep 3
+  # Until the server answers (it reads the run first: seconds on a 2 km city).
+  for _ in $(seq 120); do
+    python3 -c "import urllib.request, sys; urllib.request.urlopen(sys.argv[1], timeout=2)" \
+      "http://127.0.0.1:$port/view/index.html" 2>/dev/null && break
+    kill -0 "$server" 2>/dev/null || break
+    sleep 1
+  done
   mkdir -p "$OUT/viewer"
   node web/check_city_view.mjs "http://127.0.0.1:$port/view/index.html" "$OUT/viewer" > "$OUT/viewer/check.tmp" \
     && mv "$OUT/viewer/check.tmp" "$OUT/viewer/check.json" || echo "bench_city: the viewer check failed ($OUT/viewer/check.tmp)" >&2
