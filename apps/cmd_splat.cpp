@@ -21,7 +21,8 @@ void AddTrain(CLI::App& splat, Runner* runner) {
   cmd->add_option("--sfm", *sfm, "Folder written by `skyfall sfm`")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", *out, "Output folder: scene.ply, train_report.json, checkpoints/")->required();
   cmd->add_option("--iterations", o.iterations, "Optimization steps")->capture_default_str();
-  cmd->add_option("--resolution", stage->downscale, "Image downscale factor (1 = full resolution)")->capture_default_str();
+  cmd->add_option("--resolution", stage->downscale, "Image downscale factor (1 = full resolution; 0 = automatic: 2 for imagery finer than 1 m GSD, 1 for coarser)")
+      ->capture_default_str();
   cmd->add_option("--lambda-opacity", o.lambda_opacity, "Entropy opacity weight (0 = off)")->capture_default_str();
   cmd->add_option("--seed", o.seed, "Random seed")->capture_default_str();
   cmd->add_option("--checkpoint-every", o.checkpoint_interval, "Checkpoint interval [iterations]")->capture_default_str();

@@ -1,5 +1,7 @@
-// The dense height grid's automatic cell, shared by the tiling (which sizes
-// tiles in cells) and the dense stage (which sweeps on it).
+// What follows the imagery's ground sampling distance (GSD): the dense height
+// grid's automatic cell, shared by the tiling (which sizes tiles in cells) and
+// the dense stage (which sweeps on it), and the training images' automatic
+// downscale.
 #pragma once
 
 #include <algorithm>
@@ -21,6 +23,21 @@ constexpr double kDenseCellStepM = 0.5;
 inline double DenseCellForGsdM(double finest_gsd_m) {
   if (!(finest_gsd_m > 0) || !std::isfinite(finest_gsd_m)) return kDenseCellStepM;
   return kDenseCellStepM * std::max(1.0, std::round(0.5 * finest_gsd_m / kDenseCellStepM));
+}
+
+// Imagery at least this coarse [m] trains at its own resolution.
+constexpr double kTrainAtFullResolutionGsdM = 1.0;
+
+// The automatic training downscale for imagery whose finest view samples the
+// ground at `finest_gsd_m`: 2 for sub-metre sensors (1 m pixels or finer,
+// the setting every sub-metre figure was measured with), 1 from
+// kTrainAtFullResolutionGsdM up. Halving a 2.1 m image gives 4.2 m pixels, four
+// times the 1 m dense cells the Gaussians start from, and the trained DSM
+// lost detail the dense heights had (decision D-133). A GSD that is not
+// positive and finite gets 2.
+inline int TrainDownscaleForGsdM(double finest_gsd_m) {
+  if (!(finest_gsd_m > 0) || !std::isfinite(finest_gsd_m)) return 2;
+  return finest_gsd_m >= kTrainAtFullResolutionGsdM ? 1 : 2;
 }
 
 }  // namespace skyfall

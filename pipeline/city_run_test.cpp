@@ -469,7 +469,7 @@ TEST(CityRun, APlainFolderWithAGeoreferencedTruthIsIngestedAndCompared) {
 TEST(CityRun, BadOptionsStopTheRunBeforeAnyStage) {
   const fs::path dir = ScratchDir("run");
   RunOptions options;
-  options.train.downscale = 0;
+  options.train.downscale = -1;
   NullProgress progress;
   const std::string error =
       testing::ErrorText([&] { RunAll(options, {"/nonexistent/root", (dir / "out").string(), {}}, progress); });

@@ -21,7 +21,9 @@ namespace skyfall {
 template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   Visit(io, o.optimizer);  // the optimizer's own options (splat/trainer.h), under the same keys
   io("downscale", o.downscale,
-     "Training image downscale factor (SfM and dense heights use full resolution)", range::AtLeast(1));
+     "Training image downscale factor (SfM and dense heights use full resolution); 0 = automatic: 2 for imagery "
+     "finer than 1 m GSD, 1 for coarser",
+     range::AtLeast(0));
   io("depth_prior", o.depth_prior,
      "Pseudo-camera depth prior: 'surface', 'none' or 'cmd:COMMAND' (see splat train)");
   io("appearance", o.appearance,

@@ -58,7 +58,9 @@ struct EnumNames<InitPoints> {
 // around it (resolution, initialization, which regularizers run).
 struct TrainStageOptions {
   TrainOptions optimizer;               // steps, learning rates, losses, densification schedule
-  int downscale = 2;                    // training image downscale (SfM and dense use full resolution)
+  // Training image downscale (SfM and dense use full resolution); 0 =
+  // automatic, from the finest view's GSD (core/ground_cell.h).
+  int downscale = 0;
   std::string depth_prior = "surface";  // pseudo-camera depth: "surface", "none" or "cmd:COMMAND"
   // Appearance model: "on", "off" or "auto" (on when the training views come
   // from more than one acquisition date; one date has nothing to explain).

@@ -111,7 +111,7 @@ TEST(RunOptions, CheckNamesTheSectionAndFieldOfABadValue) {
   EXPECT_NE(set("train.densify=").find("train.densify"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "lidar"; }).find("train.depth_prior"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.depth_prior = "cmd:"; }).find("train.depth_prior"), std::string::npos);
-  EXPECT_NE(check([](RunOptions& o) { o.train.downscale = 0; }).find("train.downscale"), std::string::npos);
+  EXPECT_NE(check([](RunOptions& o) { o.train.downscale = -1; }).find("train.downscale"), std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.anchor.step_weight = 1.5; }).find("train.surface_step_weight"),
             std::string::npos);
   EXPECT_NE(check([](RunOptions& o) { o.train.anchor.step_reach_m = -1; }).find("train.surface_step_reach_m"),

@@ -15,6 +15,7 @@
 
 #include "catalogs/tile_catalog.h"
 #include "core/atomic_file.h"
+#include "core/ground_cell.h"
 #include "core/error.h"
 #include "core/sha256.h"
 #include "core/simd.h"
@@ -308,6 +309,22 @@ double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const
   return with_data ? static_cast<double>(masked) / static_cast<double>(with_data) : 0.0;
 }
 
+TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir) {
+  if (asked > 0) return {asked, 0.0, "train.downscale " + std::to_string(asked)};
+  // The GSD at the frame origin (in the AOI): a satellite is hundreds of
+  // kilometres away, so the tile's place in the AOI does not change it.
+  double finest_m = std::numeric_limits<double>::infinity();
+  for (const CameraEntry& e : ReadCameraEntries((fs::path(sfm_dir) / "cameras.json").string())) {
+    const double depth_m = e.camera.Depth(Eigen::Vector3d::Zero());
+    if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(e.camera.fx * e.camera.fy));
+  }
+  const int factor = TrainDownscaleForGsdM(finest_m);
+  const double gsd_m = std::isfinite(finest_m) ? finest_m : 0.0;
+  return {factor, gsd_m,
+          fmt::format("automatic: finest GSD {:.2f} m, {} {} m", gsd_m, factor == 1 ? "at least" : "under",
+                      kTrainAtFullResolutionGsdM)};
+}
+
 TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sfm_dir, const std::string& out_dir,
                            Progress& progress) {
   stage.Check();
@@ -335,12 +352,16 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
   if (!decided.densify) options.density.from_step = options.iterations + 1;  // never reached
-  std::vector<TrainView> views = LoadTrainViews(sfm_dir, stage.downscale);
+  decided.downscale = ResolveTrainDownscale(stage.downscale, sfm_dir);
+  std::vector<TrainView> views = LoadTrainViews(sfm_dir, decided.downscale.factor);
   if (stage.mask_beyond_reconstruction)
     decided.masked_beyond_fraction = MaskBeyondReconstruction(dense, stage.init_spacing_m, options.raster, &views);
   progress.Info(fmt::format(
-      "splat train: {} views ({} held out), {} initial points ({}), {} iterations, densification {}", views.size(),
-      std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }), points.size(),
+      "splat train: {} views ({} held out) at 1/{} resolution ({}), {} initial points ({}), {} iterations, "
+      "densification {}",
+      views.size(),
+      std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
+      decided.downscale.factor, decided.downscale.why, points.size(),
       decided.dense_start ? fmt::format("dense heights thinned to {} m, and tie points in their holes", stage.init_spacing_m)
                           : fmt::format("{} tie points", tie_points),
       options.iterations, decided.densify ? "on" : "off"));
@@ -378,7 +399,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
     std::vector<float>().swap(r.target);
   }
   WriteFileAtomic((fs::path(out_dir) / "train_report.json").string(),
-                  TrainReportJson(result.train, options, stage.downscale, views.size(), decided.appearance_reason));
+                  TrainReportJson(result.train, options, decided.downscale.factor, views.size(), decided.appearance_reason));
   return result;
 }
 
@@ -398,7 +419,7 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
     fs::remove(fs::path(out_dir) / "idu_report.json");
     return result;
   }
-  std::vector<TrainView> views = LoadTrainViews(sfm_dir, train.downscale);
+  std::vector<TrainView> views = LoadTrainViews(sfm_dir, ResolveTrainDownscale(train.downscale, sfm_dir).factor);
   if (train.mask_beyond_reconstruction)  // as the reconstruction was trained and scored
     MaskBeyondReconstruction(dense, train.init_spacing_m, train.optimizer.raster, &views);
   const GaussianCloud scene = ReadGaussiansPly(scene_ply);

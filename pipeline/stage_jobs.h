@@ -51,7 +51,20 @@ double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const
 bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m);
 
 // What the training job decided and why (for the reports).
+// The training images' downscale and why (asked for, or automatic from the
+// finest view's GSD).
+struct TrainDownscale {
+  int factor = 2;
+  double finest_gsd_m = 0;  // [m] 0 when asked for
+  std::string why;
+};
+
+// `asked` (train.downscale) when positive, else the automatic factor for the
+// finest GSD of the views in sfm_dir/cameras.json (core/ground_cell.h).
+TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir);
+
 struct TrainDecisions {
+  TrainDownscale downscale;
   bool dense_start = false;
   bool densify = false;
   bool appearance = false;

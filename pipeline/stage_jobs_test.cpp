@@ -4,11 +4,48 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <limits>
 
+#include "core/ground_cell.h"
 #include "core/pinhole.h"
+#include "tests/test_support.h"
 
 namespace skyfall {
 namespace {
+
+namespace fs = std::filesystem;
+
+// An SfM folder whose cameras.json holds one nadir view 617 km above the
+// frame origin (WorldView-3's orbit) whose pixel spans `gsd_m` there.
+std::string SfmAtGsd(const std::string& name, double gsd_m) {
+  const fs::path dir = testing::ScratchDir("train_downscale_" + name);
+  const double f_px = 617000.0 / gsd_m;
+  std::ofstream file(dir / "cameras.json");
+  file.precision(17);  // the focal length exactly, so that the GSD read back is exact up to rounding
+  file << R"({"images": [{"name": "a", "K": [[)" << f_px << ", 0, 50], [0, " << f_px << R"(, 40], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                                         "t": [0, 0, 617000], "width_px": 100, "height_px": 80}]})";
+  return dir.string();
+}
+
+TEST(TrainDownscale, HalvesSubMetreImageryAndKeepsCoarserAtItsOwnResolution) {
+  EXPECT_EQ(ResolveTrainDownscale(0, SfmAtGsd("wv3", 0.31)).factor, 2);
+  EXPECT_EQ(ResolveTrainDownscale(0, SfmAtGsd("pleiades", 0.5)).factor, 2);
+  EXPECT_EQ(ResolveTrainDownscale(0, SfmAtGsd("under", 0.999)).factor, 2);
+  EXPECT_EQ(ResolveTrainDownscale(0, SfmAtGsd("over", 1.001)).factor, 1);
+  const TrainDownscale zy3 = ResolveTrainDownscale(0, SfmAtGsd("zy3", 2.1));
+  EXPECT_EQ(zy3.factor, 1);
+  EXPECT_NEAR(zy3.finest_gsd_m, 2.1, 1e-9);  // depth over focal length: exact up to rounding
+  EXPECT_NE(zy3.why.find("2.10 m"), std::string::npos) << zy3.why;
+  // Asked for, the factor is kept whatever the imagery, and cameras.json is not read.
+  const TrainDownscale asked = ResolveTrainDownscale(3, "/nonexistent/sfm");
+  EXPECT_EQ(asked.factor, 3);
+  EXPECT_NE(asked.why.find("train.downscale 3"), std::string::npos) << asked.why;
+  // No usable GSD: the sub-metre setting.
+  EXPECT_EQ(TrainDownscaleForGsdM(std::numeric_limits<double>::quiet_NaN()), 2);
+  EXPECT_EQ(TrainDownscaleForGsdM(std::numeric_limits<double>::infinity()), 2);
+  EXPECT_EQ(TrainDownscaleForGsdM(0.0), 2);
+}
 
 // Dense cells of `cell_m` on an n x n grid: ground at 0 m, a roof of
 // `roof_m` over the columns i >= n / 2, and one filled ground cell at (1, 1).

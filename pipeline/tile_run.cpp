@@ -106,6 +106,7 @@ namespace {
 void AddTrainDecisions(const TrainStageOptions& train, const TrainDecisions& d, json* decisions) {
   json& out = *decisions;
   out["initial_points"] = d.dense_start ? "dense" : "sparse";
+  out["train_downscale"] = {{"factor", d.downscale.factor}, {"why", d.downscale.why}};
   out["densify"] = {{"on", d.densify},
                     {"why", std::string("train.densify '") + EnumName(train.densify) + "', " +
                                 (d.dense_start ? "dense" : "tie-point") + " start"}};
