@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 
 namespace skyfall {
 
@@ -28,6 +29,13 @@ struct PinholeCamera {
   // Depth along the optical axis (positive in front of the camera).
   double Depth(const Eigen::Vector3d& world) const {
     return (cam_from_world_rotation * world + cam_from_world_translation).z();
+  }
+  // [m] side of one pixel's footprint at `world` (depth over the geometric
+  // mean focal length: the ground sample distance of a nadir view); +inf
+  // behind the camera.
+  double PixelFootprintM(const Eigen::Vector3d& world) const {
+    const double depth_m = Depth(world);
+    return depth_m > 0 ? depth_m / std::sqrt(fx * fy) : std::numeric_limits<double>::infinity();
   }
   Eigen::Vector2d Project(const Eigen::Vector3d& world) const {
     const Eigen::Vector3d c = cam_from_world_rotation * world + cam_from_world_translation;

@@ -30,5 +30,24 @@ TEST(PinholeCamera, PixelToWorldUndoesProjection) {
   }
 }
 
+// The footprint of one pixel: a nadir camera 600 km up whose focal length
+// makes 0.5 m pixels at the ground, checked against the distance between the
+// ground points of two neighbouring pixels; nothing is seen behind it.
+TEST(PinholeCamera, PixelFootprintIsTheGroundDistanceBetweenNeighbouringPixels) {
+  constexpr double kAltitudeM = 6.0e5, kGsdM = 0.5;
+  // One metre off the vertical (LookAtCamera needs a direction to roll by).
+  PinholeCamera nadir = LookAtCamera({0.0, -1.0, kAltitudeM}, {0.0, 0.0, 0.0}, 1.0, 1000, 1000);
+  nadir.fx = nadir.fy = kAltitudeM / kGsdM;
+  const PixelToWorld to_world(nadir);
+  const Eigen::Vector3d ground(0.0, 0.0, 0.0);
+  const Eigen::Vector2d uv = nadir.Project(ground);
+  const double depth_m = nadir.Depth(ground);
+  const double step_m = (to_world(uv.x() + 1, uv.y(), depth_m) - to_world(uv.x(), uv.y(), depth_m)).norm();
+  // Doubles after a 6e5 m lever: 1e-9 m is far below any wrong factor.
+  EXPECT_NEAR(nadir.PixelFootprintM(ground), kGsdM, 1e-9);
+  EXPECT_NEAR(step_m, kGsdM, 1e-9);
+  EXPECT_TRUE(std::isinf(nadir.PixelFootprintM({0.0, -2.0, 2 * kAltitudeM})));
+}
+
 }  // namespace
 }  // namespace skyfall

@@ -48,10 +48,7 @@ namespace {
 // The finest view's GSD at a point [m]: its depth over its focal length.
 double FinestGsdM(const std::vector<DenseView>& views, const Eigen::Vector3d& centre_enu_m) {
   double finest_m = std::numeric_limits<double>::infinity();
-  for (const DenseView& v : views) {
-    const double depth_m = v.camera.Depth(centre_enu_m);
-    if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(v.camera.fx * v.camera.fy));
-  }
+  for (const DenseView& v : views) finest_m = std::min(finest_m, v.camera.PixelFootprintM(centre_enu_m));
   return finest_m;
 }
 

@@ -15,13 +15,21 @@
 namespace skyfall {
 
 struct LodOptions {
-  int max_levels = 6;         // levels after the finest (which is level 0)
+  // Levels after the finest (which is level 0): a guard only, the root's
+  // count (`min_gaussians`) ends the pyramid first on any city up to tens
+  // of kilometres a side.
+  int max_levels = 12;
   double base_voxel_m = 1.0;  // [m] smallest voxel edge tried; doubles per attempt
   // A level is kept only when it has at most this fraction of the previous
   // level's count; otherwise the voxel doubles again (a sparse scene skips
-  // the voxel sizes at which nothing merges).
-  double min_reduction = 0.7;
-  std::size_t min_gaussians = 16;  // no level coarser than this count
+  // the voxel sizes at which little merges). Half: a kept level earns its
+  // bytes; at 0.7 the 1 m voxel of 0.5 m imagery (0.69-0.71 of level 0)
+  // was kept or skipped by chance, and every coarser level moved with it.
+  double min_reduction = 0.5;
+  // The pyramid ends at the first level of at most this many Gaussians: the
+  // root of the 3D Tiles tree, which a whole-city view loads first, so its
+  // size does not grow with the city's area.
+  std::size_t min_gaussians = 4096;
   // [m] side of the ground blocks the levels are built in, one at a time
   // (raised to base_voxel_m times a power of two, so that voxels nest in
   // blocks; a level whose voxel is larger uses blocks of its voxel).
@@ -31,14 +39,15 @@ struct LodOptions {
 };
 template <class IO> void Visit(IO& io, LodOptions& o) {
   io("max_levels", o.max_levels,
-     "Coarser LOD levels to build", range::In(0, 24));
+     "Coarser LOD levels to build at most (a guard: min_gaussians ends the pyramid first)", range::In(0, 24));
   io("base_voxel_m", o.base_voxel_m,
      "Smallest voxel edge tried; it doubles per attempt", range::Above(0));
   io("min_reduction", o.min_reduction,
      "A level is kept only when it has at most this fraction of the previous level's Gaussians; otherwise the voxel "
      "doubles again", range::AboveUpTo(0, 1));
   io("min_gaussians", o.min_gaussians,
-     "No coarser level is built from a level of this many Gaussians or fewer", range::AtLeast(1));
+     "The pyramid ends at the first level of this many Gaussians or fewer: the 3D Tiles root a whole-city view loads "
+     "first", range::AtLeast(1));
   io("block_m", o.block_m,
      "Side of the ground blocks the levels are built in, one block at a time (memory holds one block, not the city)",
      range::Above(0));

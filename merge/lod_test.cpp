@@ -42,6 +42,23 @@ GaussianCloud RandomCloud(std::size_t n, std::uint64_t seed) {
   return c;
 }
 
+// A roof-like surface: one small flat Gaussian per `spacing_m` cell of a
+// square of `side_m` (corner at the origin), jittered inside its cell.
+GaussianCloud SurfaceCloud(double side_m, double spacing_m, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> jitter(0.01f, static_cast<float>(spacing_m) - 0.01f), z(0.05f, 0.2f);
+  const GaussianCloud shape = RandomCloud(1, seed);
+  GaussianCloud c;
+  const int cells = static_cast<int>(std::lround(side_m / spacing_m));
+  for (int iy = 0; iy < cells; ++iy)
+    for (int ix = 0; ix < cells; ++ix) {
+      c.Append(shape, 0);
+      c.means.back() = {static_cast<float>(ix * spacing_m) + jitter(rng),
+                        static_cast<float>(iy * spacing_m) + jitter(rng), z(rng)};
+    }
+  return c;
+}
+
 struct Moments {
   double mass = 0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -175,6 +192,7 @@ TEST(Lod, BlockByBlockEqualsTheGlobalBuildBitForBit) {
   LodOptions o;
   o.base_voxel_m = 0.5;
   o.max_levels = 7;
+  o.min_gaussians = 16;        // a deep pyramid from a small cloud
   o.block_m = 3;               // raised to 4 m: 16 x 16 blocks over the 64 m scene
   o.spill_buffer_mb = 1e-6;    // every record goes to disk at once
   const Built built = BuildInScratch(o, finest, "lod_blocks");
@@ -204,6 +222,7 @@ TEST(Lod, EveryLevelPreservesMassAndMeanAndBoundsItsError) {
   LodOptions o;
   o.base_voxel_m = 0.5;  // too fine to merge anything: the first levels come from doubled voxels
   o.max_levels = 5;
+  o.min_gaussians = 16;  // a deep pyramid from a small cloud
   const Built built = BuildInScratch(o, finest);
   const std::vector<LodLevel>& levels = built.levels;
   ASSERT_GE(levels.size(), 4u);
@@ -228,6 +247,26 @@ TEST(Lod, EveryLevelPreservesMassAndMeanAndBoundsItsError) {
   }
 }
 
+// The pyramid ends at a root of at most `min_gaussians`, whatever the
+// city's area: four times the area gets one more level (its voxel twice
+// as large), not a root four times as heavy. Every level of these surfaces
+// keeps a quarter of its parent (four 0.5 m cells per 1 m voxel).
+TEST(Lod, TheRootsSizeDoesNotGrowWithTheArea) {
+  const LodOptions o;  // the defaults
+  const Built small = BuildInScratch(o, SurfaceCloud(96, 0.5, 4), "lod_root_small");
+  const Built large = BuildInScratch(o, SurfaceCloud(192, 0.5, 5), "lod_root_large");
+  for (const Built* b : {&small, &large}) {
+    ASSERT_GE(b->levels.size(), 2u);
+    EXPECT_LE(b->levels.back().count, o.min_gaussians);
+    EXPECT_GT(b->levels[b->levels.size() - 2].count, o.min_gaussians);  // no level past the first small enough
+    for (std::size_t k = 1; k < b->levels.size(); ++k)
+      EXPECT_EQ(b->levels[k].count * 4, b->levels[k - 1].count) << "level " << k;
+  }
+  EXPECT_EQ(large.levels.size(), small.levels.size() + 1);
+  EXPECT_EQ(large.levels.back().voxel_m, 2 * small.levels.back().voxel_m);
+  EXPECT_EQ(large.levels.back().count, small.levels.back().count);
+}
+
 TEST(Lod, CoincidentOpaqueGaussiansSaturateAndSaySo) {
   GaussianCloud c = RandomCloud(50, 1);
   for (std::size_t i = 0; i < c.size(); ++i) {
@@ -247,6 +286,7 @@ TEST(Lod, TheIndexListsEveryLevelFileWithItsFigures) {
   const GaussianCloud finest = RandomCloud(5000, 3);
   LodOptions o;
   o.max_levels = 4;
+  o.min_gaussians = 16;
   const Built built = BuildInScratch(o, finest, "lod_index");
   ASSERT_GE(built.levels.size(), 3u);
   const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((built.dir / "lod.json").string()));

@@ -206,9 +206,11 @@ void ExportCityTiles3d(const RunOptions& options, const CityWork& work, json* st
 // What the merge decided (LOD levels, the DSMs' surface) and why.
 json MergeDecisions(const RunOptions& options, const MergeSummary& merged) {
   json decisions = {{"lod_levels", {{"levels", merged.lod_levels},
-                                    {"why", fmt::format("a coarser level is kept while it has at most {:.0f}% of the "
-                                                        "previous level's Gaussians, up to {} levels",
+                                    {"why", fmt::format("a coarser level is kept when it has at most {:.0f}% of the "
+                                                        "previous level's Gaussians; the pyramid ends at the first "
+                                                        "level of at most {} Gaussians (or after {} levels)",
                                                         100 * options.merge.lod.min_reduction,
+                                                        options.merge.lod.min_gaussians,
                                                         options.merge.lod.max_levels)}}}};
   decisions["dsm_source"] = {
       {"source", merged.surface_source},

@@ -314,10 +314,8 @@ TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir) {
   // The GSD at the frame origin (in the AOI): a satellite is hundreds of
   // kilometres away, so the tile's place in the AOI does not change it.
   double finest_m = std::numeric_limits<double>::infinity();
-  for (const CameraEntry& e : ReadCameraEntries((fs::path(sfm_dir) / "cameras.json").string())) {
-    const double depth_m = e.camera.Depth(Eigen::Vector3d::Zero());
-    if (depth_m > 0) finest_m = std::min(finest_m, depth_m / std::sqrt(e.camera.fx * e.camera.fy));
-  }
+  for (const CameraEntry& e : ReadCameraEntries((fs::path(sfm_dir) / "cameras.json").string()))
+    finest_m = std::min(finest_m, e.camera.PixelFootprintM(Eigen::Vector3d::Zero()));
   const int factor = TrainDownscaleForGsdM(finest_m);
   const double gsd_m = std::isfinite(finest_m) ? finest_m : 0.0;
   return {factor, gsd_m,

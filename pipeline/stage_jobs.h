@@ -50,7 +50,6 @@ double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const
 // over the same extent.
 bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m);
 
-// What the training job decided and why (for the reports).
 // The training images' downscale and why (asked for, or automatic from the
 // finest view's GSD).
 struct TrainDownscale {
@@ -63,6 +62,7 @@ struct TrainDownscale {
 // finest GSD of the views in sfm_dir/cameras.json (core/ground_cell.h).
 TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir);
 
+// What the training job decided and why (for the reports).
 struct TrainDecisions {
   TrainDownscale downscale;
   bool dense_start = false;
