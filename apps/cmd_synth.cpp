@@ -68,6 +68,10 @@ void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::
                   "Atmospheric haze: the share of each pixel's light that is path radiance, lowering contrast and "
                   "colour (0 clear; 0.7 as grey as the DFC2019 crops' trees) [0, 0.9]")
       ->capture_default_str();
+  cmd->add_option("--clouds", opts->clouds,
+                  "Cumulus 1 km above the tallest roof over every second date (dates 1, 3, ...): the share of the "
+                  "sky their puffs cover before overlaps; they hide the ground and shade it [0, 0.8]")
+      ->capture_default_str();
 }
 
 int RunSynthCommand(SynthArgs& a) {

@@ -58,7 +58,9 @@ mkdir -p "$OUT"
 # mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair,
 # a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km), and
 # hazy imagery (path radiance 0.7: crowns barely greener than roofs, as in the
-# DFC2019 crops, and a third of the contrast).
+# DFC2019 crops, and a third of the contrast), and clouds over half the dates
+# (cumulus 1 km above the roofs that hide the ground in six of the twelve
+# images and shade it).
 SCENES=(
   "jax068|true|dfc2019"
   "syn_default|true|"
@@ -76,6 +78,7 @@ SCENES=(
   "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
   "syn_zy3|false|--size-m 1512 --gsd-m 2.1 --views 3 --views-per-date 3 --along-track-deg 22"
   "syn_haze|false|--haze 0.7"
+  "syn_clouds|false|--clouds 0.3"
 )
 if ! [[ "$DRAW" =~ ^[0-9]+$ && "$DRAW_FROM" =~ ^[1-9][0-9]*$ ]]; then
   echo "bench_accuracy: --draw needs a count >= 0 and --draw-from a number >= 1, got '$DRAW' and '$DRAW_FROM'" >&2

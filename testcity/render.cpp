@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -382,6 +383,12 @@ Eigen::Vector3f PixelAlbedo(const City& city, const Hit& hit, const Eigen::Vecto
   return sum / static_cast<float>(sub * sub);
 }
 
+// Share of the direct sunlight an opaque cloud takes (thick cumulus).
+constexpr float kCloudShadowDepth = 0.85f;
+// A cloud's colour seen from above: sunlit cumulus, brighter than any roof
+// (with a bright date's gain it saturates, as real cloud tops do).
+constexpr float kCloudColour[3] = {0.93f, 0.94f, 0.96f};
+
 // The colour (before the sensor's tint, gain and noise) and hit of the ray
 // through pixel (col, row): the surface's albedo over the pixel's footprint,
 // lit by the sun unless in shadow, plus the sky's ambient share.
@@ -396,7 +403,11 @@ Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int
   const Eigen::Vector3d& normal = hit.normal;
   const double lambert = std::max(0.0, normal.dot(sun));
   const bool lit = lambert > 0 && !(lighting.cast_shadows && InShadow(city, hit.point + 1e-3 * normal, sun));
-  const float light = lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f;
+  // A cloud between the surface and the sun takes most of the direct light
+  // (its edge a soft penumbra); the sky's ambient share stays.
+  const float cloud_shade = lit ? 1.0f - kCloudShadowDepth * lighting.clouds.OpacityAlong(hit.point, sun) : 1.0f;
+  const float light =
+      lighting.ambient + (1.0f - lighting.ambient) * static_cast<float>(lit ? lambert : 0.0) * 1.3f * cloud_shade;
   *colour = PixelAlbedo(city, hit, normal, std::max(1, lighting.subpixels), ray, col, row) * light;
   return hit;
 }
@@ -414,6 +425,22 @@ std::uint8_t SensorValue(const Lighting& lighting, float colour, int channel, st
 }
 
 }  // namespace
+
+float CloudLayer::OpacityAt(double x_m, double y_m) const {
+  double sum = 0.0;
+  for (const CloudPuff& p : puffs) {
+    const double dx = x_m - p.centre_m.x(), dy = y_m - p.centre_m.y();
+    const double q = (dx * dx + dy * dy) / (p.radius_m * p.radius_m);
+    if (q < 1.0) sum += (1.0 - q) * (1.0 - q);
+  }
+  return static_cast<float>(std::min(1.0, sum));
+}
+
+float CloudLayer::OpacityAlong(const Eigen::Vector3d& from, const Eigen::Vector3d& direction) const {
+  if (puffs.empty() || std::abs(direction.z()) < 1e-9) return 0.0f;
+  const double t = (height_m - from.z()) / direction.z();
+  return OpacityAt(from.x() + t * direction.x(), from.y() + t * direction.y());
+}
 
 Eigen::Vector2d SatelliteCamera::Project(const Eigen::Vector3d& enu_m) const {
   const Eigen::Vector3d p = cam_from_enu * (enu_m - centre_enu_m);
@@ -450,12 +477,19 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
     return std::make_pair(scene_from_enu.Apply(camera.centre_enu_m + t_start * d_enu),
                           Eigen::Vector3d((scene_from_enu.linear * d_enu).normalized()));
   };
+  std::atomic<std::size_t> covered{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height_px), [&](const tbb::blocked_range<int>& rows) {
     for (int r = rows.begin(); r < rows.end(); ++r) {
       for (int c = 0; c < camera.width_px; ++c) {
         const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
         Eigen::Vector3f colour;
         const Hit hit = ShadePixel(city, lighting, ray, c, r, &colour);
+        if (!lighting.clouds.puffs.empty()) {
+          const auto [o_scene, d_scene] = ray(c, r);
+          const float cloud = lighting.clouds.OpacityAlong(o_scene, d_scene);
+          for (int ch = 0; ch < 3; ++ch) colour[ch] = (1.0f - cloud) * colour[ch] + cloud * kCloudColour[ch];
+          if (cloud >= 0.5f) covered.fetch_add(1, std::memory_order_relaxed);
+        }
         if (hit.found) {
           view.hit_scene[p] = hit.point.cast<float>();
           const std::int32_t obj = city.object[city.Index(hit.i, hit.j)];
@@ -465,11 +499,15 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
       }
     }
   });
+  view.cloud_covered_fraction = n ? static_cast<double>(covered.load()) / static_cast<double>(n) : 0.0;
   return view;
 }
 
-std::vector<std::uint8_t> RenderOrtho(const City& city, const Lighting& lighting, double x0_m, double y_top_m,
-                                      double gsd_m, int width_px, int height_px) {
+std::vector<std::uint8_t> RenderOrtho(const City& city, const Lighting& lighting_of_view, double x0_m,
+                                      double y_top_m, double gsd_m, int width_px, int height_px) {
+  // The ground's truth: lit as the view is, under a clear sky.
+  Lighting lighting = lighting_of_view;
+  lighting.clouds = CloudLayer();
   std::vector<std::uint8_t> rgb(3 * static_cast<std::size_t>(width_px) * height_px, 0);
   const double start_z = city.max_height_m + 2.0;
   // Vertical rays through the grid's pixels: (col, row) = (0, 0) is the

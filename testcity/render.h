@@ -35,6 +35,27 @@ struct SceneFromEnu {
   Eigen::Vector3d Apply(const Eigen::Vector3d& enu_m) const { return linear * enu_m + offset_m; }
 };
 
+// One cumulus puff of a cloud layer: a disc of the layer, opaque at its
+// centre and fading to nothing at its edge. Scene frame [m].
+struct CloudPuff {
+  Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
+  double radius_m = 100.0;
+};
+
+// A layer of cumulus at one height over the city: what a satellite sees
+// instead of the ground where its ray crosses a puff, and the shadows the
+// puffs cast where the sun's ray crosses one. Empty: a clear sky.
+struct CloudLayer {
+  double height_m = 0.0;          // scene z (ellipsoidal) of the layer
+  std::vector<CloudPuff> puffs;
+  // Opacity of the layer at scene (x, y): each puff's (1 - (d/r)^2)^2,
+  // summed and capped at 1.
+  float OpacityAt(double x_m, double y_m) const;
+  // Opacity where the ray from `from` along `direction` (scene frame)
+  // crosses the layer, forwards or backwards; 0 for a horizontal ray.
+  float OpacityAlong(const Eigen::Vector3d& from, const Eigen::Vector3d& direction) const;
+};
+
 struct Lighting {
   Eigen::Vector3d sun_scene = Eigen::Vector3d::UnitZ();  // unit vector towards the sun, scene frame
   float ambient = 0.35f;                                  // sky light share
@@ -45,6 +66,10 @@ struct Lighting {
   // It lowers contrast and pulls every colour towards grey, as a hazy
   // satellite image's crowns are barely greener than its roofs.
   float haze = 0.0f;
+  // Clouds of the date (cloudy dates of `skyfall synth --clouds`): they hide
+  // the ground in the view and shade it from the sun. The true orthophoto
+  // is drawn without them.
+  CloudLayer clouds;
   std::uint64_t noise_seed = 0;                           // sensor noise pattern
   bool cast_shadows = true;                               // off only to test shadowing
   // A detector integrates the light over its pixel. Point-sampled at the
@@ -62,6 +87,7 @@ struct RenderedView {
   std::vector<std::uint8_t> rgb;        // interleaved, row-major
   std::vector<Eigen::Vector3f> hit_scene;  // surface point seen by each pixel (NaN if none)
   std::vector<std::int32_t> hit_object;    // building index, -1 otherwise
+  double cloud_covered_fraction = 0.0;     // share of pixels whose ray crosses clouds of opacity >= 0.5
 };
 
 RenderedView RenderView(const City& city, const SatelliteCamera& camera,

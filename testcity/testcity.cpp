@@ -43,6 +43,7 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"relief_m", o.relief_m},
           {"date_contrast", o.date_contrast},
           {"haze", o.haze},
+          {"clouds", o.clouds},
           {"rpc_height_offset_m", o.rpc_height_offset_m},
           {"ground_height_m", o.ground_height_m},
           {"rpc_bias_px", o.rpc_bias_px},
@@ -401,6 +402,7 @@ void SynthOptions::Check() const {
   need(relief_m >= 0 && relief_m <= 1000, "relief_m", FormatDouble(relief_m), "must be 0..1000 m");
   need(date_contrast >= 0 && date_contrast <= 4, "date_contrast", FormatDouble(date_contrast), "must be 0..4");
   need(haze >= 0 && haze <= 0.9, "haze", FormatDouble(haze), "must be 0..0.9");
+  need(clouds >= 0 && clouds <= 0.8, "clouds", FormatDouble(clouds), "must be 0..0.8");
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
        FormatDouble(orbit_height_m), "must be 200..2000 km");
@@ -462,6 +464,32 @@ Scene MakeScene(const SynthOptions& o, SynthResult* r) {
   return sc;
 }
 
+// The cumulus of a cloudy date: puffs 60-200 m in radius, uniform over the
+// city and far enough beyond it that every view's and every shadow's ray
+// over the city can meet one (a cloud 1 km up is seen up to 1 km aside at
+// 45 deg off nadir, its shadow up to 3 km aside under a low sun), as many
+// as cover `o.clouds` of that area before overlaps.
+CloudLayer CloudsOfDate(const SynthOptions& o, const City& city, int date) {
+  constexpr double kAboveTallestM = 1000.0, kMarginM = 3500.0, kMinRadiusM = 60.0, kMaxRadiusM = 200.0;
+  CloudLayer layer;
+  layer.height_m = city.max_height_m + kAboveTallestM;
+  const double x0 = -kMarginM, y0 = -kMarginM;
+  const double x1 = o.blocks_x * o.size_m + kMarginM, y1 = o.blocks_y * o.size_m + kMarginM;
+  // Mean puff area: pi E[r^2] for r uniform in [a, b].
+  const double a = kMinRadiusM, b = kMaxRadiusM;
+  const double mean_area_m2 = M_PI * (a * a + a * b + b * b) / 3.0;
+  const auto count = static_cast<std::size_t>(std::lround(o.clouds * (x1 - x0) * (y1 - y0) / mean_area_m2));
+  std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 0xC10D + static_cast<std::uint64_t>(date));
+  auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  for (std::size_t i = 0; i < count; ++i) {
+    CloudPuff puff;
+    puff.centre_m = {x0 + (x1 - x0) * unit(), y0 + (y1 - y0) * unit()};
+    puff.radius_m = a + (b - a) * unit();
+    layer.puffs.push_back(puff);
+  }
+  return layer;
+}
+
 // When image v (0-based) was taken: its date, its shot within that date's
 // pass, and the scene's longitude decide it.
 Acquisition ViewAcquisition(const SynthOptions& o, int v) {
@@ -486,6 +514,7 @@ Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx
                                1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
   light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
   light.haze = static_cast<float>(o.haze);
+  if (o.clouds > 0 && date % 2 == 1) light.clouds = CloudsOfDate(o, r.city, date);
   return light;
 }
 
@@ -520,6 +549,7 @@ SynthView SynthesizeView(const SynthOptions& o, const Scene& scene, const SynthR
   view.rpc_fit_rms_px = fit.rms_residual_px;
 
   const RenderedView img = RenderView(city_of_date, view.camera, r.scene_from_enu, view.lighting);
+  view.cloud_covered_fraction = img.cloud_covered_fraction;
   RasterWriteOptions wo;
   wo.metadata["NITF_IDATIM"] = acq.compact;
   wo.rpc_metadata = RpcToGdalMetadata(fit.rpc);
@@ -600,6 +630,7 @@ json SynthReportJson(const SynthOptions& o, const SynthResult& r, double worst_f
                         {"rpc_fit_max_px", v.rpc_fit_max_px}, {"rpc_fit_rms_px", v.rpc_fit_rms_px},
                         {"rpc_bias_shift_px", {v.rpc_bias_shift_px.x(), v.rpc_bias_shift_px.y()}},
                         {"rpc_bias_rotation_deg", v.rpc_bias_rotation_deg},
+                        {"cloud_covered_fraction", v.cloud_covered_fraction},
                         {"width_px", v.camera.width_px}, {"height_px", v.camera.height_px}});
   report["images"] = images;
   return report;
@@ -647,7 +678,9 @@ int RenderTruthViews(const SynthOptions& o, const std::vector<std::pair<std::str
   const EnuFrame given(cameras_origin);
   const EnuFrame& own = scene.georef.frame;
   SynthView lit;
-  const Lighting light = ViewLighting(o, r, lighting_view, 0, 0, &lit);
+  // Low orbit cameras fly below any cloud layer: the truth images are of a clear sky.
+  Lighting light = ViewLighting(o, r, lighting_view, 0, 0, &lit);
+  light.clouds = CloudLayer();
   // Directions in the cameras' frame from directions in the city's ENU frame
   // (the two frames differ by the Earth's curvature between their origins).
   auto own_from_given = [&](const Eigen::Vector3d& p) { return own.EnuFromGeodetic(given.GeodeticFromEnu(p)); };

@@ -46,6 +46,13 @@ struct SynthOptions {
   // (0 clear; 0.7 leaves crowns about as little greener than roofs as in
   // the DFC2019 WorldView-3 crops) [0, 0.9].
   double haze = 0.0;
+  // Cumulus over every second date (dates 1, 3, ...; date 0 stays clear): a
+  // layer 1,000 m above the tallest roof whose puffs (60-200 m across) would
+  // cover this share of the sky if none overlapped [0, 0.8]. Each cloudy
+  // date has its own puffs, which both images of its pass see (with
+  // parallax) and whose shadows darken the ground; per image, the share of
+  // pixels behind a cloud is in synth_report.json.
+  double clouds = 0.0;
   // Shifts the RPCs' height normalization: the fit domain reaches this far
   // above (or below) the scene, so HEIGHT_OFF lies far from the ground, as in
   // a vendor RPC of a whole mountain scene seen from a valley AOI [m].
@@ -98,6 +105,7 @@ struct SynthView {
   // centre = ((width-1)/2, (height-1)/2), pixel centres at integers.
   Eigen::Vector2d rpc_bias_shift_px = Eigen::Vector2d::Zero();
   double rpc_bias_rotation_deg = 0.0;
+  double cloud_covered_fraction = 0.0;  // share of pixels behind clouds of opacity >= 0.5
 };
 
 struct SynthAoi {

@@ -406,6 +406,85 @@ TEST(Synth, HazePullsColoursTowardsGreyAndLowersContrast) {
       Error);
 }
 
+// Clouds: a puff on the view's ray through the AOI's centre hides the
+// ground there (cloud-white pixels), a puff on the sun's ray from it shades
+// the ground around it (lit pixels lose most of their direct light), and
+// `--clouds` puts puffs on every second date only, recording each image's
+// covered share.
+TEST(Synth, CloudsHideTheGroundFromTheViewAndShadeItFromTheSun) {
+  SynthOptions o = SmallScene();
+  o.clouds = 0.4;
+  const Scene s = MakeScene(o);
+  const SynthResult& r = s.result;
+  const auto& views = r.aois.at(0).views;
+  ASSERT_EQ(views.size(), 4u);  // two dates of two images
+  EXPECT_EQ(views[0].cloud_covered_fraction, 0.0);  // date 0: clear
+  EXPECT_EQ(views[1].cloud_covered_fraction, 0.0);
+  // Puffs opaque beyond 0.5 over 0.29 of their area, 0.4 of the sky: about
+  // a tenth of the pixels; a layer that missed the images would give 0.
+  EXPECT_GT(views[2].cloud_covered_fraction, 0.03);
+  EXPECT_GT(views[3].cloud_covered_fraction, 0.03);
+
+  const SynthView& v = views[0];
+  const Eigen::Vector3d sun = v.lighting.sun_scene.normalized();
+  const Eigen::Vector3d ground(0.5 * o.size_m, 0.5 * o.size_m, r.city.TerrainAt(0.5 * o.size_m, 0.5 * o.size_m));
+  const Eigen::Vector3d to_camera = (r.scene_from_enu.Apply(v.camera.centre_enu_m) - ground).normalized();
+  CloudLayer layer;
+  layer.height_m = r.city.max_height_m + 1000.0;
+  auto crossing = [&](const Eigen::Vector3d& dir) {
+    const double t = (layer.height_m - ground.z()) / dir.z();
+    return Eigen::Vector2d((ground + t * dir).head<2>());
+  };
+  constexpr double kRadiusM = 100.0;
+  // The two crossings lie far apart: each puff acts on one ray only.
+  ASSERT_GT((crossing(to_camera) - crossing(sun)).norm(), 2.5 * kRadiusM);
+  auto render = [&](const std::vector<CloudPuff>& puffs) {
+    Lighting light = v.lighting;
+    light.clouds = layer;
+    light.clouds.puffs = puffs;
+    return RenderView(r.city, v.camera, r.scene_from_enu, light);
+  };
+  const RenderedView clear = render({}), hidden = render({{crossing(to_camera), kRadiusM}}),
+                     shaded = render({{crossing(sun), kRadiusM}});
+  EXPECT_EQ(clear.cloud_covered_fraction, 0.0);
+  EXPECT_GT(hidden.cloud_covered_fraction, 0.0);
+  const Eigen::Vector2d centre_px = v.camera.Project(r.scene_from_enu.linear.inverse() *
+                                                     (ground - r.scene_from_enu.offset_m));
+  const std::size_t k = static_cast<std::size_t>(std::lround(centre_px.y())) * clear.width_px +
+                        static_cast<std::size_t>(std::lround(centre_px.x()));
+  // Cloud white (0.93-0.96) through the date's gain (at least 0.88) and tint.
+  for (int ch = 0; ch < 3; ++ch) EXPECT_GT(hidden.rgb[3 * k + ch], 190) << "band " << ch;
+  EXPECT_GT(hidden.rgb[3 * k] + hidden.rgb[3 * k + 1] + hidden.rgb[3 * k + 2],
+            clear.rgb[3 * k] + clear.rgb[3 * k + 1] + clear.rgb[3 * k + 2] + 60);  // the ground there is darker
+  // Within 20 m of the ground point the shadow's puff is at least 0.92
+  // opaque: a lit pixel keeps its ambient share (0.28-0.40) and
+  // 1 - 0.85 * 0.92 of its direct light, so the pixels there that no
+  // building shades lose a third or more.
+  Lighting no_cast_shadows = v.lighting;
+  no_cast_shadows.cast_shadows = false;
+  const RenderedView unshadowed = RenderView(r.city, v.camera, r.scene_from_enu, no_cast_shadows);
+  auto grey = [](const RenderedView& view, std::size_t p) {
+    return view.rgb[3 * p] + view.rgb[3 * p + 1] + view.rgb[3 * p + 2];
+  };
+  double sum_clear = 0, sum_shaded = 0;
+  int pixels = 0;
+  for (std::size_t p = 0; p < clear.hit_scene.size(); ++p) {
+    const Eigen::Vector3f& hit = clear.hit_scene[p];
+    if (!hit.allFinite() || (hit.cast<double>().head<2>() - ground.head<2>()).norm() > 20.0) continue;
+    if (grey(clear, p) < grey(unshadowed, p) - 15) continue;  // in a building's shadow
+    sum_clear += grey(clear, p), sum_shaded += grey(shaded, p), ++pixels;
+  }
+  ASSERT_GT(pixels, 100);
+  EXPECT_LT(sum_shaded / sum_clear, 0.67);
+  EXPECT_THROW(
+      [] {
+        SynthOptions bad;
+        bad.clouds = 0.9;
+        bad.Check();
+      }(),
+      Error);
+}
+
 TEST(Synth, HillsAreSmoothTerrainWithoutStairsOrStripesOfShadow) {
   // 100 m of relief: slopes up to 31%. As flat-topped 0.25 m columns a
   // hill would be stairs of 7.5 cm risers whose shadows stripe the slopes.
