@@ -15,6 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 JAX_RUN=1
 if [ "${1:-}" = "--no-jax" ]; then JAX_RUN=0; shift; fi
+case "${1:-}" in -*) echo "bench: unknown option $1 (usage: scripts/bench.sh [--no-jax] [OUT])" >&2; exit 2 ;; esac
 OUT=${1:-out/bench}
 mkdir -p "$OUT"
 bash scripts/build.sh >/dev/null

@@ -39,6 +39,7 @@ while [ $# -gt 0 ]; do
     --draw) DRAW=$2; shift 2 ;;
     --draw-from) DRAW_FROM=$2; shift 2 ;;
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    -*) echo "bench_accuracy: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1; shift ;;
   esac
 done

@@ -15,6 +15,7 @@
 # OUT/run to measure again); the unchanged rerun is measured every time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+case "${1:-}" in -*) echo "bench_bulk: unknown option $1 (usage: scripts/bench_bulk.sh [OUT])" >&2; exit 2 ;; esac
 OUT=${1:-out/bench_bulk}
 AOIS=${SKYFALL_BULK_AOIS:-16}
 SIZE=${SKYFALL_BULK_SIZE_M:-256}

@@ -24,6 +24,7 @@ while [ $# -gt 0 ]; do
     --quick) SIZE=128; shift ;;
     --scene) SCENE=$2; shift 2 ;;
     -h|--help) sed -n 2,16p "$0"; exit 0 ;;
+    -*) echo "bench_idu: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1; shift ;;
   esac
 done
