@@ -480,11 +480,10 @@ CloudLayer CloudsOfDate(const SynthOptions& o, const City& city, int date) {
   const double mean_area_m2 = M_PI * (a * a + a * b + b * b) / 3.0;
   const auto count = static_cast<std::size_t>(std::lround(o.clouds * (x1 - x0) * (y1 - y0) / mean_area_m2));
   std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 0xC10D + static_cast<std::uint64_t>(date));
-  auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
   for (std::size_t i = 0; i < count; ++i) {
     CloudPuff puff;
-    puff.centre_m = {x0 + (x1 - x0) * unit(), y0 + (y1 - y0) * unit()};
-    puff.radius_m = a + (b - a) * unit();
+    puff.centre_m = {Uniform(rng, x0, x1), Uniform(rng, y0, y1)};
+    puff.radius_m = Uniform(rng, a, b);
     layer.puffs.push_back(puff);
   }
   return layer;

@@ -47,7 +47,7 @@ struct SynthOptions {
   // the DFC2019 WorldView-3 crops) [0, 0.9].
   double haze = 0.0;
   // Cumulus over every second date (dates 1, 3, ...; date 0 stays clear): a
-  // layer 1,000 m above the tallest roof whose puffs (60-200 m across) would
+  // layer 1,000 m above the tallest roof whose puffs (60-200 m in radius) would
   // cover this share of the sky if none overlapped [0, 0.8]. Each cloudy
   // date has its own puffs, which both images of its pass see (with
   // parallax) and whose shadows darken the ground; per image, the share of
