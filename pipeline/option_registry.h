@@ -39,6 +39,7 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
      "A dense start keeps one dense point per cell of this size", range::Above(0));
   io("mask_beyond_reconstruction", o.mask_beyond_reconstruction,
      "With a dense start, leave the pixels that see past the tile's dense heights out of the loss and the scores");
+  io("cloud_mask", o.cloud_mask);
   io("surface_filled_weight", o.anchor.filled_weight,
      "Weight of the surface anchor's depth term where the ray meets a filled cell (one no pair matched), against 1 "
      "for matched cells", range::In(0, 1));

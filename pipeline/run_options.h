@@ -22,6 +22,7 @@
 #include "products/dsm.h"
 #include "products/land_cover.h"
 #include "products/point_cloud.h"
+#include "pipeline/view_masks.h"
 #include "products/tiles3d.h"
 #include "sfm/sfm.h"
 #include "splat/trainer.h"
@@ -84,6 +85,10 @@ struct TrainStageOptions {
   // heights (a crop's fringe beyond the extent) are left out of the loss and
   // the scores (MaskBeyondReconstruction, stage_jobs.h).
   bool mask_beyond_reconstruction = true;
+  // With a dense start and cloud_mask.enabled, the training views' cloudy
+  // pixels are left out of the loss (MaskClouds, view_masks.h); held-out
+  // views are scored as given.
+  CloudMaskOptions cloud_mask;
   // Clone/split/prune: "on", "off" or "auto" (on for tie-point starts, which it
   // grows over the gaps; off for dense starts, which already hold one Gaussian
   // per init_spacing_m and which densification degrades).

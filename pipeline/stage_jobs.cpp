@@ -76,6 +76,24 @@ void WriteHeldOutImages(const std::vector<HeldOutRender>& renders, const fs::pat
   }
 }
 
+// Each training view with cloud masked, as trained on: the image with its
+// masked pixels tinted magenta, for a user to check what was left out.
+void WriteCloudMasks(const std::vector<TrainView>& views, const std::vector<std::vector<std::uint8_t>>& cloudy,
+                     const fs::path& dir) {
+  fs::remove_all(dir);  // an earlier run's masks must not outlive this one's
+  for (std::size_t j = 0; j < views.size(); ++j) {
+    if (cloudy[j].empty() || std::find(cloudy[j].begin(), cloudy[j].end(), 1) == cloudy[j].end()) continue;
+    fs::create_directories(dir);
+    std::vector<float> rgb = views[j].rgb;
+    constexpr float kTint[3] = {1.0f, 0.0f, 1.0f};
+    for (std::size_t p = 0; p < cloudy[j].size(); ++p)
+      if (cloudy[j][p])
+        for (int c = 0; c < 3; ++c) rgb[3 * p + c] = 0.5f * rgb[3 * p + c] + 0.5f * kTint[c];
+    const int w = static_cast<int>(views[j].camera.width_px), h = static_cast<int>(views[j].camera.height_px);
+    WriteUnitPng((dir / (views[j].name + ".png")).string(), w, h, 3, rgb);
+  }
+}
+
 // Centres closer than this are one point for any DSM or render at the
 // product's 0.5 m cells: the report counts them (CoincidentGaussians).
 constexpr double kCoincidentWithinM = 0.01;
@@ -279,34 +297,45 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
   return r;
 }
 
-double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const RasterOptions& raster,
-                                std::vector<TrainView>* views) {
-  if (cells.points.empty()) return 0.0;
-  std::vector<Eigen::Vector3f> points, colours, walls, wall_colours;
-  ThinToGrid(spacing_m, cells.points, cells.colours, {}, {}, &points, &colours);
-  std::vector<int> wall_normals;
-  FacadePoints(cells.points, cells.colours, cells.cell_m, spacing_m, spacing_m, &walls, &wall_colours, &wall_normals);
-  points.insert(points.end(), walls.begin(), walls.end());
-  colours.insert(colours.end(), wall_colours.begin(), wall_colours.end());
-  // Blobs as wide as the spacing, nearly opaque: a closed surface wherever
-  // the heights reach, fading within about a spacing beyond their edge.
-  GaussianCloud cover = InitializeFromPoints(points, colours, spacing_m, 1);
-  constexpr float kOpaqueLogit = 4.6f;  // opacity 0.99
-  for (float& logit : cover.opacity_logits) logit = kOpaqueLogit;
-  constexpr float kCoveredAlpha = 0.5f;
-  std::size_t with_data = 0, masked = 0;
-  for (TrainView& v : *views) {
-    const RenderOutput<float> r = RenderGaussians(cover, v.camera, raster);
-    for (std::size_t p = 0; p < v.valid.size(); ++p) {
-      if (!v.valid[p]) continue;
-      ++with_data;
-      if (r.alpha[p] < kCoveredAlpha) {
-        v.valid[p] = 0;
-        ++masked;
-      }
+void MaskViews(const TrainStageOptions& stage, const DenseCells& dense, const RasterOptions& raster,
+               std::vector<TrainView>* views, TrainDecisions* decided,
+               std::vector<std::vector<std::uint8_t>>* cloudy) {
+  if (cloudy) cloudy->assign(views->size(), {});
+  const int training_views =
+      static_cast<int>(std::count_if(views->begin(), views->end(), [](const TrainView& v) { return !v.held_out; }));
+  const int needed = stage.cloud_mask.min_other_views + 1;
+  decided->cloud_mask = false;
+  decided->cloud_mask_why = !stage.cloud_mask.enabled ? "train.cloud_mask.enabled is false (the default, D-137)"
+                            : dense.points.empty()    ? "no dense heights to give each pixel its ground point"
+                            : training_views < needed
+                                ? fmt::format("{} training views, fewer than {}: too few others to compare with",
+                                              training_views, needed)
+                                : "";
+  const bool clouds = decided->cloud_mask_why.empty();
+  if (dense.points.empty() || (!stage.mask_beyond_reconstruction && !clouds)) return;
+  const std::vector<RenderOutput<float>> covers = RenderDenseCover(dense, stage.init_spacing_m, raster, *views);
+  if (stage.mask_beyond_reconstruction) decided->masked_beyond_fraction = MaskBeyondReconstruction(covers, views);
+  if (!clouds) return;
+  std::vector<std::vector<std::uint8_t>> before;
+  for (const TrainView& v : *views) before.push_back(v.valid);
+  const std::vector<double> fractions = MaskClouds(dense, covers, stage.cloud_mask, views);
+  if (cloudy) {
+    for (std::size_t j = 0; j < views->size(); ++j) {
+      const std::vector<std::uint8_t>& after = (*views)[j].valid;
+      if (after.empty()) continue;
+      (*cloudy)[j].assign(after.size(), 0);
+      for (std::size_t p = 0; p < after.size(); ++p)
+        (*cloudy)[j][p] = !after[p] && (before[j].empty() || before[j][p]);
     }
   }
-  return with_data ? static_cast<double>(masked) / static_cast<double>(with_data) : 0.0;
+  decided->cloud_mask = true;
+  decided->cloud_mask_why = fmt::format(
+      "dense start, {} training views: pixels far brighter and whiter than the other views at their ground point "
+      "are not trained on; held-out views are scored as given",
+      training_views);
+  decided->cloud_masked_fraction.clear();
+  for (std::size_t j = 0; j < views->size(); ++j)
+    if (!(*views)[j].held_out) decided->cloud_masked_fraction.emplace_back((*views)[j].name, fractions[j]);
 }
 
 TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir) {
@@ -352,8 +381,15 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   if (!decided.densify) options.density.from_step = options.iterations + 1;  // never reached
   decided.downscale = ResolveTrainDownscale(stage.downscale, sfm_dir);
   std::vector<TrainView> views = LoadTrainViews(sfm_dir, decided.downscale.factor);
-  if (stage.mask_beyond_reconstruction)
-    decided.masked_beyond_fraction = MaskBeyondReconstruction(dense, stage.init_spacing_m, options.raster, &views);
+  std::vector<std::vector<std::uint8_t>> cloudy;
+  MaskViews(stage, dense, options.raster, &views, &decided, &cloudy);
+  WriteCloudMasks(views, cloudy, fs::path(out_dir) / "cloud_masks");
+  if (decided.cloud_mask) {
+    int with_cloud = 0;
+    for (const auto& [name, fraction] : decided.cloud_masked_fraction) with_cloud += fraction > 0;
+    progress.Info(fmt::format("splat train: cloud mask: {} of {} training views hold cloud", with_cloud,
+                              decided.cloud_masked_fraction.size()));
+  }
   progress.Info(fmt::format(
       "splat train: {} views ({} held out) at 1/{} resolution ({}), {} initial points ({}), {} iterations, "
       "densification {}",
@@ -418,8 +454,8 @@ IduJobResult RunIduJob(const IduStageOptions& options, const TrainStageOptions& 
     return result;
   }
   std::vector<TrainView> views = LoadTrainViews(sfm_dir, ResolveTrainDownscale(train.downscale, sfm_dir).factor);
-  if (train.mask_beyond_reconstruction)  // as the reconstruction was trained and scored
-    MaskBeyondReconstruction(dense, train.init_spacing_m, train.optimizer.raster, &views);
+  TrainDecisions as_trained;  // the reconstruction's masks, as it was trained and scored
+  MaskViews(train, dense, train.optimizer.raster, &views, &as_trained);
   const GaussianCloud scene = ReadGaussiansPly(scene_ply);
   std::vector<TrainView> satellite_train;
   for (const TrainView& v : views)

@@ -7,10 +7,13 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/aoi.h"
 #include "core/stage.h"
 #include "pipeline/run_options.h"
+#include "pipeline/view_masks.h"
 #include "dense/dense.h"
 #include "dense/dense_cells.h"
 #include "sfm/sfm.h"
@@ -34,17 +37,6 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
 // for cells beside a step (AnchorWeightOptions); empty when every weight
 // is 1 (no weighting).
 std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& options);
-
-// Masks out of each view's `valid` the pixels that see past the tile's
-// dense heights: a crop's fringe beyond the extent (off-nadir views and tall
-// buildings widen it). No Gaussian of the tile explains them; trained on,
-// they pull the extent's edge Gaussians outwards, and scored, they measure
-// the crop, not the model. The cells (thinned to `spacing_m`) and the walls
-// between them are rendered opaque into each view; pixels they leave
-// uncovered (alpha < 0.5) are masked. Returns the share of the pixels with
-// data that were masked (0 without cells).
-double MaskBeyondReconstruction(const DenseCells& cells, double spacing_m, const RasterOptions& raster,
-                                std::vector<TrainView>* views);
 
 // True when `sfm_dir` holds a finished dense stage with the same options
 // over the same extent.
@@ -71,7 +63,19 @@ struct TrainDecisions {
   std::string appearance_reason;
   bool surface_anchor = false;  // training anchored to the dense heights (needs a dense start)
   double masked_beyond_fraction = 0;  // share of the views' pixels with data seeing past the dense heights
+  bool cloud_mask = false;            // MaskClouds ran
+  std::string cloud_mask_why;
+  // Per training view (name), the share of its pixels with data masked as cloud.
+  std::vector<std::pair<std::string, double>> cloud_masked_fraction;
 };
+
+// The masks of view_masks.h that `stage` asks for and the dense heights
+// allow, applied to `views`; what was masked and why goes into `decided`,
+// and, per view, 1 for each pixel masked as cloud into `cloudy` (empty for
+// views with no cloud mask) when given.
+void MaskViews(const TrainStageOptions& stage, const DenseCells& dense, const RasterOptions& raster,
+               std::vector<TrainView>* views, TrainDecisions* decided,
+               std::vector<std::vector<std::uint8_t>>* cloudy = nullptr);
 
 struct TrainJobResult {
   TrainResult train;

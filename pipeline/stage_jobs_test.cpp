@@ -63,55 +63,6 @@ DenseCells RoofBesideGround(int n, double cell_m, float roof_m) {
   return cells;
 }
 
-// A 40 m x 40 m tile of 0.5 m cells at 0 m with a 12 m block (x 20-30 m,
-// y 10-30 m), seen obliquely from the south by a view that also sees about
-// 20 m of ground beyond the tile on every side.
-TEST(MaskBeyondReconstruction, PixelsPastTheDenseHeightsAreMaskedWallsAndTileKept) {
-  DenseCells cells;
-  cells.cell_m = 0.5;
-  for (int j = 0; j < 80; ++j)
-    for (int i = 0; i < 80; ++i) {
-      const float x = 0.25f + 0.5f * i, y = 0.25f + 0.5f * j;
-      const bool block = x > 20 && x < 30 && y > 10 && y < 30;
-      cells.points.emplace_back(x, y, block ? 12.0f : 0.0f);
-      cells.colours.emplace_back(0.5f, 0.5f, 0.5f);
-      cells.filled.push_back(0);
-    }
-  TrainView view;
-  view.camera = LookAtCamera({20, -180, 250}, {20, 20, 0}, 14.0, 96, 96);
-  view.valid.assign(96 * 96, 1);
-  view.valid[0] = 0;  // no data there: stays masked, and is not counted
-  view.rgb.assign(3 * 96 * 96, 0.5f);
-  std::vector<TrainView> views = {view};
-  const double fraction = MaskBeyondReconstruction(cells, 1.0, RasterOptions(), &views);
-  const std::vector<std::uint8_t>& valid = views[0].valid;
-  auto valid_at = [&](const Eigen::Vector3d& enu) {
-    const Eigen::Vector2d px = views[0].camera.Project(enu);
-    const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
-    EXPECT_TRUE(x >= 0 && x < 96 && y >= 0 && y < 96) << enu.transpose() << " is outside the view";
-    return valid[static_cast<std::size_t>(y) * 96 + x] != 0;
-  };
-  // The tile's ground, the block's roof and the wall the view faces are kept.
-  for (double x : {4.0, 12.0, 36.0})
-    for (double y : {4.0, 20.0, 36.0}) EXPECT_TRUE(valid_at({x, y, 0})) << x << ", " << y;
-  EXPECT_TRUE(valid_at({25, 20, 12}));
-  for (double z : {2.0, 6.0, 10.0}) EXPECT_TRUE(valid_at({25, 10, z})) << "south wall at " << z << " m";
-  // Ground 4 m and more beyond the tile is masked on every side.
-  for (const Eigen::Vector3d& beyond : {Eigen::Vector3d(-4, 20, 0), Eigen::Vector3d(44, 20, 0),
-                                        Eigen::Vector3d(20, -4, 0), Eigen::Vector3d(20, 46, 0),
-                                        Eigen::Vector3d(-10, -10, 0)})
-    EXPECT_FALSE(valid_at(beyond)) << beyond.transpose();
-  EXPECT_EQ(valid[0], 0);
-  const double masked = static_cast<double>(std::count(valid.begin(), valid.end(), 0) - 1) / (96.0 * 96.0 - 1);
-  EXPECT_NEAR(fraction, masked, 1e-12);
-  EXPECT_GT(fraction, 0.3);  // the view's fringe
-  EXPECT_LT(fraction, 0.95);
-  // Without dense heights nothing is known, so nothing is masked.
-  std::vector<TrainView> untouched = {view};
-  EXPECT_EQ(MaskBeyondReconstruction(DenseCells(), 1.0, RasterOptions(), &untouched), 0.0);
-  EXPECT_EQ(untouched[0].valid, view.valid);
-}
-
 TEST(AnchorCellWeights, CellsWithinReachOfAStepOnEitherSideWeighLess) {
   const int n = 16;
   const DenseCells cells = RoofBesideGround(n, 0.5, 10.0f);

@@ -122,6 +122,9 @@ void AddTrainDecisions(const TrainStageOptions& train, const TrainDecisions& d, 
       {"why", !train.mask_beyond_reconstruction ? "train.mask_beyond_reconstruction is false"
               : d.dense_start ? "dense start: pixels seeing past the dense heights are not trained on or scored"
                               : "no dense heights to tell the tile's pixels from the rest"}};
+  json by_view = json::object();
+  for (const auto& [name, fraction] : d.cloud_masked_fraction) by_view[name] = fraction;
+  out["cloud_mask"] = {{"on", d.cloud_mask}, {"why", d.cloud_mask_why}, {"masked_fraction_by_view", by_view}};
 }
 
 }  // namespace
