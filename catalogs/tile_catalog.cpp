@@ -104,6 +104,11 @@ std::string TileReconstructionPath(const std::string& tile_dir) {
   return (std::filesystem::path(tile_dir) / "splat" / "scene.ply").string();
 }
 
+std::string TileSurfacePath(const std::string& tile_dir) {
+  const std::filesystem::path surface = std::filesystem::path(tile_dir) / "splat" / "surface.ply";
+  return std::filesystem::exists(surface) ? surface.string() : TileReconstructionPath(tile_dir);
+}
+
 std::string TileScenePath(const std::string& tile_dir) {
   const std::filesystem::path idu = std::filesystem::path(tile_dir) / "idu" / "scene.ply";
   return std::filesystem::exists(idu) ? idu.string() : TileReconstructionPath(tile_dir);

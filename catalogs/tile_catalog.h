@@ -27,5 +27,9 @@ std::string TileScenePath(const std::string& tile_dir);
 // The Gaussians trained on the tile's real images alone (splat/scene.ply),
 // before any synthesis stage.
 std::string TileReconstructionPath(const std::string& tile_dir);
+// The Gaussians the DSMs of the reconstruction come from: the training's
+// surface at train.surface_at (splat/surface.ply) when it kept one, else the
+// reconstruction.
+std::string TileSurfacePath(const std::string& tile_dir);
 
 }  // namespace skyfall

@@ -70,8 +70,9 @@ json ReadTileIndex(const std::string& tiles_dir) {
 }
 
 // The finished tiles: their specs and scene files; per tile, its
-// reconstruction when the DSMs come from it and it differs from the tile's
-// scene (the synthesis stage ran), else empty; and the tiles that have no
+// reconstruction's surface (TileSurfacePath) when the DSMs come from it and
+// it differs from the tile's scene (the synthesis stage ran, or training
+// kept a surface at train.surface_at), else empty; and the tiles that have no
 // finished scene. Nothing is read beyond the tiles' small JSON files: the
 // stitch reads each tile's Gaussians when it needs them.
 struct TileScenes {
@@ -93,7 +94,7 @@ TileScenes FindTileScenes(const std::string& tiles_dir, const json& index, bool 
     if (report && report->status == StageStatus::kOk && fs::exists(scene)) {
       found.specs.push_back(spec);
       found.scenes.push_back(scene.string());
-      const std::string reconstruction = TileReconstructionPath(dir.string());
+      const std::string reconstruction = TileSurfacePath(dir.string());
       const bool differs = from_reconstruction && scene.string() != reconstruction && fs::exists(reconstruction);
       found.reconstruction_of.push_back(differs ? reconstruction : std::string());
     } else {
@@ -104,8 +105,8 @@ TileScenes FindTileScenes(const std::string& tiles_dir, const json& index, bool 
   return found;
 }
 
-// True when some tile's reconstruction differs from its scene (its synthesis
-// stage ran) and the DSMs come from the reconstructions.
+// True when some tile's surface differs from its scene and the DSMs come
+// from the reconstructions.
 bool SurfaceDiffers(const TileScenes& found) {
   return std::any_of(found.reconstruction_of.begin(), found.reconstruction_of.end(),
                      [](const std::string& p) { return !p.empty(); });

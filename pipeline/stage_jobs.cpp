@@ -117,6 +117,8 @@ std::string TrainReportJson(const TrainResult& r, const TrainOptions& o, int dow
       {"lambda_dssim", o.lambda_dssim},
       {"lambda_opacity", o.lambda_opacity},
       {"gaussians", r.cloud.size()},
+      {"surface", r.surface ? nlohmann::json({{"iteration", r.surface_iteration}, {"gaussians", r.surface->size()}})
+                            : nlohmann::json()},
       {"coincident_gaussians", {{"within_m", kCoincidentWithinM}, {"count", CoincidentGaussians(r.cloud, kCoincidentWithinM)}}},
       {"seconds_this_run", r.report.seconds},
       {"enabled", {{"entropy_opacity", o.lambda_opacity > 0},
@@ -427,6 +429,9 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),
                                 surface.get());
   WriteGaussiansPly((fs::path(out_dir) / "scene.ply").string(), result.train.cloud);
+  const fs::path surface_ply = fs::path(out_dir) / "surface.ply";  // TileSurfacePath
+  if (result.train.surface) WriteGaussiansPly(surface_ply.string(), *result.train.surface);
+  else fs::remove(surface_ply);  // an earlier run's must not outlive this one's scene
   WriteHeldOutImages(result.train.held_out, fs::path(out_dir) / "heldout");
   for (HeldOutRender& r : result.train.held_out) {  // written: the tile's later stages need only the scores
     std::vector<float>().swap(r.rgb);

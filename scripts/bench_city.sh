@@ -93,7 +93,9 @@ while read -r id dir aoi epsg; do
   [ -f "$dest/compare/report.json" ] && continue
   mkdir -p "$dest"
   truth="$root/Track3-Truth/$aoi"
-  "$B" -q dsm export --scene "$dir/splat/scene.ply" --frame "$dir/aoi.json" --grid "${truth}_DSM.txt" \
+  # The tile's DSM surface (TileSurfacePath): training's surface when it kept one.
+  scene="$dir/splat/surface.ply"; [ -f "$scene" ] || scene="$dir/splat/scene.ply"
+  "$B" -q dsm export --scene "$scene" --frame "$dir/aoi.json" --grid "${truth}_DSM.txt" \
     --out "$dest/dsm.tmp.tif" && mv "$dest/dsm.tmp.tif" "$dest/dsm.tif"
   "$B" -q dsm compare --pred "$dest/dsm.tif" --gt "${truth}_DSM.tif" --gt-txt "${truth}_DSM.txt" --epsg "$epsg" \
     --cls "${truth}_CLS.tif" --out "$dest/compare"

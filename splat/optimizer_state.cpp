@@ -99,7 +99,9 @@ void AdamStep(GaussianCloud& c, Adam& adam, const GaussianCloud& g, const TrainO
   ++adam.step;
   const AdamStepScale scale = ScaleAtStep(adam.step);
   AdamField(c.means, adam.m.means, adam.v.means, g.means, lr_mean, scale);
-  AdamField(c.log_scales, adam.m.log_scales, adam.v.log_scales, g.log_scales, o.lr.scale, scale);
+  const bool late = o.lr.scale_late > 0 && static_cast<double>(adam.step) > o.lr.scale_late_from * o.iterations;
+  AdamField(c.log_scales, adam.m.log_scales, adam.v.log_scales, g.log_scales, late ? o.lr.scale_late : o.lr.scale,
+            scale);
   AdamField(c.rotations, adam.m.rotations, adam.v.rotations, g.rotations, o.lr.rotation, scale);
   AdamField(c.opacity_logits, adam.m.opacity_logits, adam.v.opacity_logits, g.opacity_logits, o.lr.opacity, scale);
   // SH: per channel, 4 coefficients, the degree-0 one at its own rate.

@@ -427,9 +427,41 @@ class TrainingRun {
     if (density_.MergeDue(it, o_.iterations)) FollowGaussians(density_.MergeCoincident(&cloud_, &adam_.m, &adam_.v));
     phase_.Lap(kDensify);
     if (it % o_.eval_interval == 0 || it == o_.iterations) RecordSample(it);
+    if (it == SurfaceIteration()) KeepSurface(it, checkpoint_dir, fused_view);
     phase_.Lap(kEvaluation);
     if (!ck_path.empty() && (it % o_.checkpoint_interval == 0 || it == o_.iterations))
       SaveState(it, checkpoint_dir, ck_path, fused_view);
+  }
+
+  // The step whose scene is kept as the DSMs' surface; 0 for none.
+  int SurfaceIteration() const {
+    return o_.surface_at > 0 ? std::max(1, static_cast<int>(std::lround(o_.surface_at * o_.iterations))) : 0;
+  }
+
+  // Exported as the final cloud is, and written (before the step's
+  // checkpoint) beside the checkpoints, from where a run resumed after this
+  // step takes it back (ResumeSurface).
+  void KeepSurface(int it, const std::string& checkpoint_dir, int fused_view) {
+    result_.surface = ExportCloud(cloud_, appearance_, ExportView(appearance_, fused_view, ids_.train));
+    result_.surface_iteration = it;
+    if (checkpoint_dir.empty()) return;
+    fs::create_directories(checkpoint_dir);
+    WriteGaussiansPly(SurfacePath(checkpoint_dir), *result_.surface);
+  }
+
+  void ResumeSurface(int resumed_at, const std::string& checkpoint_dir) {
+    const int at = SurfaceIteration();
+    if (at == 0 || resumed_at < at) return;
+    const std::string path = SurfacePath(checkpoint_dir);
+    if (!fs::exists(path))
+      throw Error("train", path, "missing: the checkpoint is past step " + std::to_string(at) +
+                                     ", whose surface it needs; delete the checkpoints to start again");
+    result_.surface = ReadGaussiansPly(path);
+    result_.surface_iteration = at;
+  }
+
+  static std::string SurfacePath(const std::string& checkpoint_dir) {
+    return (fs::path(checkpoint_dir) / "surface.ply").string();
   }
 
   // Per-Gaussian state kept outside the cloud follows a densification or a
@@ -653,7 +685,10 @@ TrainResult TrainGaussians(const TrainOptions& o, GaussianCloud cloud, const std
   const int fused_view = AppearanceViewIndex(o, views);
   const std::string ck_path = checkpoint_dir.empty() ? "" : (fs::path(checkpoint_dir) / "checkpoint.bin").string();
   int start = 0;
-  if (!ck_path.empty() && fs::exists(ck_path)) start = run.ResumeFrom(ck_path);
+  if (!ck_path.empty() && fs::exists(ck_path)) {
+    start = run.ResumeFrom(ck_path);
+    run.ResumeSurface(start, checkpoint_dir);
+  }
   result.start_iteration = start;
   run.Prepare();
   progress.Begin("splat train", static_cast<std::size_t>(o.iterations));

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -56,6 +57,10 @@ struct TrainLearningRates {
   // not keep the DSM's accuracy across scenes: the DSM comes first
   // (decision D-085).
   double scale = 0.001;
+  // From the share scale_late_from of the steps on, the scales' rate is
+  // scale_late instead (0: scale throughout).
+  double scale_late = 0;
+  double scale_late_from = 0.5;
   double rotation = 0.001;
   double opacity = 0.05;
   double sh_dc = 0.0025;
@@ -105,6 +110,11 @@ struct TrainOptions {
   // Also keep scene_<iteration>.ply in <checkpoint_dir>/snapshots at every
   // checkpoint, so that DSM error can be measured against run time.
   bool keep_snapshots = false;
+  // The scene at this share of the steps is also kept as the DSMs' surface
+  // (TrainResult::surface): the geometry has settled by then (decision
+  // D-135), and the later steps, at lr.scale_late, serve the views. 0: the
+  // DSMs come from the final scene.
+  double surface_at = 0;
   // Pseudo-camera depth supervision (needs a DepthPrior): every
   // `pseudo_interval` iterations a pseudo view adds lambda_depth * (1 - |r|).
   double lambda_depth = 0.5;
@@ -147,6 +157,11 @@ template <class IO> void Visit(IO& io, TrainOptions& t) {
      "Learning rate of the centres at the last step, times the scene extent", range::Above(0));
   io("lr_scale", t.lr.scale,
      "Adam learning rate of the Gaussians' scales", range::Above(0));
+  io("lr_scale_late", t.lr.scale_late,
+     "From lr_scale_late_from of the steps on, the scales' learning rate is this; 0 = lr_scale throughout",
+     range::AtLeast(0));
+  io("lr_scale_late_from", t.lr.scale_late_from,
+     "Share of the steps after which lr_scale_late applies", range::In(0, 1));
   io("lr_rotation", t.lr.rotation,
      "Adam learning rate of the Gaussians' rotations", range::Above(0));
   io("lr_opacity", t.lr.opacity,
@@ -162,6 +177,10 @@ template <class IO> void Visit(IO& io, TrainOptions& t) {
      "Steps between resumable checkpoints", range::AtLeast(1));
   io("keep_snapshots", t.keep_snapshots,
      "Also keep scene_<iteration>.ply under checkpoints/snapshots at every checkpoint (for skyfall report)");
+  io("surface_at", t.surface_at,
+     "Share of the steps at which the scene is also kept as the DSMs' surface (splat/surface.ply); 0 = the DSMs "
+     "come from the final scene",
+     range::In(0, 1));
   io("lambda_depth", t.lambda_depth,
      "Weight of the pseudo views' Pearson depth loss", range::AtLeast(0));
   io("pseudo_interval", t.pseudo_interval,
@@ -244,6 +263,10 @@ struct TrainResult {
   std::string appearance_image;  // the view whose appearance was fused (empty without the model)
   std::vector<TrainSample> series;
   std::vector<HeldOutRender> held_out;  // after the last step
+  // With TrainOptions::surface_at: the cloud (exported like `cloud`) at that
+  // step, the DSMs' surface; its step in surface_iteration.
+  std::optional<GaussianCloud> surface;
+  int surface_iteration = 0;
   int start_iteration = 0;  // > 0 when resumed from a checkpoint
   StepProfile profile;
   StageReport report;

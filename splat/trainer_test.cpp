@@ -6,6 +6,7 @@
 #include <random>
 
 #include "splat/dataset.h"
+#include "splat/optimizer_state.h"
 #include "testcity/testcity.h"
 #include "tests/test_support.h"
 #include "ingest/raster.h"
@@ -214,6 +215,8 @@ TEST(Trainer, KilledRunResumesBitIdentically) {
     o.pseudo_interval = 7;
     o.appearance.enabled = true;  // its embeddings, MLP and moments must resume too
     o.pseudo.size_px = 32;
+    o.surface_at = 0.5;           // kept at step 45, before the kill: read back on resuming
+    o.lr.scale_late = 0.012;
     return TrainGaussians(o, f.init, f.views, dir, p, &prior);
   };
   const TrainResult straight = run("", progress);
@@ -234,6 +237,22 @@ TEST(Trainer, KilledRunResumesBitIdentically) {
     ASSERT_EQ(resumed.cloud.opacity_logits[i], straight.cloud.opacity_logits[i]) << i;
   }
   EXPECT_EQ(resumed.series.size(), straight.series.size());
+  // The DSMs' surface: the scene at step 45, not the final one; the resumed
+  // run has it from the file it wrote before the kill, to the bit (PLY
+  // stores floats).
+  ASSERT_TRUE(straight.surface && resumed.surface);
+  EXPECT_EQ(straight.surface_iteration, 45);
+  EXPECT_EQ(resumed.surface_iteration, 45);
+  ASSERT_EQ(resumed.surface->size(), straight.surface->size());
+  bool moved_after = false;
+  for (size_t i = 0; i < straight.surface->size(); ++i) {
+    ASSERT_EQ(resumed.surface->means[i], straight.surface->means[i]) << i;
+    ASSERT_EQ(resumed.surface->log_scales[i], straight.surface->log_scales[i]) << i;
+    if (i < straight.cloud.size() && straight.surface->log_scales[i] != straight.cloud.log_scales[i]) moved_after = true;
+  }
+  EXPECT_TRUE(moved_after) << "the steps after the surface's changed no scale";
+  // Without surface_at there is none.
+  EXPECT_FALSE(TrainGaussians(ShortRun(10), f.init, f.views, "", progress).surface);
 }
 
 // The held-out renders are made at the last step; a run killed after its
@@ -379,6 +398,38 @@ TEST(Trainer, UnknownAppearanceImageIsRefusedBeforeTraining) {
     FAIL() << "must throw";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("no-such-view"), std::string::npos) << e.what();
+  }
+}
+
+// Adam's steps have the size of the learning rate while the gradient keeps
+// its sign: the scales move at lr_scale until lr_scale_late_from of the
+// steps, at lr_scale_late after.
+TEST(Trainer, TheScalesRateTurnsToTheLateRateAfterItsShareOfTheSteps) {
+  TrainOptions o;
+  o.iterations = 10;
+  o.lr.scale = 0.001;
+  o.lr.scale_late = 0.012;
+  o.lr.scale_late_from = 0.6;
+  GaussianCloud cloud;
+  cloud.resize(1);
+  cloud.log_scales[0].setZero();
+  GaussianCloud gradient = cloud;
+  gradient.log_scales[0].setConstant(1.0f);
+  Adam adam;
+  adam.Resize(1);
+  for (int step = 1; step <= o.iterations; ++step) {
+    const float before = cloud.log_scales[0].x();
+    AdamStep(cloud, adam, gradient, o, 0.0);
+    const double expected = step <= 6 ? o.lr.scale : o.lr.scale_late;
+    EXPECT_NEAR(before - cloud.log_scales[0].x(), expected, 1e-3 * expected) << "step " << step;
+  }
+  o.lr.scale_late = 0;  // off: lr_scale throughout
+  Adam fresh;
+  fresh.Resize(1);
+  for (int step = 1; step <= o.iterations; ++step) {
+    const float before = cloud.log_scales[0].x();
+    AdamStep(cloud, fresh, gradient, o, 0.0);
+    EXPECT_NEAR(before - cloud.log_scales[0].x(), o.lr.scale, 1e-3 * o.lr.scale) << "step " << step;
   }
 }
 

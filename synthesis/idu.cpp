@@ -205,6 +205,8 @@ TrainOptions EpisodeTrainOptions(const IduOptions& o, TrainOptions t, int episod
   t.synthetic_fraction = o.synthetic_fraction;
   t.lambda_view_depth = o.lambda_depth;
   t.keep_snapshots = false;
+  t.lr.scale_late = 0;               // episodes keep lr_scale, as measured (D-130)
+  t.surface_at = 0;                  // the DSMs' surface is the reconstruction's
   t.eval_interval = std::max(1, o.iterations_per_episode);
   t.checkpoint_interval = std::max(1, o.iterations_per_episode);
   if (o.densify) {
