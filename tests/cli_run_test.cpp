@@ -248,10 +248,7 @@ TEST(Cli, ThreeDTilesExportPassesIndependentValidators) {
   ASSERT_EQ(RunCommand(Skyfall() + " synth --out " + root + " --size-m 64 --views 3 --seed 4", dir).exit_code, 0);
   const CommandResult run = RunCommand(Skyfall() + " run " + root + " --out " + out +
                                            " --tile-m 64 --iterations 30 --init-max-scale 0 --idu off --3dtiles"
-                                           " --set exports.tiles3d_options.leaf_m=32"
-                                           // one scales' rate: 15 steps at the faster one shrink these
-                                           // sparse splats below the city view's bound (in 1 of 3 runs none showed)
-                                           " --set train.lr_scale_late=0",
+                                           " --set exports.tiles3d_options.leaf_m=32",
                                        dir);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const fs::path tiles = fs::path(out) / "SYN_001" / "3dtiles";
