@@ -58,8 +58,10 @@ struct TrainLearningRates {
   // (decision D-085).
   double scale = 0.001;
   // From the share scale_late_from of the steps on, the scales' rate is
-  // scale_late instead (0: scale throughout).
-  double scale_late = 0;
+  // scale_late instead (0: scale throughout). With the DSMs read before it
+  // (TrainOptions::surface_at), the faster rate serves the views alone
+  // (decision D-139).
+  double scale_late = 0.012;
   double scale_late_from = 0.5;
   double rotation = 0.001;
   double opacity = 0.05;
@@ -114,7 +116,7 @@ struct TrainOptions {
   // (TrainResult::surface): the geometry has settled by then (decision
   // D-135), and the later steps, at lr.scale_late, serve the views. 0: the
   // DSMs come from the final scene.
-  double surface_at = 0;
+  double surface_at = 0.5;
   // Pseudo-camera depth supervision (needs a DepthPrior): every
   // `pseudo_interval` iterations a pseudo view adds lambda_depth * (1 - |r|).
   double lambda_depth = 0.5;

@@ -251,8 +251,10 @@ TEST(Trainer, KilledRunResumesBitIdentically) {
     if (i < straight.cloud.size() && straight.surface->log_scales[i] != straight.cloud.log_scales[i]) moved_after = true;
   }
   EXPECT_TRUE(moved_after) << "the steps after the surface's changed no scale";
-  // Without surface_at there is none.
-  EXPECT_FALSE(TrainGaussians(ShortRun(10), f.init, f.views, "", progress).surface);
+  // With surface_at 0 there is none.
+  TrainOptions without = ShortRun(10);
+  without.surface_at = 0;
+  EXPECT_FALSE(TrainGaussians(without, f.init, f.views, "", progress).surface);
 }
 
 // The held-out renders are made at the last step; a run killed after its

@@ -57,6 +57,18 @@ page.on("requestfinished", async (request) => {
 const waitLoaded = async () => {
   await page.waitForFunction(() => window.skyfallStatus && (window.skyfallStatus.loaded ||
     window.skyfallStatus.errors.length > 0), null, { timeout: 240000 });
+  // "All tiles loaded" comes before the splats can be drawn: the tileset's
+  // splat primitive still builds its textures and sorts in a worker (seconds
+  // under SwiftShader on a busy machine), and commits them together. A frame
+  // that settled before the first commit showed no splat at all: the whole
+  // city's visible share read 0 in CI for a tileset that draws 7% of the
+  // view. `_hasGaussianSplatTexture` is Cesium's own "a sorted snapshot is
+  // committed" flag (private, hence the timeout): later snapshots (a street's
+  // finer tiles) replace a drawn one, so only the first is waited for.
+  await page.waitForFunction(() => {
+    const splats = window.skyfallView && window.skyfallView.tileset.gaussianSplatPrimitive;
+    return splats !== undefined && splats._hasGaussianSplatTexture === true;
+  }, null, { timeout: 60000 }).catch(() => {});
   await page.waitForTimeout(1000);  // let the last responses be counted
 };
 
