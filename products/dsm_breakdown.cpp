@@ -65,6 +65,7 @@ std::vector<DsmErrorGroup> DsmBreakdown::Groups() const {
   std::vector<DsmErrorGroup> groups = classes;
   groups.push_back(roof_rim);
   groups.push_back(beside_buildings);
+  groups.push_back(without_high_vegetation);
   return groups;
 }
 
@@ -111,7 +112,7 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
     return static_cast<int>(std::clamp(k, 0.0, static_cast<double>(options.edge_bands)));
   };
   std::map<int, GroupSums> by_class;
-  GroupSums roof_rim, beside, roof_interior;
+  GroupSums roof_rim, beside, roof_interior, without_high_vegetation;
   std::vector<GroupSums> roof_bands(options.edge_bands), beside_bands(options.edge_bands);
   int compared = 0;
   for (int r = 0; r < height_px; ++r)
@@ -122,6 +123,7 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
       ++compared;
       const int code = ClassCodeOf(cls[p]);
       by_class[code].Add(e);
+      if (code != options.high_vegetation_class) without_high_vegetation.Add(e);
       if (code == options.building_class) {
         const float in = inside.at<float>(r, c);
         if (in > 0 && in <= rim_cells) roof_rim.Add(e);
@@ -145,6 +147,7 @@ DsmBreakdown BreakDownDsmError(const std::vector<float>& error_m, const std::vec
     b.beside_bands.push_back(beside_bands[k].Finish("beside_band_" + std::to_string(k), -1, compared));
   }
   b.roof_interior = roof_interior.Finish("roof_interior", -1, compared);
+  b.without_high_vegetation = without_high_vegetation.Finish("without_high_vegetation", -1, compared);
   return b;
 }
 

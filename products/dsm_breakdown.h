@@ -39,12 +39,17 @@ struct DsmBreakdownOptions {
   double edge_band_m = 0.5;
   int edge_bands = 6;
   int building_class = 6;  // ASPRS "building"
+  // ASPRS "high vegetation": the class that published "vegetation masked"
+  // figures on DFC2019 (EOGS, HLC-GS) leave out; reported apart as
+  // DsmBreakdown::without_high_vegetation.
+  int high_vegetation_class = 5;
   void Check() const;      // throws Error("dsm", field, ...)
 };
 
 // As the run lists them (dsm.compare.* in run_config.json).
 template <class IO> void Visit(IO& io, DsmBreakdownOptions& b) {
   io.NotAnOption(b.building_class);  // the LiDAR classes' code (ASPRS 6), not a choice
+  io.NotAnOption(b.high_vegetation_class);  // likewise (ASPRS 5)
   io("rim_width_m", b.rim_width_m,
      "With classes: width of the bands inside and outside building outlines whose error is reported apart",
      range::Above(0));
@@ -67,8 +72,12 @@ struct DsmBreakdown {
   std::vector<DsmErrorGroup> roof_bands, beside_bands;
   DsmErrorGroup roof_interior;
   double edge_band_m = 0;
-  // The classes, then the roof rim and the band beside buildings: the order
-  // of the report's rows.
+  // Every compared cell but high vegetation: its mae_m is the "vegetation
+  // masked" MAE of published DFC2019 figures, on this comparison's alignment
+  // (shift and vertical offset found with every cell).
+  DsmErrorGroup without_high_vegetation;
+  // The classes, the roof rim and the band beside buildings, then every
+  // cell but high vegetation: the order of the report's rows.
   std::vector<DsmErrorGroup> Groups() const;
 };
 

@@ -81,6 +81,21 @@ TEST(DsmBreakdown, ClassFiguresAndRimBandsMatchABruteForceCount) {
   }
   EXPECT_NEAR(part_sum, abs_all / compared, kSumTolM);
 
+  // Every cell but the tree (the "vegetation masked" protocol): its MAE is
+  // the MAE less the tree's part, over the cells that are left.
+  double abs_without = 0;
+  int without = 0;
+  for (int p = 0; p < kW * kH; ++p) {
+    if (!std::isfinite(error[p]) || static_cast<int>(cls[p]) == 5) continue;
+    abs_without += std::abs(error[p]), ++without;
+  }
+  EXPECT_EQ(b.without_high_vegetation.name, "without_high_vegetation");
+  EXPECT_EQ(b.without_high_vegetation.cells, compared - 1);
+  EXPECT_EQ(b.without_high_vegetation.cells, without);
+  EXPECT_NEAR(b.without_high_vegetation.mae_m, abs_without / without, kSumTolM);
+  EXPECT_NEAR(b.without_high_vegetation.mae_m * without,
+              (abs_all / compared - b.classes[1].mae_part_m) * compared, 1e-6);
+
   // Rim width 1 m = 2 cells at 0.5 m.
   int roof_rim = 0, beside = 0;
   for (int r = 0; r < kH; ++r)
@@ -320,7 +335,7 @@ TEST(DsmBreakdown, JaxComparisonReportsItsClasses) {
   EXPECT_EQ(header, "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m");
   std::size_t rows = 0;
   while (std::getline(csv, line)) ++rows;
-  EXPECT_EQ(rows, present.size() + 2);
+  EXPECT_EQ(rows, present.size() + 3);  // and the rims, and every class but high vegetation
   // The edge profile: JSON bands with their bounds, and the CSV's rows
   // (roof bands, roof interior, bands beside).
   // Every building cell is in one roof band or the interior.

@@ -109,7 +109,8 @@ std::string GroupCsvFigures(const DsmErrorGroup& g) {
   return line;
 }
 
-// report_by_class.csv: one row per class, then the two rim bands.
+// report_by_class.csv: one row per class, then the two rim bands and every
+// cell but high vegetation.
 std::string BreakdownCsv(const DsmBreakdown& b) {
   std::string csv = "group,class,cells,share,mae_m,rmse_m,median_abs_m,bias_m,mae_part_m\n";
   for (const DsmErrorGroup& g : b.Groups()) csv += g.name + "," + std::to_string(g.cls) + "," + GroupCsvFigures(g);
@@ -170,7 +171,8 @@ nlohmann::json DsmBreakdownJson(const DsmBreakdown& b) {
            {{"rim_width_m", b.rim_width_m},
             {"roof_rim", GroupJson(b.roof_rim)},
             {"beside_buildings", GroupJson(b.beside_buildings)}}},
-          {"building_edge_profile", EdgeProfileJson(b)}};
+          {"building_edge_profile", EdgeProfileJson(b)},
+          {"without_high_vegetation", GroupJson(b.without_high_vegetation)}};
 }
 
 void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmCompareOptions& o,

@@ -12,9 +12,12 @@ SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "readme_result
 README = "# Title\n\n<!-- results:begin -->\nold table\n<!-- results:end -->\n\nAfter.\n"
 
 
-def scene(name, mae, tuned=False):
-    return {"scene": name, "tuned_on": tuned, "mae_m": mae, "median_m": 0.05, "completeness": 0.995,
-            "seconds": 300.0, "dense_mae_m": 9.9}
+def scene(name, mae, tuned=False, without_trees=None):
+    s = {"scene": name, "tuned_on": tuned, "mae_m": mae, "median_m": 0.05, "completeness": 0.995,
+         "seconds": 300.0, "dense_mae_m": 9.9}
+    if without_trees is not None:
+        s["mae_without_trees_m"] = without_trees
+    return s
 
 
 class ReadmeResults(unittest.TestCase):
@@ -40,9 +43,9 @@ class ReadmeResults(unittest.TestCase):
             return f.read()
 
     def test_a_run_replaces_the_block_and_keeps_the_rest(self):
-        text = self.run_script(self.bench("a.json", "2026-12-01", "abc1234", [scene("jax068", 1.1034, True)]))
+        text = self.run_script(self.bench("a.json", "2026-12-01", "abc1234", [scene("jax068", 1.1034, True, 1.0341)]))
         self.assertIn("on 2026-12-01, 2 cores", text)
-        self.assertIn("| jax068 | tuned on | 1.10 | 0.05 | 99.5 | 300 |", text)
+        self.assertIn("| jax068 | tuned on | 1.10 | 1.03 | 0.05 | 99.5 | 300 |", text)
         self.assertNotIn("old table", text)
         self.assertTrue(text.startswith("# Title") and text.endswith("After.\n"))
 
@@ -52,8 +55,8 @@ class ReadmeResults(unittest.TestCase):
         second = self.bench("b.json", "2026-12-06", "def5678", [scene("syn_b", 0.7)])
         self.run_script("--record", record, first)
         text = self.run_script("--record", record, second)
-        self.assertIn("| syn_b | held out | 0.70 | 0.05 | 99.5 | 300 | 2026-12-06 (def5678) |", text)
-        self.assertIn("| jax068 | tuned on | 1.20 | 0.05 | 99.5 | 300 | 2026-12-01 (abc1234) |", text)
+        self.assertIn("| syn_b | held out | 0.70 | n/a | 0.05 | 99.5 | 300 | 2026-12-06 (def5678) |", text)
+        self.assertIn("| jax068 | tuned on | 1.20 | n/a | 0.05 | 99.5 | 300 | 2026-12-01 (abc1234) |", text)
         self.assertLess(text.index("| jax068"), text.index("| syn_b"))  # tuned-on scenes first
         with open(record) as f:
             kept = json.load(f)
