@@ -48,7 +48,8 @@ def head_commit():
 
 def row(s, dated):
     cells = [s["scene"], "tuned on" if s.get("tuned_on") else "held out", number(s.get("mae_m"), 2),
-             number(s.get("mae_without_trees_m"), 2), number(s.get("median_m"), 2), number(s.get("completeness"), 1, 100), number(s.get("seconds"), 0)]
+             number(s.get("mae_without_trees_m"), 2), number(s.get("median_m"), 2),
+             number(s.get("completeness"), 1, 100), number(s.get("seconds"), 0)]
     if dated:
         cells.append(s.get("date", "?") + (f" ({s['commit']})" if s.get("commit") else ""))
     return "| " + " | ".join(cells) + " |"
