@@ -113,7 +113,9 @@ struct DenseVisibilityOptions {
   // roofs' height, and with that fill hiding it no view would see the
   // street's own heights in the second sweep (D-062). Heights seen by few
   // pairs get a noisy mean whose chance minima would win: the mean is taken
-  // as if this many more pairs had added the truncation cost.
+  // as if this many more pairs had added the truncation cost. Deciding the
+  // sides of filled cells, at most as many as there are other pairs
+  // (decision D-142).
   double prior_pairs = 2.0;
 };
 
@@ -247,7 +249,8 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "Surface cells this near a cell along the ray do not hide it; -1 = the NCC window's radius, 0 = every cell "
      "hides", range::Or(range::AtLeast(0), -1, "the NCC window's radius"));
   io("visibility_prior_pairs", o.visibility.prior_pairs,
-     "In the visibility pass, each height's mean cost is taken as if this many more pairs had added the capped cost",
+     "In the visibility pass, each height's mean cost is taken as if this many more pairs had added the capped cost "
+     "(deciding filled cells' sides, at most the number of other pairs)",
      range::AtLeast(0));
 }
 

@@ -127,7 +127,13 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
     const float covariance = sxy * inv_weight - t.mean[va] * t.mean[vb];
     sum += std::min(trunc, 1.0f - covariance * t.inv_std[va] * t.inv_std[vb]);
   }
-  const float prior = seen_above ? static_cast<float>(s.o.visibility.prior_pairs) : 0.0f;
+  // The visibility pass's prior, as if prior_pairs more of the other pairs
+  // had added the truncation cost, here at most the other pairs there are:
+  // with a single pair it put every side's cost at (c + 1.6) / 3 >= 0.53,
+  // against max_cost 0.55, and no filled cell of a stereo pair could change
+  // side (decision D-142). The sweep keeps the whole prior (D-140).
+  const float other_pairs = static_cast<float>(s.pairs.size()) - 1.0f;
+  const float prior = seen_above ? std::min(static_cast<float>(s.o.visibility.prior_pairs), other_pairs) : 0.0f;
   return count + prior > 0 ? (sum + prior * trunc) / (count + prior) : trunc;
 }
 
