@@ -254,6 +254,69 @@ TEST(Dsm, ARenderInBlocksMatchesOneRender) {
   EXPECT_LE(flips, kFlipFraction * whole.height_m.size()) << flips;
 }
 
+TEST(Dsm, ACoarseGridReadsEachCellAtItsCentre) {
+  // Ground at ENU height 0 (Gaussians every 2 m) and a 40 m roof 15 m up
+  // (every 0.5 m, 0.3 m wide), on a 2.1 m grid: a truth sampled at cell
+  // centres has the roof exactly where a cell's centre lies on it. Rendered
+  // at one sample per cell, the anti-aliasing dilation of 0.3 px^2 (1.15 m
+  // sigma at 2.1 m) spread the roof over the ground cells within about
+  // 1.5 m of its edge.
+  const GeodeticPoint origin{-81.66375, 30.34881, 1.5};
+  GaussianCloud scene;
+  auto add = [&](float x, float y, float z, float sigma) {
+    scene.means.emplace_back(x, y, z);
+    scene.log_scales.emplace_back(std::log(sigma), std::log(sigma), std::log(0.02f));
+    scene.rotations.emplace_back(1.0f, 0.0f, 0.0f, 0.0f);
+    scene.opacity_logits.push_back(5.0f);
+    scene.sh.push_back(std::array<float, 12>{});
+  };
+  constexpr float kRoofHalfM = 20.0f, kRoofM = 15.0f;
+  for (float x = -230; x <= 230; x += 2)
+    for (float y = -240; y <= 240; y += 2) add(x, y, 0.0f, 1.2f);
+  for (float x = -kRoofHalfM; x <= kRoofHalfM; x += 0.5f)
+    for (float y = -kRoofHalfM; y <= kRoofHalfM; y += 0.5f) add(x, y, kRoofM, 0.3f);
+  const UtmZone zone = StandardUtmZone(origin.lon_deg, origin.lat_deg);
+  const Eigen::Vector2d en = UtmFromGeodetic(zone, origin.lon_deg, origin.lat_deg);
+  DsmGrid grid;
+  grid.gsd_m = 2.1;
+  // Wide enough that the render runs in more than one strip of rows.
+  grid.width_px = 200;
+  grid.height_px = 220;
+  grid.epsg = zone.Epsg();
+  grid.upper_left_easting_m = en.x() - 0.5 * grid.width_px * grid.gsd_m + 0.37;
+  grid.upper_left_northing_m = en.y() + 0.5 * grid.height_px * grid.gsd_m - 0.81;
+  RasterizeDsm(scene, origin, DsmExportOptions{}, &grid);
+  const EnuFrame frame(origin);
+  // [m] a cell whose centre lies further than this outside the roof's
+  // Gaussians reads the ground, further inside the roof: the roof's own
+  // Gaussians reach 0.35 m beyond their centres at half opacity, and the
+  // finer render's dilation adds about 0.2 m.
+  constexpr double kEdgeM = 0.8;
+  constexpr double kHeightToleranceM = 0.05;  // flat surfaces; the ENU plane bends < 1 cm here
+  int near_outside = 0, inside = 0;
+  for (int r = 0; r < grid.height_px; ++r)
+    for (int c = 0; c < grid.width_px; ++c) {
+      const Eigen::Vector2d ll = GeodeticFromUtm(zone, grid.upper_left_easting_m + (c + 0.5) * grid.gsd_m,
+                                                 grid.upper_left_northing_m - (r + 0.5) * grid.gsd_m);
+      const Eigen::Vector3d p = frame.EnuFromGeodetic({ll.x(), ll.y(), origin.height_m});
+      // Signed distance of the centre outside the roof's box (negative inside).
+      const double dx = std::abs(p.x()) - kRoofHalfM, dy = std::abs(p.y()) - kRoofHalfM;
+      const double outside_m = dx > 0 || dy > 0 ? std::hypot(std::max(dx, 0.0), std::max(dy, 0.0)) : std::max(dx, dy);
+      const double ground = origin.height_m, roof = origin.height_m + kRoofM;
+      if (std::abs(p.x()) > 200 || std::abs(p.y()) > 200) continue;  // the ground's own edge
+      if (outside_m > kEdgeM) {
+        EXPECT_NEAR(grid.At(c, r), ground, kHeightToleranceM) << c << "," << r << ": " << outside_m << " m outside";
+        if (outside_m < 1.6) ++near_outside;
+      } else if (outside_m < -kEdgeM) {
+        EXPECT_NEAR(grid.At(c, r), roof, kHeightToleranceM) << c << "," << r;
+        ++inside;
+      }
+    }
+  // The cells that one sample per cell put on the roof are there to check.
+  EXPECT_GT(near_outside, 20);
+  EXPECT_GT(inside, 250);
+}
+
 TEST(Dsm, ComparisonProductsAreWritten) {
   SKYFALL_REQUIRE_DFC2019();
   const DsmGrid truth = JaxTruth();
