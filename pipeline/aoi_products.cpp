@@ -141,7 +141,8 @@ DenseClouds DenseCellsAsGaussians(const std::vector<DenseTileCells>& tiles) {
 
 json ComparisonJson(const DsmComparison& c) {
   json j = {{"mae_m", c.mae_m}, {"rmse_m", c.rmse_m}, {"median_abs_m", c.median_abs_m}, {"nmad_m", c.nmad_m},
-            {"completeness", c.completeness}, {"within_1m", c.within_fraction}};
+            {"completeness", c.completeness}, {"within_1m", c.within_fraction},
+            {"shift_px", {c.shift_col_px, c.shift_row_px}}, {"mae_at_zero_shift_m", c.mae_at_zero_shift_m}};
   if (c.has_breakdown) j.update(DsmBreakdownJson(c.breakdown));
   return j;
 }

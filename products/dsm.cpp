@@ -490,6 +490,13 @@ DsmComparison CompareDsm(const DsmGrid& pred, const DsmGrid& truth_in, const std
   FindBestShift(pred, truth, o, &out);
   const std::vector<double> diff = ShiftedDifferences(pred, truth, &out);
   if (!diff.empty()) ErrorStatistics(diff, o, &out);
+  out.mae_at_zero_shift_m = out.mae_m;
+  if (out.shift_col_px != 0 || out.shift_row_px != 0) {
+    DsmComparison unshifted;
+    const std::vector<double> unshifted_diff = ShiftedDifferences(pred, truth, &unshifted);
+    if (!unshifted_diff.empty()) ErrorStatistics(unshifted_diff, o, &unshifted);
+    out.mae_at_zero_shift_m = unshifted.mae_m;
+  }
   // With classes, the errors' breakdown, on the final (offset-free) error map.
   if (cls) {
     out.breakdown = BreakDownDsmError(out.error_m, *cls, truth.width_px, truth.height_px, truth.gsd_m, o.breakdown);

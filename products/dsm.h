@@ -146,6 +146,11 @@ struct DsmComparison {
   double bias_m = 0;      // mean (pred - truth) after the shift, before z_offset_m is removed
   double z_offset_m = 0;  // median (pred - truth): the vertical offset removed before the metrics
   double mae_m = 0, rmse_m = 0, median_abs_m = 0, nmad_m = 0;
+  // The MAE with the prediction not shifted (its own median offset removed):
+  // against mae_m, what the shift buys. A misregistered DSM gains much; one
+  // whose errors lean to one side (ground hidden on the side away from every
+  // view, filled at roof height) gains little from a shift of a pixel or two.
+  double mae_at_zero_shift_m = 0;
   double completeness = 0;     // valid in both / valid in truth
   double within_fraction = 0;  // |error| <= within_m, over valid in both
   int valid_pixels = 0;

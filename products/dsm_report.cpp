@@ -183,7 +183,8 @@ void WriteDsmComparison(const DsmComparison& r, const DsmGrid& truth, const DsmC
       {"protocol", {{"max_shift_px", o.max_shift_px}, {"pyramid_levels", o.pyramid_levels},
                     {"mask_water", o.mask_water}, {"within_m", o.within_m}}},
       {"shift_col_px", r.shift_col_px}, {"shift_row_px", r.shift_row_px}, {"ncc", r.ncc},
-      {"bias_m", r.bias_m}, {"z_offset_m", r.z_offset_m}, {"mae_m", r.mae_m}, {"rmse_m", r.rmse_m},
+      {"bias_m", r.bias_m}, {"z_offset_m", r.z_offset_m}, {"mae_m", r.mae_m},
+      {"mae_at_zero_shift_m", r.mae_at_zero_shift_m}, {"rmse_m", r.rmse_m},
       {"median_abs_m", r.median_abs_m}, {"nmad_m", r.nmad_m}, {"completeness", r.completeness}, {"within_fraction", r.within_fraction},
       {"valid_pixels", r.valid_pixels}};
   nlohmann::json full = report;

@@ -43,6 +43,10 @@ TEST(Dsm, RecoversAKnownShiftAndBiasWithZeroError) {
   EXPECT_NEAR(r.z_offset_m, 1.7, 1e-5);
   EXPECT_LT(r.mae_m, 1e-5);  // float storage of heights ~30 m: ~2e-6 m
   EXPECT_LT(r.rmse_m, 1e-5);
+  // Unshifted, every building edge of the city is off by 3 and 2 pixels.
+  EXPECT_GT(r.mae_at_zero_shift_m, 0.5);
+  const DsmComparison same = CompareDsm(truth, truth, nullptr, DsmCompareOptions{});
+  EXPECT_EQ(same.mae_at_zero_shift_m, same.mae_m);
   EXPECT_NEAR(r.within_fraction, 1.0, 1e-12);
   // Only the band the shift moved out of the grid is missing.
   EXPECT_NEAR(r.completeness, (512.0 - 3) * (512.0 - 2) / (512.0 * 512.0), 1e-9);

@@ -210,6 +210,9 @@ for name in sorted(os.listdir(out)):
         # The comparison's horizontal registration [truth px]: how far the
         # product sits from the truth; RPC biases that BA leaves show here.
         "shift_px": compare_shift(d),
+        # The MAE without that shift: a misregistered DSM gains much from it,
+        # edges that lean to one side (hidden ground filled) a few percent.
+        "mae_at_zero_shift_m": d.get("mae_at_zero_shift_m"),
         "dense_mae_m": (d.get("dense") or {}).get("mae_m"),
         "dense_completeness": (d.get("dense") or {}).get("completeness"),
         "filled_cell_fraction": (d.get("dense") or {}).get("filled_cell_fraction"),
