@@ -272,9 +272,10 @@ void RenderWindow(const GaussianCloud& scene, const NadirCamera& nadir, const En
             heights.push_back(static_cast<float>(
                 HitHeightM(cam, nadir.eye, frame, fc, fr, rel_depth + r.reference_depth_m)));
           }
-        if (2 * heights.size() < static_cast<size_t>(k * k) || heights.empty()) continue;
+        if (2 * heights.size() < static_cast<size_t>(k * k)) continue;  // also: no sample at all
         const size_t p = static_cast<size_t>(row0 + s0 + row) * grid->width_px + col0 + col;
-        grid->height_m[p] = k == 1 ? heights[0] : static_cast<float>(Median(heights));
+        // One sample (grids of 0.5 m and finer) is its own median: no copy per cell.
+        grid->height_m[p] = k == 1 ? heights[0] : Median(heights);
         if (rgb)
           for (int c = 0; c < 3; ++c)
             (*rgb)[3 * p + c] = static_cast<float>(std::clamp(premultiplied[c] / alpha_sum, 0.0, 1.0));
