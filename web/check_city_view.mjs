@@ -63,11 +63,15 @@ const waitLoaded = async () => {
   // that settled before the first commit showed no splat at all: the whole
   // city's visible share read 0 in CI for a tileset that draws 7% of the
   // view. `_hasGaussianSplatTexture` is Cesium's own "a sorted snapshot is
-  // committed" flag (private, hence the timeout): later snapshots (a street's
-  // finer tiles) replace a drawn one, so only the first is waited for.
+  // committed" flag. Later snapshots (finer tiles as they load) replace a
+  // drawn one, and a frame taken before they commit shows the coarser tiles:
+  // so the wait is also for the primitive to be idle, with no snapshot to
+  // rebuild, none pending and no sort running. These are private fields,
+  // hence the timeout.
   await page.waitForFunction(() => {
     const splats = window.skyfallView && window.skyfallView.tileset.gaussianSplatPrimitive;
-    return splats !== undefined && splats._hasGaussianSplatTexture === true;
+    return splats !== undefined && splats._hasGaussianSplatTexture === true && !splats._needsSnapshotRebuild &&
+      !splats._dirty && splats._pendingSnapshot === undefined && splats._pendingSortPromise === undefined;
   }, null, { timeout: 60000 }).catch(() => {});
   await page.waitForTimeout(1000);  // let the last responses be counted
 };
