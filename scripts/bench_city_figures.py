@@ -166,10 +166,10 @@ def viewer_figures(path):
         return None
     v = json.load(open(path))
     keep = ("seconds_to_tiles_loaded", "seconds_to_complete_frame", "contents", "bytes", "contents_by_depth",
-            "tileset_visible_fraction")
+            "tileset_visible_fraction", "all_tiles_loaded")
     return {"streams": v["streams"], "contents_per_depth": v["contents_per_depth"],
             "errors": v["errors"] + v["external"],
-            **{view: {k: v[view][k] for k in keep} for view in ("whole_city", "street")}}
+            **{view: {k: v[view].get(k) for k in keep} for view in ("whole_city", "street")}}
 
 
 def figures(km, n, block_m, root, run, out, json_name, executor):

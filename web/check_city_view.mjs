@@ -55,8 +55,18 @@ page.on("requestfinished", async (request) => {
 });
 
 const waitLoaded = async () => {
-  await page.waitForFunction(() => window.skyfallStatus && (window.skyfallStatus.loaded ||
-    window.skyfallStatus.errors.length > 0), null, { timeout: 240000 });
+  // Cesium says "all tiles loaded" when loading ends; a view that needs no
+  // tile the last one did not load (a small city whose first view fetched
+  // every content) starts no loading and never says it. So a view moved to
+  // (skyfallStatus.movedAtFrame) also counts as loaded once a few frames
+  // have rendered it and the tileset reports every tile it needs loaded.
+  await page.waitForFunction(() => {
+    const s = window.skyfallStatus, v = window.skyfallView;
+    if (!s) return false;
+    if (s.loaded || s.errors.length > 0) return true;
+    return s.movedAtFrame !== undefined && v !== undefined &&
+      v.viewer.scene.frameState.frameNumber > s.movedAtFrame + 3 && v.tileset.tilesLoaded;
+  }, null, { timeout: 240000 });
   // "All tiles loaded" comes before the splats can be drawn: the tileset's
   // splat primitive still builds its textures and sorts in a worker (seconds
   // under SwiftShader on a busy machine), and commits them together. A frame
@@ -149,6 +159,7 @@ const tilesetUrl = await page.evaluate(() => new URL(window.skyfallView.tileset.
 const { depthOf, perDepth } = await tilesetDepths(tilesetUrl);
 const whole = { seconds_to_tiles_loaded: wholeLoaded, seconds_to_complete_frame: wholeFrame.at,
                 ...summarize(0, depthOf), tileset_visible_fraction: await tilesetVisibleFraction(wholeFrame),
+                all_tiles_loaded: await page.evaluate(() => window.skyfallView.tileset.tilesLoaded),
                 status: await page.evaluate(() => window.skyfallStatus) };
 fs.writeFileSync(path.join(outDir, "whole_city.png"), Buffer.from(wholeFrame.png, "base64"));
 
@@ -159,6 +170,7 @@ const streetStart = Date.now();
 await page.evaluate((h) => {
   const { viewer, tileset } = window.skyfallView;
   window.skyfallStatus.loaded = false;
+  window.skyfallStatus.movedAtFrame = viewer.scene.frameState.frameNumber;
   const centre = Cesium.Cartographic.fromCartesian(tileset.boundingSphere.center);
   const ground = typeof config !== "undefined" ? config.ground_height_m : centre.height;
   // 45 degrees down: the point looked at lies h north of the camera.
@@ -172,6 +184,7 @@ const streetLoaded = (Date.now() - streetStart) / 1000;
 const streetFrame = await settle(streetStart);
 const street = { seconds_to_tiles_loaded: streetLoaded, seconds_to_complete_frame: streetFrame.at,
                  ...summarize(mark, depthOf), tileset_visible_fraction: await tilesetVisibleFraction(streetFrame),
+                 all_tiles_loaded: await page.evaluate(() => window.skyfallView.tileset.tilesLoaded),
                  status: await page.evaluate(() => window.skyfallStatus) };
 fs.writeFileSync(path.join(outDir, "street.png"), Buffer.from(streetFrame.png, "base64"));
 
