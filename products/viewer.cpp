@@ -95,7 +95,7 @@ window.addEventListener("error", (e) => window.skyfallStatus.errors.push(String(
     // its merged stand-in (2.9 m for the 2 m level of the 1 km city): at
     // Cesium's default of 16 px the whole city showed as a haze and a street
     // seen from 150 m kept that level. At 4 px the finest level comes within
-    // about 500 m (decision D-145).
+    // about 500 m (decision D-146).
     const tileset = await Cesium.Cesium3DTileset.fromUrl(config.tileset, { maximumScreenSpaceError: 4 });
     viewer.scene.primitives.add(tileset);
     tileset.tileFailed.addEventListener((e) => window.skyfallStatus.errors.push("tile " + e.url + ": " + e.message));
