@@ -37,6 +37,12 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
      "heights exist)");
   io("init_spacing_m", o.init_spacing_m,
      "A dense start keeps one dense point per cell of this size", range::Above(0));
+  io("init_step_reach_m", o.init_step_reach_m,
+     "A dense start keeps every dense cell (not one per init_spacing_m) within this distance of a step; 0 = none",
+     range::AtLeast(0));
+  io("init_step_min_m", o.init_step_min_m,
+     "Dense cells that differ by more than this within init_step_reach_m form a step for init_step_reach_m",
+     range::Above(0));
   io("mask_beyond_reconstruction", o.mask_beyond_reconstruction,
      "With a dense start, leave the pixels that see past the tile's dense heights out of the loss and the scores");
   io("cloud_mask", o.cloud_mask);

@@ -78,6 +78,10 @@ struct TrainStageOptions {
   // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
   InitPoints init_points = InitPoints::kAuto;
   double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
+  // Dense cells within init_step_reach_m of a step of more than
+  // init_step_min_m are all kept (at the dense grid's spacing); 0 = none.
+  double init_step_reach_m = 0.0;
+  double init_step_min_m = 2.0;
   // (Wall Gaussians at the start, from the dense heights' steps, were tried
   // and not adopted: decision D-034.)
   AnchorWeightOptions anchor;  // per dense cell, the surface anchor's confidence

@@ -183,14 +183,9 @@ nlohmann::json TrainInputsSha256(const std::string& sfm_dir, bool dense_start) {
 
 }  // namespace
 
-std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& o) {
-  const bool by_fill = o.filled_weight < 1.0, by_step = o.step_weight < 1.0 && o.step_reach_m > 0;
-  if (!by_fill && !by_step) return {};  // all alike: no weights
-  std::vector<float> w(cells.points.size(), 1.0f);
-  if (by_fill)
-    for (std::size_t k = 0; k < w.size(); ++k)
-      if (cells.filled[k]) w[k] = static_cast<float>(o.filled_weight);
-  if (!by_step || cells.points.empty()) return w;
+std::vector<std::uint8_t> CellsNearSteps(const DenseCells& cells, double reach_m, double min_step_m) {
+  std::vector<std::uint8_t> near(cells.points.size(), 0);
+  if (cells.points.empty() || !(reach_m > 0)) return near;
   // The cells lie on a grid of cell_m: index them by their (column, row)
   // from the lowest corner, then look for a rise within the reach.
   Eigen::Vector2f lo = cells.points[0].head<2>();
@@ -207,14 +202,28 @@ std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeight
     height[static_cast<std::size_t>(at[k].y()) * size.x() + at[k].x()] = cells.points[k].z();
   // The lowest and highest height within the reach (the highest as the
   // lowest of the negated heights), windows cut at the grid's edges.
-  const int reach = std::max(1, static_cast<int>(std::lround(o.step_reach_m / cells.cell_m)));
+  const int reach = std::max(1, static_cast<int>(std::lround(reach_m / cells.cell_m)));
   const std::vector<float> low = MinFilter(height, size.x(), size.y(), reach, WindowEdge::kClip);
   for (float& h : height) h = -h;
   const std::vector<float> minus_high = MinFilter(height, size.x(), size.y(), reach, WindowEdge::kClip);
   for (std::size_t k = 0; k < at.size(); ++k) {
     const std::size_t c = static_cast<std::size_t>(at[k].y()) * size.x() + at[k].x();
-    if (-minus_high[c] - low[c] > o.step_min_m) w[k] = std::min(w[k], static_cast<float>(o.step_weight));
+    near[k] = -minus_high[c] - low[c] > min_step_m;
   }
+  return near;
+}
+
+std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& o) {
+  const bool by_fill = o.filled_weight < 1.0, by_step = o.step_weight < 1.0 && o.step_reach_m > 0;
+  if (!by_fill && !by_step) return {};  // all alike: no weights
+  std::vector<float> w(cells.points.size(), 1.0f);
+  if (by_fill)
+    for (std::size_t k = 0; k < w.size(); ++k)
+      if (cells.filled[k]) w[k] = static_cast<float>(o.filled_weight);
+  if (!by_step) return w;
+  const std::vector<std::uint8_t> near = CellsNearSteps(cells, o.step_reach_m, o.step_min_m);
+  for (std::size_t k = 0; k < w.size(); ++k)
+    if (near[k]) w[k] = std::min(w[k], static_cast<float>(o.step_weight));
   return w;
 }
 
@@ -376,7 +385,11 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
     if (options.surface.lambda_depth > 0 || options.surface.lambda_alpha > 0)
       surface = std::make_unique<SurfaceDepthPrior>(dense.points, dense.cell_m,
                                                     AnchorCellWeights(dense, stage.anchor));
-    ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours);
+    // Beside a step the dense grid's own cells start Gaussians of its own
+    // size, so a roof's edge is not drawn with init_spacing_m blobs.
+    const std::vector<std::uint8_t> fine = CellsNearSteps(dense, stage.init_step_reach_m, stage.init_step_min_m);
+    decided.init_fine_points = static_cast<std::size_t>(std::count(fine.begin(), fine.end(), 1));
+    ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours, &fine);
   }
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
@@ -398,7 +411,8 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
       views.size(),
       std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
       decided.downscale.factor, decided.downscale.why, points.size(),
-      decided.dense_start ? fmt::format("dense heights thinned to {} m, and tie points in their holes", stage.init_spacing_m)
+      decided.dense_start ? fmt::format("dense heights thinned to {} m ({} cells beside steps kept), and tie points in "
+                                        "their holes", stage.init_spacing_m, decided.init_fine_points)
                           : fmt::format("{} tie points", tie_points),
       options.iterations, decided.densify ? "on" : "off"));
   std::unique_ptr<DepthPrior> depth_prior;

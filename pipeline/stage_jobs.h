@@ -36,6 +36,9 @@ DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir,
 // Per cell confidence for SurfaceDepthPrior: 1, less for filled cells and
 // for cells beside a step (AnchorWeightOptions); empty when every weight
 // is 1 (no weighting).
+// Per dense cell: whether the heights within reach_m of it differ by more
+// than min_step_m (a step: a wall, a roof's edge). All 0 when reach_m is 0.
+std::vector<std::uint8_t> CellsNearSteps(const DenseCells& cells, double reach_m, double min_step_m);
 std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& options);
 
 // True when `sfm_dir` holds a finished dense stage with the same options
@@ -58,6 +61,7 @@ TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir);
 struct TrainDecisions {
   TrainDownscale downscale;
   bool dense_start = false;
+  std::size_t init_fine_points = 0;  // dense cells kept beside steps (train.init_step_reach_m)
   bool densify = false;
   bool appearance = false;
   std::string appearance_reason;

@@ -79,6 +79,18 @@ TEST(AnchorCellWeights, CellsWithinReachOfAStepOnEitherSideWeighLess) {
     }
 }
 
+TEST(CellsNearSteps, MarksBothSidesOfAStepWithinReachAndNothingWithoutReach) {
+  const int n = 16;
+  const DenseCells cells = RoofBesideGround(n, 0.5, 10.0f);
+  const std::vector<std::uint8_t> near = CellsNearSteps(cells, 1.0, 2.0);  // 2 cells
+  ASSERT_EQ(near.size(), cells.points.size());
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i)
+      EXPECT_EQ(near[static_cast<std::size_t>(j) * n + i], i >= n / 2 - 2 && i <= n / 2 + 1) << i << ", " << j;
+  for (std::uint8_t v : CellsNearSteps(cells, 0.0, 2.0)) EXPECT_EQ(v, 0);    // no reach: none
+  for (std::uint8_t v : CellsNearSteps(cells, 1.0, 10.5)) EXPECT_EQ(v, 0);   // the step is not higher than this
+}
+
 TEST(AnchorCellWeights, SlopesBelowTheStepHeightAndUnitWeightsLeaveNoWeights) {
   const DenseCells low = RoofBesideGround(12, 0.5, 1.5f);  // a kerb, not a wall
   AnchorWeightOptions o;

@@ -59,20 +59,31 @@ PinholeCamera DownscaledCamera(const PinholeCamera& camera, int s) {
 void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
                 const std::vector<Eigen::Vector3f>& dense_colours, const std::vector<Eigen::Vector3f>& extra,
                 const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
-                std::vector<Eigen::Vector3f>* colours) {
+                std::vector<Eigen::Vector3f>* colours, const std::vector<std::uint8_t>* keep_all) {
   if (!(spacing_m > 0)) throw Error("splat", "init spacing", std::to_string(spacing_m) + " m must be > 0");
-  if (dense.size() != dense_colours.size() || extra.size() != extra_colours.size())
+  if (dense.size() != dense_colours.size() || extra.size() != extra_colours.size() ||
+      (keep_all && keep_all->size() != dense.size()))
     throw Error("splat", "init points", "points and colours differ in number");
   std::set<std::pair<std::int64_t, std::int64_t>> taken;
   std::vector<Eigen::Vector3f> out_points, out_colours;
+  auto cell_of = [&](const Eigen::Vector3f& p) {
+    return std::make_pair(static_cast<std::int64_t>(std::floor(p.x() / spacing_m)),
+                          static_cast<std::int64_t>(std::floor(p.y() / spacing_m)));
+  };
   auto add_if_free = [&](const Eigen::Vector3f& p, const Eigen::Vector3f& c) {
-    const auto cell = std::make_pair(static_cast<std::int64_t>(std::floor(p.x() / spacing_m)),
-                                     static_cast<std::int64_t>(std::floor(p.y() / spacing_m)));
-    if (!taken.insert(cell).second) return;
+    if (!taken.insert(cell_of(p)).second) return;
     out_points.push_back(p);
     out_colours.push_back(c);
   };
-  for (std::size_t k = 0; k < dense.size(); ++k) add_if_free(dense[k], dense_colours[k]);
+  const auto kept = [&](std::size_t k) { return keep_all && (*keep_all)[k]; };
+  for (std::size_t k = 0; k < dense.size(); ++k) {
+    if (!kept(k)) continue;
+    taken.insert(cell_of(dense[k]));
+    out_points.push_back(dense[k]);
+    out_colours.push_back(dense_colours[k]);
+  }
+  for (std::size_t k = 0; k < dense.size(); ++k)
+    if (!kept(k)) add_if_free(dense[k], dense_colours[k]);
   for (std::size_t k = 0; k < extra.size(); ++k) add_if_free(extra[k], extra_colours[k]);
   *points = std::move(out_points);
   *colours = std::move(out_colours);

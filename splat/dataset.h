@@ -23,10 +23,13 @@ void ReadSfmPoints(const std::string& path, std::vector<Eigen::Vector3f>* points
 // Initial points from dense heights: the first dense point in each
 // spacing_m x spacing_m cell (horizontal), then every extra point (tie
 // points) whose cell no dense point reached, so holes keep their tie points.
+// `keep_all` (optional, one per dense point): points kept whatever their
+// cell (first, at the dense grid's own spacing); their spacing_m cells are
+// then taken for the others.
 void ThinToGrid(double spacing_m, const std::vector<Eigen::Vector3f>& dense,
                 const std::vector<Eigen::Vector3f>& dense_colours, const std::vector<Eigen::Vector3f>& extra,
                 const std::vector<Eigen::Vector3f>& extra_colours, std::vector<Eigen::Vector3f>* points,
-                std::vector<Eigen::Vector3f>* colours);
+                std::vector<Eigen::Vector3f>* colours, const std::vector<std::uint8_t>* keep_all = nullptr);
 
 // Points on the walls of a height grid (`grid_points`, one per cell of
 // `cell_m`, ENU): where a cell stands at least `min_step_m` above a

@@ -499,6 +499,34 @@ TEST(Trainer, DenseInitKeepsOnePointPerCellAndTiePointsInItsHoles) {
   EXPECT_THROW(ThinToGrid(0.0, dense, dense_rgb, ties, ties_rgb, &points, &colours), Error);
 }
 
+TEST(Trainer, DenseInitKeepsEveryMarkedCellAndThinsTheRestAroundThem) {
+  // Dense points every 0.5 m over x in [0, 4), y in [0, 1); the column x = 1.5
+  // (inside the one-metre cells x in [1, 2)) marked to keep, as beside a step.
+  std::vector<Eigen::Vector3f> dense, dense_rgb;
+  std::vector<std::uint8_t> keep;
+  for (int j = 0; j < 2; ++j)
+    for (int i = 0; i < 8; ++i) {
+      dense.emplace_back(0.5f * i, 0.5f * j, 1.0f);
+      dense_rgb.emplace_back(0.2f, 0.2f, 0.2f);
+      keep.push_back(i == 3);
+    }
+  std::vector<Eigen::Vector3f> points, colours;
+  ThinToGrid(1.0, dense, dense_rgb, {}, {}, &points, &colours, &keep);
+  // Both marked points, then one point for each of the three other one-metre
+  // cells: the marked points' cell takes no other.
+  ASSERT_EQ(points.size(), 2u + 3u);
+  EXPECT_EQ(points[0], dense[3]);
+  EXPECT_EQ(points[1], dense[8 + 3]);
+  for (std::size_t k = 2; k < points.size(); ++k)
+    EXPECT_TRUE(points[k].x() < 1.0f || points[k].x() >= 2.0f) << "point " << k << " in the kept cell";
+  // No marks: as without them.
+  std::vector<Eigen::Vector3f> plain, plain_rgb;
+  ThinToGrid(1.0, dense, dense_rgb, {}, {}, &plain, &plain_rgb);
+  EXPECT_EQ(plain.size(), 4u);
+  std::vector<std::uint8_t> short_marks(3, 1);
+  EXPECT_THROW(ThinToGrid(1.0, dense, dense_rgb, {}, {}, &points, &colours, &short_marks), Error);
+}
+
 TEST(Trainer, FacadePointsStandOnTheWallsOfTheDenseHeights) {
   // 0.5 m cells over 8 x 8 m at 1 m, with a 4 x 4 cell block 7 m tall (cells
   // 6-9 each way, 6 m above the ground) and a 1 m kerb step that is below the
