@@ -7,7 +7,8 @@
 # level, the tileset's size and depth, the city DSM's MAE against the truth,
 # the mean MAE of the tiles' own reconstructions over their cores (each
 # tile rasterized alone, before the merge), the MAE within 10 m of an
-# interior tile border, and the seam metric per interior border.
+# interior tile border, the seam metric per interior border, and the steps of
+# the DSM's error across the borders between AOIs where the truth is smooth.
 #
 # Usage: scripts/bench_city.sh [--km N] [--slurm] [OUT]   (default: --km 1, OUT=out/bench_city_<N>km)
 #   --slurm   run through `--executor slurm` on a one-node cluster started on

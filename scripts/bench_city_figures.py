@@ -25,6 +25,9 @@ from osgeo import gdal, osr
 
 gdal.UseExceptions()
 BORDER_BAND_M = 10.0  # cells this close to an interior tile border count as "border" (the issue's 10 m)
+# error_seams: pairs of adjacent cells whose truth steps less than this are smooth (a kerb,
+# a roof's slope over 0.5 m); walls are left out.
+SMOOTH_TRUTH_STEP_M = 1.0
 WGS84_A, WGS84_F = 6378137.0, 1 / 298.257223563
 WGS84_E2 = WGS84_F * (2 - WGS84_F)
 
@@ -172,6 +175,62 @@ def viewer_figures(path):
             **{view: {k: v[view].get(k) for k in keep} for view in ("whole_city", "street")}}
 
 
+def error_seams(root, run, aois):
+    """Steps of the DSM's error across the borders between adjacent AOIs, against the same
+    steps inside them.
+
+    The merge's seam metric steps the heights, so a border the seam line lays along a wall
+    has the wall's step, which the truth has too. Here only pairs of adjacent cells whose
+    truth is smooth (steps less than SMOOTH_TRUTH_STEP_M) count, and what steps is the error
+    (prediction minus truth, each AOI on its own truth grid, row 0 north, no comparison
+    shift): a step the prediction has where the truth has none, which a seam adds. Where
+    the truth steps (a wall), the wall's placement decides the error's step: counted, a
+    border that runs along a wall holds little else. A border's interior reference: every
+    such pair in the same direction inside its two AOIs."""
+    grids = {}
+    for aoi in aois:
+        pred = gdal.Open(os.path.join(run, aoi, "dsm.tif"))
+        truth = gdal.Open(os.path.join(root, "Track3-Truth", aoi + "_DSM.tif"))
+        p = pred.GetRasterBand(1).ReadAsArray().astype(np.float64)
+        t = truth.GetRasterBand(1).ReadAsArray().astype(np.float64)
+        if p.shape != t.shape:
+            sys.exit(f"bench_city: {aoi}: dsm.tif {p.shape} and its truth {t.shape} are not on one grid")
+        t[t < -1000] = np.nan  # DFC2019 truth no-data (-9999)
+        gt = pred.GetGeoTransform()
+        grids[aoi] = (round(gt[0] / gt[1]), round(gt[3] / gt[1]), p - t, t)  # corner in cells, error, truth
+    def smooth(error_step, truth_step):
+        return np.where(np.abs(truth_step) < SMOOTH_TRUTH_STEP_M, error_step, np.nan).ravel()
+    def inner(e, t, axis):
+        return smooth(np.diff(e, axis=axis), np.diff(t, axis=axis))
+    def mean_abs(d):
+        d = np.abs(d)
+        return float(np.nanmean(d)) if np.isfinite(d).any() else None
+    borders = []
+    for a, (ax, ay, ea, ta) in grids.items():
+        rows, cols = ea.shape
+        for b, (bx, by, eb, tb) in grids.items():
+            if (bx, by) == (ax, ay + rows) and eb.shape == ea.shape:  # b north of a
+                across = smooth(eb[-1, :] - ea[0, :], tb[-1, :] - ta[0, :])
+                inside = [inner(ea, ta, 0), inner(eb, tb, 0)]
+            elif (bx, by) == (ax + cols, ay) and eb.shape == ea.shape:  # b east of a
+                across = smooth(eb[:, 0] - ea[:, -1], tb[:, 0] - ta[:, -1])
+                inside = [inner(ea, ta, 1), inner(eb, tb, 1)]
+            else:
+                continue
+            step, interior = mean_abs(across), mean_abs(np.concatenate(inside))
+            borders.append({"aois": [a, b], "pairs": int(np.isfinite(across).sum()), "mean_error_step_m": step,
+                            "interior_mean_error_step_m": interior,
+                            "ratio": step / interior if step is not None and interior else None})
+    steps = [b["mean_error_step_m"] * b["pairs"] for b in borders if b["mean_error_step_m"] is not None]
+    pairs = sum(b["pairs"] for b in borders if b["mean_error_step_m"] is not None)
+    interior = [inner(e, t, k) for _, _, e, t in grids.values() for k in (0, 1)]
+    interior_mean = mean_abs(np.concatenate(interior)) if interior else None
+    boundary_mean = sum(steps) / pairs if pairs else None
+    return {"boundary_mean_error_step_m": boundary_mean, "interior_mean_error_step_m": interior_mean,
+            "ratio": boundary_mean / interior_mean if boundary_mean is not None and interior_mean else None,
+            "borders": borders}
+
+
 def figures(km, n, block_m, root, run, out, json_name, executor):
     wall = float(open(os.path.join(run, "wall_seconds")).read())
     resumed = os.path.exists(os.path.join(run, "resumed")) and open(os.path.join(run, "resumed")).read().strip() == "true"
@@ -268,6 +327,8 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
         if single_border and sum(p.size for p in single_border) else None,
         "seams": {"ratio": seam["ratio"], "boundary_mean_step_m": seam["boundary_mean_step_m"],
                   "interior_mean_step_m": seam["interior_mean_step_m"], "borders": seam.get("borders", [])},
+        # The merge's metric steps heights; this one steps the error (error_seams).
+        "error_seams": error_seams(root, run, report["aois"]),
         "dsm_mae_m_by_aoi": {d["aoi"]: d["mae_m"] for d in report.get("dsm", [])},
     }
     if doc["mean_tile_mae_m"]:
@@ -301,6 +362,12 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
     print(f"  seams: ratio {fmt(seam['ratio'])}, boundary {fmt(seam['boundary_mean_step_m'])} m, "
           f"interior {fmt(seam['interior_mean_step_m'])} m, worst border ratio "
           f"{fmt(max((b['ratio'] or 0 for b in doc['seams']['borders']), default=None))}")
+    es = doc["error_seams"]
+    worst = max(es["borders"], key=lambda b: b["ratio"] or 0, default=None)
+    print(f"  error steps across AOI borders: {fmt(es['boundary_mean_error_step_m'])} m against "
+          f"{fmt(es['interior_mean_error_step_m'])} m inside (ratio {fmt(es['ratio'])})"
+          + (f"; worst {worst['aois'][0]}|{worst['aois'][1]} {fmt(worst['mean_error_step_m'])} m against "
+             f"{fmt(worst['interior_mean_error_step_m'])} m" if worst else ""))
     print("bench_city: wrote " + os.path.join(out, json_name))
 
 

@@ -22,8 +22,10 @@ sanitizer_env() {
 }
 
 bash scripts/setup.sh
-# The scripts' own tests (seconds): the README results table's writer.
+# The scripts' own tests (seconds): the README results table's writer, and
+# bench_city.sh's seam figures (Debian's python3, which has GDAL and NumPy).
 python3 scripts/readme_results_test.py
+/usr/bin/python3 scripts/bench_city_figures_test.py
 if [ "$mode" = "--sanitize" ]; then
   sanitizer_env
   export SKYFALL_BUILD_DIR=${SKYFALL_BUILD_DIR:-build-asan}
