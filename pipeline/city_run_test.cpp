@@ -357,6 +357,19 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   // How tiles are executed is not part of a tile's options: still done.
   other.executor.jobs = 3;
   EXPECT_EQ(RunTile(tile.string(), other, 0, progress).message, "already done (ok)");
+  // A tile finished by a version without a later option (its record lacks the
+  // key) is still done while the option keeps its default, and redone when it
+  // does not: an upgrade does not recompute a city.
+  {
+    json tile_report = ReadJson(tile / "tile_report.json");
+    ASSERT_TRUE(tile_report["options"]["train"].contains("init_step_reach_m"));
+    tile_report["options"]["train"].erase("init_step_reach_m");
+    std::ofstream(tile / "tile_report.json") << tile_report.dump(2);
+    EXPECT_EQ(RunTile(tile.string(), other, 0, progress).message, "already done (ok)");
+    RunOptions with_new_value = other;
+    with_new_value.train.init_step_reach_m = 1.0;
+    EXPECT_FALSE(TileFinished(tile.string(), with_new_value));
+  }
   // The finished SfM and dense heights are reused only under their own options.
   auto first_stage = [&] { return ReadJson(tile / "tile_report.json")["stages"][0]; };
   EXPECT_EQ(first_stage()["status"], "skipped");  // reused by the 41-step rerun

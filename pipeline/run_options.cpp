@@ -356,6 +356,33 @@ std::string TrainCheckpointJson(const TrainStageOptions& options) {
   return train.dump();
 }
 
+namespace {
+
+bool StillHolds(const json& recorded, const json& current, const json& defaults) {
+  if (!recorded.is_object() || !current.is_object()) return recorded == current;
+  for (auto it = recorded.begin(); it != recorded.end(); ++it)
+    if (!current.contains(it.key())) return false;
+  for (auto it = current.begin(); it != current.end(); ++it) {
+    const json& fallback = defaults.is_object() && defaults.contains(it.key()) ? defaults.at(it.key()) : json();
+    if (recorded.contains(it.key())) {
+      if (!StillHolds(recorded.at(it.key()), it.value(), fallback)) return false;
+    } else if (fallback.is_null() || it.value() != fallback) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool SettingsStillHold(const std::string& recorded_json, const std::string& current_json,
+                       const std::string& defaults_json) {
+  if (recorded_json == current_json) return true;
+  const json recorded = json::parse(recorded_json, nullptr, /*allow_exceptions=*/false);
+  if (recorded.is_discarded()) return false;
+  return StillHolds(recorded, json::parse(current_json), json::parse(defaults_json));
+}
+
 std::string UnitOfKey(const std::string& key) {
   static const std::pair<const char*, const char*> kSuffixes[] = {
       {"_m2", "m²"}, {"_px2", "px²"}, {"_m", "m"}, {"_px", "px"}, {"_deg", "deg"}, {"_s", "s"},

@@ -250,6 +250,18 @@ std::string SfmOptionsJson(const SfmOptions& options);
 // written under other values is set aside, not resumed.
 std::string TrainCheckpointJson(const TrainStageOptions& options);
 
+// Whether settings recorded beside finished work (a tile report's options, a
+// stage's options, a checkpoint's settings) still hold for `current`: equal,
+// except that a key the record lacks matches when `current` has the value that
+// `defaults` (the same JSON of default options) gives it. An option added by a
+// later version, at the default that keeps the earlier behaviour, then leaves
+// finished tiles finished, which a city-wide rerun after an upgrade needs; any
+// other difference (a changed value, a key the record has and `current` lacks,
+// a new key without a default) does not hold. JSON text in, so that callers
+// keep their stamps as text.
+bool SettingsStillHold(const std::string& recorded_json, const std::string& current_json,
+                       const std::string& defaults_json);
+
 // The option registry (option_registry.h): every field of RunOptions, listed
 // once with its help and range; the JSON form, --set, --print-config, the
 // flags of `skyfall run`, the range checks and the reference tables of

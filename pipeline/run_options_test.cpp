@@ -417,4 +417,27 @@ TEST(OptionRegistry, DocsCliHoldsTheGeneratedReference) {
 }
 
 }  // namespace
+TEST(RunOptions, RecordedSettingsHoldForNewOptionsAtTheirDefaultsOnly) {
+  const std::string defaults = R"({"a": 1, "b": {"c": 2, "d": "x"}, "e": 0.5})";
+  const std::string current = R"({"a": 1, "b": {"c": 2, "d": "x"}, "e": 0.5})";
+  EXPECT_TRUE(SettingsStillHold(current, current, defaults));
+  // Written before "e" and "b.d" existed: they are at their defaults now.
+  EXPECT_TRUE(SettingsStillHold(R"({"a": 1, "b": {"c": 2}})", current, defaults));
+  // A new option at another value, a changed value, a removed key: not the same run.
+  EXPECT_FALSE(SettingsStillHold(R"({"a": 1, "b": {"c": 2}})", R"({"a": 1, "b": {"c": 2, "d": "y"}, "e": 0.5})",
+                                 defaults));
+  EXPECT_FALSE(SettingsStillHold(R"({"a": 2, "b": {"c": 2, "d": "x"}, "e": 0.5})", current, defaults));
+  EXPECT_FALSE(SettingsStillHold(R"({"a": 1, "b": {"c": 2, "d": "x"}, "e": 0.5, "gone": 1})", current, defaults));
+  // A key without a default (not an option: a decision, an input's hash) must be recorded.
+  EXPECT_FALSE(SettingsStillHold(R"({"a": 1})", R"({"a": 1, "inputs": "abc"})", R"({"a": 1})"));
+  // No record, or an unreadable one: nothing holds.
+  EXPECT_FALSE(SettingsStillHold("", current, defaults));
+  EXPECT_FALSE(SettingsStillHold("{not json", current, defaults));
+  // The real stamps: the tile's options without one key, at its default.
+  const RunOptions library;
+  nlohmann::json older = nlohmann::json::parse(TileOptionsJson(library));
+  older["train"].erase("init_step_reach_m");
+  EXPECT_TRUE(SettingsStillHold(older.dump(), TileOptionsJson(library), TileOptionsJson(library)));
+}
+
 }  // namespace skyfall

@@ -146,18 +146,30 @@ std::string ResolveAppearance(Switch mode, const std::vector<TrainView>& views, 
   return "auto: training views from " + std::to_string(dates) + " acquisition date" + (dates == 1 ? "" : "s");
 }
 
-// A checkpoint is resumed only by a run with the same settings; otherwise it
-// is set aside (renamed, not deleted) and training starts again.
-void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings, Progress& progress) {
+// TrainCheckpointJson of the default options.
+const std::string& DefaultTrainCheckpointJson() {
+  static const std::string json = [] {
+    const TrainStageOptions defaults;
+    return TrainCheckpointJson(defaults);
+  }();
+  return json;
+}
+
+// A checkpoint is resumed only by a run whose settings its own still hold
+// for (the same, or new options at their defaults: SettingsStillHold,
+// `defaults` being the settings' JSON of default options); otherwise it is set
+// aside (renamed, not deleted) and training starts again.
+void SetAsideStaleCheckpoint(const fs::path& dir, const nlohmann::json& settings, const nlohmann::json& defaults,
+                             Progress& progress) {
   const fs::path settings_path = dir / "settings.json";
   const fs::path checkpoint = dir / "checkpoint.bin";
   if (fs::exists(checkpoint)) {
-    nlohmann::json previous;
+    std::string previous;
     try {
-      previous = nlohmann::json::parse(ReadTextFile(settings_path.string()));
+      previous = ReadTextFile(settings_path.string());
     } catch (const std::exception&) {
     }
-    if (previous != settings) {
+    if (!SettingsStillHold(previous, settings.dump(), defaults.dump())) {
       progress.Warn("splat train: " + checkpoint.string() +
                     " was written with other settings; moved to checkpoint.bin.stale, starting again");
       fs::rename(checkpoint, dir / "checkpoint.bin.stale");
@@ -242,7 +254,8 @@ bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const st
     const nlohmann::json doc = nlohmann::json::parse(ReadTextFile((dir / "dense_report.json").string()));
     return doc.value("status", "") == "ok" && fs::exists(dir / "dense.ply") &&
            doc.value("extent_enu_m", nlohmann::json()) == ExtentJson(extent_enu_m) &&
-           doc.value("options", nlohmann::json()) == nlohmann::json::parse(DenseOptionsJson(options));
+           SettingsStillHold(doc.value("options", nlohmann::json()).dump(), DenseOptionsJson(options),
+                             DenseOptionsJson(DenseOptions()));
   } catch (const std::exception&) {
     return false;
   }
@@ -437,7 +450,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
                            {"densify", decided.densify},
                            {"surface_anchor", decided.surface_anchor}},
-                          progress);
+                          {{"options", nlohmann::json::parse(DefaultTrainCheckpointJson())}}, progress);
   const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
   GaussianCloud init = InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),

@@ -62,7 +62,11 @@ StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunO
 // A finished run with the same options, if there is one.
 bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* report) {
   const std::optional<TileReport> done = ReadTileReport(dir);
-  if (!done || done->options != OptionsJson(o)) return false;
+  static const std::string kDefaults = [] {
+    const RunOptions defaults;
+    return TileOptionsJson(defaults);
+  }();
+  if (!done || !SettingsStillHold(done->options.dump(), TileOptionsJson(o), kDefaults)) return false;
   if (done->status == StageStatus::kFailed) return false;
   if (done->status == StageStatus::kOk && !fs::exists(fs::path(dir) / "splat" / "scene.ply")) return false;
   report->status = done->status;
@@ -77,6 +81,21 @@ std::string SfmStamp(const SfmOptions& options) {
   return json{{"options", json::parse(SfmOptionsJson(options))}, {"outputs_version", 2}}.dump();
 }
 
+// The stamp the synthesis stage keeps its finished episodes under: the
+// recorded one when it still holds for `options` (SettingsStillHold), so that
+// an option added at its default does not discard them, else the options' own.
+std::string IduStamp(const fs::path& tile_dir, const RunOptions& options) {
+  const std::string current = IduEpisodesJson(options);
+  const fs::path recorded_path = tile_dir / "idu" / "idu_options.json";  // RunIdu's stamp
+  if (!fs::exists(recorded_path)) return current;
+  const std::string recorded = ReadTextFile(recorded_path.string());
+  static const std::string kDefaults = [] {
+    const RunOptions defaults;
+    return IduEpisodesJson(defaults);
+  }();
+  return SettingsStillHold(recorded, current, kDefaults) ? recorded : current;
+}
+
 // A finished SfM under the same options (sfm_options.json is written after
 // the SfM's own outputs, so a killed SfM is never taken as finished).
 bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
@@ -84,7 +103,8 @@ bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
     const json doc = json::parse(ReadTextFile((sfm_dir / "sfm_report.json").string()));
     return doc.value("status", "") == "ok" && fs::exists(sfm_dir / "points.ply") &&
            fs::exists(sfm_dir / "cameras.json") &&
-           ReadTextFile((sfm_dir / "sfm_options.json").string()) == SfmStamp(options);
+           SettingsStillHold(ReadTextFile((sfm_dir / "sfm_options.json").string()), SfmStamp(options),
+                             SfmStamp(SfmOptions()));
   } catch (const std::exception&) {
     return false;
   }
@@ -186,7 +206,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   stages.push_back(splat);
   const IduJobResult idu = RunIduJob(options.idu, options.train, sfm_dir.string(),
                                      (fs::path(tile_dir) / "splat" / "scene.ply").string(), spec.ReconstructedCore(),
-                                     (fs::path(tile_dir) / "idu").string(), IduEpisodesJson(options), progress);
+                                     (fs::path(tile_dir) / "idu").string(), IduStamp(tile_dir, options), progress);
   decisions["idu"] = {{"on", idu.decision.on}, {"why", idu.decision.why},
                       {"facade_ratio", idu.decision.facade_ratio},
                       {"measured_fraction", idu.decision.measured_fraction}};
