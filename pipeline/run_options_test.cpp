@@ -417,6 +417,7 @@ TEST(OptionRegistry, DocsCliHoldsTheGeneratedReference) {
 }
 
 }  // namespace
+
 TEST(RunOptions, RecordedSettingsHoldForNewOptionsAtTheirDefaultsOnly) {
   const std::string defaults = R"({"a": 1, "b": {"c": 2, "d": "x"}, "e": 0.5})";
   const std::string current = R"({"a": 1, "b": {"c": 2, "d": "x"}, "e": 0.5})";

@@ -33,16 +33,17 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
 DenseResult RunDenseJob(const DenseOptions& options, const std::string& sfm_dir, Progress& progress,
                         const std::optional<GroundBox>& extent_enu_m = std::nullopt);
 
-// Per cell confidence for SurfaceDepthPrior: 1, less for filled cells and
-// for cells beside a step (AnchorWeightOptions); empty when every weight
-// is 1 (no weighting).
 // Per dense cell: whether the heights within reach_m of it differ by more
 // than min_step_m (a step: a wall, a roof's edge). All 0 when reach_m is 0.
 std::vector<std::uint8_t> CellsNearSteps(const DenseCells& cells, double reach_m, double min_step_m);
+
+// Per cell confidence for SurfaceDepthPrior: 1, less for filled cells and
+// for cells beside a step (AnchorWeightOptions); empty when every weight
+// is 1 (no weighting).
 std::vector<float> AnchorCellWeights(const DenseCells& cells, const AnchorWeightOptions& options);
 
-// True when `sfm_dir` holds a finished dense stage with the same options
-// over the same extent.
+// True when `sfm_dir` holds a finished dense stage over the same extent whose
+// recorded options still hold (SettingsStillHold).
 bool DenseDone(const std::string& sfm_dir, const DenseOptions& options, const std::optional<GroundBox>& extent_enu_m);
 
 // The training images' downscale and why (asked for, or automatic from the

@@ -59,7 +59,7 @@ StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunO
   return report;
 }
 
-// A finished run with the same options, if there is one.
+// A finished run whose recorded options still hold (SettingsStillHold), if there is one.
 bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* report) {
   const std::optional<TileReport> done = ReadTileReport(dir);
   static const std::string kDefaults = [] {
@@ -96,7 +96,7 @@ std::string IduStamp(const fs::path& tile_dir, const RunOptions& options) {
   return SettingsStillHold(recorded, current, kDefaults) ? recorded : current;
 }
 
-// A finished SfM under the same options (sfm_options.json is written after
+// A finished SfM whose recorded options still hold (sfm_options.json is written after
 // the SfM's own outputs, so a killed SfM is never taken as finished).
 bool SfmDone(const fs::path& sfm_dir, const SfmOptions& options) {
   try {
