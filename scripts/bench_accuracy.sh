@@ -189,6 +189,9 @@ for name in sorted(os.listdir(out)):
             parts[band] = (entry.get("building_rims") or {}).get(band, {}).get("mae_part_m")
         return parts
     def compare_shift(entry):
+        if entry.get("shift_px") is not None:
+            return entry["shift_px"]
+        # Runs before the run report carried it: the comparison's own report.
         path = entry.get("report")
         if not path or not os.path.isfile(path):
             return None
@@ -214,6 +217,9 @@ for name in sorted(os.listdir(out)):
         # edges that lean to one side (hidden ground filled) a few percent.
         "mae_at_zero_shift_m": d.get("mae_at_zero_shift_m"),
         "dense_mae_m": (d.get("dense") or {}).get("mae_m"),
+        # Trained against dense at one alignment (none): each MAE above is at its own shift.
+        "dense_mae_at_zero_shift_m": (d.get("dense") or {}).get("mae_at_zero_shift_m"),
+        "dense_shift_px": (d.get("dense") or {}).get("shift_px"),
         "dense_completeness": (d.get("dense") or {}).get("completeness"),
         "filled_cell_fraction": (d.get("dense") or {}).get("filled_cell_fraction"),
         "heldout_psnr_db": splat_metric("psnr_test_db"),
