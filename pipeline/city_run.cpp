@@ -50,8 +50,11 @@ double PeakChildRssMb() {
   return usage.ru_maxrss / 1024.0;
 }
 
-// Per tile: how it ended, its times and memory, its stages and decisions.
-json TileEntry(const TileOutcome& o) {
+// Per tile: how it ended, its times and memory, its stages and decisions;
+// `reused` when its report predates this run of the city (`run_started`, when
+// city_job.json was written): the tile was finished by an earlier run, and
+// `seconds` is only this run's check of it.
+json TileEntry(const TileOutcome& o, const std::optional<fs::file_time_type>& run_started) {
   json entry = {{"tile", fs::path(o.dir).filename().string()}, {"exit_code", o.exit_code}, {"seconds", o.seconds}};
   const std::optional<TileReport> report = ReadTileReport(o.dir);
   if (!report) {
@@ -62,6 +65,9 @@ json TileEntry(const TileOutcome& o) {
   entry["status"] = ToString(report->status);
   entry["message"] = report->message;
   entry["tile_seconds"] = report->seconds;
+  std::error_code ec;
+  const fs::file_time_type written = fs::last_write_time(TileReportPath(o.dir), ec);
+  entry["reused"] = !ec && run_started && written < *run_started;
   entry["peak_rss_mb"] = report->PeakRssMb();
   entry["stages"] = StageReportsJson(report->stages);
   entry["decisions"] = report->decisions;
@@ -234,9 +240,12 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   json stages = work.stages;
   json tile_list = json::array();
   int failed = 0;
+  std::error_code ec;
+  const fs::file_time_type job_written = fs::last_write_time(work.city_dir / "city_job.json", ec);
+  const std::optional<fs::file_time_type> run_started = ec ? std::nullopt : std::optional(job_written);
   for (const TileOutcome& o : outcomes) {
     failed += o.exit_code != kExitOk && o.exit_code != kExitDegenerate;
-    tile_list.push_back(TileEntry(o));
+    tile_list.push_back(TileEntry(o, run_started));
   }
   outcome.tiles_failed = failed;
   EmitTileEvents(work.city, tile_list, progress);

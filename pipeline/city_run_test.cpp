@@ -377,6 +377,25 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   EXPECT_EQ(RunTile(tile.string(), other, 0, progress).status, StageStatus::kOk);
   EXPECT_EQ(first_stage()["stage"], "sfm");
   EXPECT_EQ(first_stage()["status"], "ok");  // run again, not reused
+
+  // The city run again under another merge setting: the five tiles an earlier
+  // run finished are reused and say so, and the report page says that the
+  // city's time leaves theirs out; the tile left under other options is redone.
+  RunOptions remerge = options;
+  remerge.merge.seam_gsd_m = 1.0;
+  const RunSummary again = RunAll(remerge, request, progress);
+  ASSERT_EQ(again.exit_code, kExitOk);
+  EXPECT_FALSE(again.cities[0].unchanged);
+  int reused = 0;
+  const json again_report = ReadJson(city_dir / "run_report.json");
+  for (const auto& t : again_report["tiles"]) {
+    reused += t.value("reused", false);
+    if (t["tile"] == "SYN_001_c1_r0") EXPECT_FALSE(t.value("reused", true)) << t.dump();
+  }
+  EXPECT_EQ(reused, 5);
+  std::ifstream page_in(dir / "out" / "report.html");
+  const std::string page((std::istreambuf_iterator<char>(page_in)), {});
+  EXPECT_NE(page.find("5 of the tiles were finished by an earlier run and reused"), std::string::npos);
 }
 
 // A panchromatic sensor with 11-bit digital numbers (UInt16, values up to

@@ -285,12 +285,24 @@ std::string StageTable(const CityReport& report) {
   return html + "</table>";
 }
 
+// How many of the city's tiles an earlier run finished (their entries' `reused`).
+int ReusedTiles(const CityReport& report) {
+  int n = 0;
+  for (const json& t : report.tiles) n += t.value("reused", false);
+  return n;
+}
+
 std::string CitySection(const CityReport& report, const fs::path& out_dir, std::vector<ScenePoint>* points) {
   const std::string& city = report.city;
   const fs::path city_dir = out_dir / city;
+  const int reused = ReusedTiles(report);
   std::string html = "<h2 id=\"" + HtmlEscape(city) + "\">City " + HtmlEscape(city) + "</h2>";
-  html += fmt::format("<p>{} AOI(s), {} tile(s), {} s in all; peak tile memory {} MB.</p>", report.aois.size(),
+  html += fmt::format("<p>{} AOI(s), {} tile(s), {} s in all; peak tile memory {} MB.", report.aois.size(),
                       report.tiles.size(), Fixed(report.seconds, 0), Fixed(report.peak_tile_rss_mb, 0));
+  if (reused > 0)
+    html += fmt::format(" {} of the tiles were finished by an earlier run and reused: the time is this run's, "
+                        "without theirs (each tile's own time is in the table of tiles).", reused);
+  html += "</p>";
   html += "<p>Products: " + Link(city_dir / "scene" / "scene.ply", out_dir, "scene (PLY)") +
           Link(city_dir / "scene" / "lod.json", out_dir, "LOD levels") +
           Link(city_dir / "scene" / "dsm_city.tif", out_dir, "city DSM") +
@@ -315,7 +327,7 @@ std::string CitySection(const CityReport& report, const fs::path& out_dir, std::
             EmbeddedPng(compare / "error_histogram.png", aoi + " error histogram") +
             "<figcaption>Error histogram</figcaption></figure></div>";
     const json dense = d.value("dense", json::object());
-    points->push_back({aoi, report.seconds, d.value("mae_m", NAN),
+    points->push_back({aoi + (reused > 0 ? " *" : ""), report.seconds, d.value("mae_m", NAN),
                        dense.is_object() ? dense.value("mae_m", NAN) : NAN, false});
   }
   html += "<h3>GIS products</h3>" + ProductsSection(report, out_dir);
@@ -418,7 +430,8 @@ std::string WriteRunReportPage(const std::string& out_dir) {
                   exit_code == 0 ? "success" : exit_code == 5 ? "partial failure" : "nothing processed") +
       "<ul>" + toc + "</ul><h2>DSM error against run time</h2>" + plot +
       "<p class=muted>Each AOI: its city's run time and the DSM MAE of the trained scene (filled) and of the dense "
-      "heights alone (open).</p>" +
+      "heights alone (open). * marks a city whose tiles an earlier run finished: this run's time leaves theirs out."
+      "</p>" +
       sections + "</body></html>\n";
   const std::string path = (out / "report.html").string();
   WriteFileAtomic(path, html);
