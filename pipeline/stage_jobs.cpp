@@ -146,15 +146,6 @@ std::string ResolveAppearance(Switch mode, const std::vector<TrainView>& views, 
   return "auto: training views from " + std::to_string(dates) + " acquisition date" + (dates == 1 ? "" : "s");
 }
 
-// TrainCheckpointJson of the default options.
-const std::string& DefaultTrainCheckpointJson() {
-  static const std::string json = [] {
-    const TrainStageOptions defaults;
-    return TrainCheckpointJson(defaults);
-  }();
-  return json;
-}
-
 // A checkpoint is resumed only by a run whose settings its own still hold
 // for (the same, or new options at their defaults: SettingsStillHold,
 // `defaults` being the settings' JSON of default options); otherwise it is set
@@ -450,7 +441,7 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"init_points", decided.dense_start ? "dense" : "sparse"},
                            {"densify", decided.densify},
                            {"surface_anchor", decided.surface_anchor}},
-                          {{"options", nlohmann::json::parse(DefaultTrainCheckpointJson())}}, progress);
+                          {{"options", nlohmann::json::parse(TrainCheckpointJson(TrainStageOptions()))}}, progress);
   const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
   GaussianCloud init = InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),

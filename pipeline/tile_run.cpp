@@ -62,11 +62,8 @@ StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunO
 // A finished run whose recorded options still hold (SettingsStillHold), if there is one.
 bool AlreadyDone(const std::string& dir, const RunOptions& o, StageReport* report) {
   const std::optional<TileReport> done = ReadTileReport(dir);
-  static const std::string kDefaults = [] {
-    const RunOptions defaults;
-    return TileOptionsJson(defaults);
-  }();
-  if (!done || !SettingsStillHold(done->options.dump(), TileOptionsJson(o), kDefaults)) return false;
+  const RunOptions defaults;
+  if (!done || !SettingsStillHold(done->options.dump(), TileOptionsJson(o), TileOptionsJson(defaults))) return false;
   if (done->status == StageStatus::kFailed) return false;
   if (done->status == StageStatus::kOk && !fs::exists(fs::path(dir) / "splat" / "scene.ply")) return false;
   report->status = done->status;
@@ -89,11 +86,8 @@ std::string IduStamp(const fs::path& tile_dir, const RunOptions& options) {
   const fs::path recorded_path = tile_dir / "idu" / "idu_options.json";  // RunIdu's stamp
   if (!fs::exists(recorded_path)) return current;
   const std::string recorded = ReadTextFile(recorded_path.string());
-  static const std::string kDefaults = [] {
-    const RunOptions defaults;
-    return IduEpisodesJson(defaults);
-  }();
-  return SettingsStillHold(recorded, current, kDefaults) ? recorded : current;
+  const RunOptions defaults;
+  return SettingsStillHold(recorded, current, IduEpisodesJson(defaults)) ? recorded : current;
 }
 
 // A finished SfM whose recorded options still hold (sfm_options.json is written after
