@@ -53,11 +53,15 @@ void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::
                   "Mean ground height above the WGS84 ellipsoid [m] (a city in the mountains: 2300, 4000)")
       ->capture_default_str();
   cmd->add_option("--rpc-bias-px", opts->rpc_bias_px,
-                  "Per-image RPC pointing bias: a shift of up to this many pixels, less the part a shift of the "
-                  "whole scene would explain, recorded in synth_report.json [px]")
+                  "Per-acquisition RPC pointing bias, the same in every AOI's crop of it: a shift of up to this many "
+                  "pixels, less the part a shift of the whole city would explain, recorded in synth_report.json [px]")
       ->capture_default_str();
   cmd->add_option("--rpc-bias-rotation-deg", opts->rpc_bias_rotation_deg,
                   "Per-image RPC pointing bias: a rotation about the image centre of up to this angle (<= 0.1) [deg]")
+      ->capture_default_str();
+  cmd->add_option("--views-per-aoi", opts->views_per_aoi,
+                  "Each AOI of a city keeps its own seeded choice of this many of the --views acquisitions "
+                  "(0: all), as the AOIs of a DFC2019 tree hold different passes")
       ->capture_default_str();
   cmd->add_option("--along-track-deg", opts->along_track_deg,
                   "A three-line camera: the views on one orbit track, off-nadir from -A (forward) to +A (backward), "

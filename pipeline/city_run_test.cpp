@@ -390,7 +390,9 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
   const json again_report = ReadJson(city_dir / "run_report.json");
   for (const auto& t : again_report["tiles"]) {
     reused += t.value("reused", false);
-    if (t["tile"] == "SYN_001_c1_r0") EXPECT_FALSE(t.value("reused", true)) << t.dump();
+    if (t["tile"] == "SYN_001_c1_r0") {
+      EXPECT_FALSE(t.value("reused", true)) << t.dump();
+    }
   }
   EXPECT_EQ(reused, 5);
   std::ifstream page_in(dir / "out" / "report.html");

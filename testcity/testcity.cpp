@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <numeric>
 #include <random>
 #include <nlohmann/json.hpp>
 
@@ -48,6 +49,7 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"ground_height_m", o.ground_height_m},
           {"rpc_bias_px", o.rpc_bias_px},
           {"rpc_bias_rotation_deg", o.rpc_bias_rotation_deg},
+          {"views_per_aoi", o.views_per_aoi},
           {"along_track_deg", o.along_track_deg}};
 }
 
@@ -173,17 +175,17 @@ struct PointingBias {
   }
 };
 
-// The biases of one AOI's images: shifts uniform in a disc of radius
+// The biases of the city's acquisitions: shifts uniform in a disc of radius
 // rpc_bias_px, rotations uniform in +-max. A shift of the whole scene moves
-// image i by P_i v (P_i: its projection's Jacobian at the AOI centre, 2x3),
+// image i by P_i v (P_i: its projection's Jacobian at the city centre, 2x3),
 // which tie points cannot tell from a bias: the part of the shifts such a v
 // explains, v = argmin sum |b_i - P_i v|^2, is removed, so that the truth's
 // frame is the one bundle adjustment's prior (the images' average) finds.
-std::vector<PointingBias> DrawPointingBiases(const SynthOptions& o, int aoi_index,
+std::vector<PointingBias> DrawPointingBiases(const SynthOptions& o,
                                              const std::vector<Eigen::Matrix<double, 2, 3>>& jacobians) {
   std::vector<PointingBias> out(o.views);
   if (o.rpc_bias_px <= 0 && o.rpc_bias_rotation_deg <= 0) return out;
-  std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 7777 + aoi_index);
+  std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 7777);
   auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
   Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
@@ -415,6 +417,8 @@ void SynthOptions::Check() const {
   // corners by 0.5 px, which it cannot absorb.
   need(rpc_bias_rotation_deg >= 0 && rpc_bias_rotation_deg <= 0.1, "rpc_bias_rotation_deg",
        FormatDouble(rpc_bias_rotation_deg), "must be 0..0.1 deg");
+  need(views_per_aoi == 0 || (views_per_aoi >= 2 && views_per_aoi <= views), "views_per_aoi",
+       std::to_string(views_per_aoi), "must be 0 (all) or 2..views");
   need(along_track_deg >= 0 && along_track_deg <= 45, "along_track_deg", FormatDouble(along_track_deg),
        "must be 0..45 deg");
   need(along_track_deg == 0 || views_per_date == views, "views_per_date", std::to_string(views_per_date),
@@ -565,45 +569,63 @@ SynthView SynthesizeView(const SynthOptions& o, const Scene& scene, const SynthR
   return view;
 }
 
-// Sat-NeRF-style split: the second image of the first and of the middle pass are held out.
-void WriteSplit(const SynthOptions& o, const SynthAoi& aoi, const fs::path& root) {
+// Sat-NeRF-style split: of the AOI's images, the second one and the one
+// after the middle are held out.
+void WriteSplit(const SynthAoi& aoi, const fs::path& root) {
   const fs::path json_dir = root / "satnerf-rpcs" / aoi.name;
+  const int n = static_cast<int>(aoi.views.size());
   std::string train, test;
-  for (int v = 0; v < o.views; ++v) {
-    const bool held_out = o.views >= 4 && (v == 1 || v == (o.views / 2) + 1);
-    (held_out ? test : train) += aoi.views[v].name + "\n";
+  for (int k = 0; k < n; ++k) {
+    const bool held_out = n >= 4 && (k == 1 || k == (n / 2) + 1);
+    (held_out ? test : train) += aoi.views[k].name + "\n";
   }
   WriteFileAtomic((json_dir / "train.txt").string(), train);
   WriteFileAtomic((json_dir / "test.txt").string(), test);
 }
 
+// The biases of the city's acquisitions (DrawPointingBiases), with each
+// acquisition's Jacobian at the city centre: a crop only offsets its pixels.
+std::vector<PointingBias> CityPointingBiases(const SynthOptions& o, const Scene& scene, const City& city) {
+  const Eigen::Vector3d centre_enu = scene.georef.EnuFromScene(
+      {0.5 * o.blocks_x * o.size_m, 0.5 * o.blocks_y * o.size_m, scene.city_options.base_height_m});
+  std::vector<Eigen::Matrix<double, 2, 3>> jacobians;
+  for (int v = 0; v < o.views; ++v)
+    jacobians.push_back(ProjectionJacobian(MakeCamera(o, scene.georef, city, 0.0, 0.0, v).camera, centre_enu));
+  return DrawPointingBiases(o, jacobians);
+}
+
+// The acquisitions AOI number `aoi_index` holds, in order: all, or a seeded
+// choice of views_per_aoi of them.
+std::vector<int> AoiAcquisitions(const SynthOptions& o, int aoi_index) {
+  std::vector<int> all(o.views);
+  std::iota(all.begin(), all.end(), 0);
+  if (o.views_per_aoi <= 0 || o.views_per_aoi >= o.views) return all;
+  std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 4242 + aoi_index);
+  std::shuffle(all.begin(), all.end(), rng);
+  all.resize(o.views_per_aoi);
+  std::sort(all.begin(), all.end());
+  return all;
+}
+
 // Block (bx, by) of the city: its views, split and truth.
-SynthAoi SynthesizeAoi(const SynthOptions& o, const Scene& scene, int bx, int by, const fs::path& root,
-                       const SynthResult& r, Progress& progress, std::size_t* done) {
+SynthAoi SynthesizeAoi(const SynthOptions& o, const Scene& scene, int bx, int by, const std::vector<PointingBias>& biases,
+                       const fs::path& root, const SynthResult& r, Progress& progress, std::size_t* done) {
   SynthAoi aoi;
   aoi.name = (o.blocks_x * o.blocks_y == 1) ? o.aoi : o.aoi + "_X" + std::to_string(bx) + "Y" + std::to_string(by);
   aoi.x0_m = bx * o.size_m;
   aoi.y0_m = by * o.size_m;
-  std::vector<ViewGeometry> geometries;
-  std::vector<Eigen::Matrix<double, 2, 3>> jacobians;
-  const Eigen::Vector3d centre_enu = scene.georef.EnuFromScene(
-      {aoi.x0_m + 0.5 * o.size_m, aoi.y0_m + 0.5 * o.size_m, scene.city_options.base_height_m});
-  for (int v = 0; v < o.views; ++v) {
-    geometries.push_back(MakeCamera(o, scene.georef, r.city, aoi.x0_m, aoi.y0_m, v));
-    jacobians.push_back(ProjectionJacobian(geometries.back().camera, centre_enu));
-  }
-  const std::vector<PointingBias> biases = DrawPointingBiases(o, static_cast<int>(r.aois.size()), jacobians);
   std::map<int, City> with_cars;  // per date: transient objects move between passes
-  for (int v = 0; v < o.views; ++v) {
+  for (const int v : AoiAcquisitions(o, static_cast<int>(r.aois.size()))) {
     const int date = v / o.views_per_date;
     if (!with_cars.count(date)) {
       with_cars.emplace(date, WithCars(r.city, o.cars_per_block * o.blocks_x * o.blocks_y, o.seed * 7919 + date));
     }
     const City& city_of_date = with_cars.at(date);
-    aoi.views.push_back(SynthesizeView(o, scene, r, aoi, root, bx, by, v, geometries[v], biases[v], city_of_date));
+    const ViewGeometry geometry = MakeCamera(o, scene.georef, r.city, aoi.x0_m, aoi.y0_m, v);
+    aoi.views.push_back(SynthesizeView(o, scene, r, aoi, root, bx, by, v, geometry, biases[v], city_of_date));
     progress.Advance(++*done, aoi.views.back().name);
   }
-  WriteSplit(o, aoi, root);
+  WriteSplit(aoi, root);
   WriteTruth(r, aoi, o, root);
   WriteOrthoTruth(r, aoi, o, root);
   return aoi;
@@ -644,11 +666,13 @@ SynthResult RunSynth(const SynthOptions& o, const std::string& root_dir, Progres
   r.report.stage = "synth";
   const Scene scene = MakeScene(o, &r);
   const fs::path root(root_dir);
-  progress.Begin("synth render", static_cast<size_t>(o.views) * o.blocks_x * o.blocks_y);
+  const int views_per_aoi = o.views_per_aoi > 0 ? std::min(o.views_per_aoi, o.views) : o.views;
+  progress.Begin("synth render", static_cast<size_t>(views_per_aoi) * o.blocks_x * o.blocks_y);
+  const std::vector<PointingBias> biases = CityPointingBiases(o, scene, r.city);
   std::size_t done = 0;
   for (int by = 0; by < o.blocks_y; ++by) {
     for (int bx = 0; bx < o.blocks_x; ++bx) {
-      r.aois.push_back(SynthesizeAoi(o, scene, bx, by, root, r, progress, &done));
+      r.aois.push_back(SynthesizeAoi(o, scene, bx, by, biases, root, r, progress, &done));
     }
   }
   progress.End();

@@ -62,15 +62,21 @@ struct SynthOptions {
   // Jacksonville's (the DFC2019 scenes').
   double ground_height_m = -20.0;
   // Vendor RPCs point a few metres off the ground and off each other. Each
-  // image's written RPC is off its true camera by a shift of up to
+  // acquisition's written RPC is off its true camera by a shift of up to
   // rpc_bias_px [px] (uniform in a disc) and a rotation about the image
-  // centre of up to rpc_bias_rotation_deg [deg, at most 0.1]. The part of
-  // an AOI's shifts that a shift of the whole scene would explain is removed:
-  // tie points cannot see it (only ground control could), so the truth's
-  // frame is the images' average, as bundle adjustment anchors it. Seeded by
-  // `seed`, recorded per image in synth_report.json.
+  // centre of up to rpc_bias_rotation_deg [deg, at most 0.1]; every AOI's
+  // crop of an acquisition has its shift, as crops of one vendor image do.
+  // The part of the shifts that a shift of the whole city would explain is
+  // removed: tie points cannot see it (only ground control could), so the
+  // truth's frame is the average of all acquisitions. Seeded by `seed`,
+  // recorded per image in synth_report.json.
   double rpc_bias_px = 0.0;
   double rpc_bias_rotation_deg = 0.0;
+  // Each AOI of a city keeps its own seeded choice of this many of the
+  // `views` acquisitions (0: all), as the AOIs of a DFC2019 tree hold
+  // different passes. With biased RPCs, neighbouring AOIs then average
+  // different images' biases in their bundle adjustments.
+  int views_per_aoi = 0;
   // A three-line (along-track) camera instead of views from many orbits: when
   // > 0, the views lie on one orbit track with off-nadir angles spread evenly
   // from -along_track_deg (forward) to +along_track_deg (backward), taken on

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -238,6 +239,50 @@ TEST(Synth, BiasedRpcsPointOffTheCameraByTheRecordedBias) {
   // shift moves an image by about 2 px).
   EXPECT_LT(common.norm(), 1e-6);
   EXPECT_GT(largest, 1.0);
+}
+
+// A city's AOIs are crops of the same acquisitions: a crop carries its
+// acquisition's bias wherever it lies, and each AOI may hold its own subset
+// of the passes, so that neighbouring AOIs average different biases.
+TEST(Synth, AoisOfACityShareEachAcquisitionsBiasAndHoldTheirOwnPasses) {
+  SynthOptions o = SmallScene();
+  o.size_m = 48.0;
+  o.blocks_x = 2;
+  o.views = 5;
+  o.views_per_date = 1;
+  o.views_per_aoi = 3;
+  o.rpc_bias_px = 4.0;
+  const Scene s = MakeScene(o);
+  ASSERT_EQ(s.result.aois.size(), 2u);
+  std::map<std::string, Eigen::Vector2d> shift_by_pass;  // "_00k_RGB" -> its shift
+  std::vector<std::set<std::string>> passes(2);
+  for (int a = 0; a < 2; ++a) {
+    const SynthAoi& aoi = s.result.aois[a];
+    ASSERT_EQ(aoi.views.size(), 3u) << aoi.name;
+    for (const SynthView& v : aoi.views) {
+      const std::string pass = v.name.substr(aoi.name.size());
+      passes[a].insert(pass);
+      EXPECT_TRUE(fs::exists(v.path)) << v.path;
+      const auto [it, first] = shift_by_pass.emplace(pass, v.rpc_bias_shift_px);
+      if (!first) {
+        EXPECT_EQ(it->second, v.rpc_bias_shift_px) << "the crops of " << pass << " differ in bias";
+      }
+    }
+    // Three images: no held-out split (it needs four), every image trains.
+    const fs::path split = s.root / "satnerf-rpcs" / aoi.name;
+    EXPECT_EQ(ReadTextFile((split / "test.txt").string()), "");
+  }
+  EXPECT_NE(passes[0], passes[1]) << "both AOIs drew the same passes: the option would show nothing";
+  for (const auto& [pass, shift] : shift_by_pass) EXPECT_GT(shift.norm(), 0.0) << pass;
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile((s.root / "synth_report.json").string()));
+  EXPECT_EQ(report.at("options").at("views_per_aoi").get<int>(), 3);
+  EXPECT_EQ(report.at("images").size(), 6u);
+
+  SynthOptions bad = o;
+  bad.views_per_aoi = 1;
+  EXPECT_NE(ErrorText([&] { bad.Check(); }).find("views_per_aoi"), std::string::npos);
+  bad.views_per_aoi = 6;
+  EXPECT_NE(ErrorText([&] { bad.Check(); }).find("views_per_aoi"), std::string::npos);
 }
 
 // Tiles are sized by the imagery unless a side is given: a 256 m tile of a
