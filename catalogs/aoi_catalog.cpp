@@ -210,6 +210,7 @@ std::string AoiCatalogToJson(const AoiCatalog& c) {
       {"split", {{"train", c.train_images}, {"test", c.test_images}}},
       {"images", images},
   };
+  if (!c.gauge_acquisitions.empty()) doc["gauge_acquisitions"] = c.gauge_acquisitions;
   return doc.dump(2) + "\n";
 }
 
@@ -236,6 +237,7 @@ AoiCatalog AoiCatalogFromJson(const std::string& text, const std::string& subjec
       c.test_images = doc.at("split").value("test", std::vector<std::string>{});
     }
     for (const json& im : doc.at("images")) c.images.push_back(ImageFromJson(im));
+    c.gauge_acquisitions = doc.value("gauge_acquisitions", std::vector<std::string>{});
   } catch (const json::exception& e) {
     throw Error("catalog", subject, std::string("bad or missing field: ") + e.what());
   } catch (const Error& e) {

@@ -89,6 +89,11 @@ struct AoiCatalog {
   std::optional<TruthGrid> truth;
   std::vector<std::string> train_images;  // Sat-NeRF split (image names) when present
   std::vector<std::string> test_images;
+  // A tile of a city whose tiles hold different acquisitions: the
+  // acquisitions (acquisition_time) every tile holds. Bundle adjustment fixes
+  // the tile's frame by their RPCs' average alone, so that every tile of the
+  // city lands in the same frame. Empty: the average of all its images.
+  std::vector<std::string> gauge_acquisitions;
 };
 
 }  // namespace skyfall

@@ -423,6 +423,11 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
   work.city_dir = fs::path(out_dir) / plan.city;
   const std::map<std::string, json> image_stamps = ImageStamps(aois);
   work.inputs = CityInputsStamp(options, aois, image_stamps);
+  // Tiles holding different passes share a frame through the acquisitions all
+  // hold: another such set is another reconstruction (a city made before it
+  // existed is redone once). Absent, the stamp is what it always was.
+  for (const AoiCatalog& c : plan.catalogs)
+    if (!c.gauge_acquisitions.empty()) work.inputs["gauge_acquisitions"] = c.gauge_acquisitions;
   CityOutcome unchanged;
   unchanged.city = plan.city;
   unchanged.report_path = CityReportPath(work.city_dir).string();
@@ -438,6 +443,9 @@ CityOutcome RunCity(const RunOptions& options, const std::vector<AoiCatalog>& ao
                             plan.tile_side_automatic ? "sized by the imagery" : "as given",
                             plan.finest_gsd_m, plan.finest_gsd_m > 0 ? plan.grid.tile_m / plan.finest_gsd_m : 0.0,
                             plan.grid.tile_m / DenseCellForGsdM(plan.finest_gsd_m)));
+  const std::string frame_line = "[" + plan.city + "] frame of the tiles' bundle adjustments: " + plan.gauge;
+  if (plan.gauge_shared) progress.Info(frame_line);
+  else progress.Warn(frame_line);
   Emit(progress, "info", "city", plan.city, "", "start",
        {{"aois", static_cast<double>(aois.size())}, {"tiles", static_cast<double>(plan.grid.cols * plan.grid.rows)}});
   const TilingResult tiles = WriteTiles(plan, (work.city_dir / "tiles").string(), progress);

@@ -82,7 +82,15 @@ json TileInputsStamp(const std::string& tile_dir, const std::map<std::string, js
     const auto it = image_stamps.find(im.source_path);
     images.push_back(it != image_stamps.end() ? it->second : FileStat(im.source_path));
   }
-  return {{"schema", "skyfall.tile_inputs/1"}, {"images", images}};
+  json stamp = {{"schema", "skyfall.tile_inputs/1"}, {"images", images}};
+  // The acquisitions that fix the tile's frame (AoiCatalog::gauge_acquisitions):
+  // the same images in another frame are another reconstruction.
+  const fs::path catalog_path = fs::path(tile_dir) / "aoi.json";
+  if (fs::exists(catalog_path)) {
+    const AoiCatalog catalog = ReadAoiCatalog(catalog_path.string());
+    if (!catalog.gauge_acquisitions.empty()) stamp["gauge_acquisitions"] = catalog.gauge_acquisitions;
+  }
+  return stamp;
 }
 
 bool ResetTileIfInputsChanged(const std::string& tile_dir, const json& stamp) {

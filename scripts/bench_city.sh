@@ -18,6 +18,8 @@
 #             figures should equal the local run's
 #   SKYFALL_BIN, SKYFALL_RUN_ARGS as for the other benchmarks (bench_env.sh)
 #   SKYFALL_CITY_BLOCK_M   AOI side [m], default 256
+#   SKYFALL_SYNTH_ARGS     further `skyfall synth` options for the city, e.g.
+#                          "--rpc-bias-px 10 --views-per-aoi 8" (used when the city is made)
 # The synthetic city is made once (about 7 min for 1 km on 2 cores) and kept.
 # A finished run is reused (delete OUT/run to measure again). A run can be
 # stopped part way (kill the script's process group: TERM or INT) and
@@ -55,7 +57,8 @@ if [ "$EXECUTOR" = slurm ]; then
 fi
 if [ ! -f "$root/synth_report.json" ]; then
   echo "bench_city: synthesizing a city of ${N} x ${N} AOIs of ${BLOCK} m ..." >&2
-  "$B" -q synth --out "$root" --size-m "$BLOCK" --blocks-x "$N" --blocks-y "$N" --aoi CTY_001
+  read -r -a SYNTH_ARGS <<< "${SKYFALL_SYNTH_ARGS:-}"
+  "$B" -q synth --out "$root" --size-m "$BLOCK" --blocks-x "$N" --blocks-y "$N" --aoi CTY_001 "${SYNTH_ARGS[@]}"
 fi
 if [ -f "$run/wall_seconds" ]; then
   echo "bench_city: reusing the finished run in $run" >&2

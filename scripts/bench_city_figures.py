@@ -231,6 +231,48 @@ def error_seams(root, run, aois):
             "borders": borders}
 
 
+def synth_options(root):
+    """The `skyfall synth` options the city was made with (its synth_report.json)."""
+    try:
+        with open(os.path.join(root, "synth_report.json")) as f:
+            return json.load(f).get("options")
+    except (OSError, ValueError):
+        return None
+
+
+def aoi_frames(root, run, aois):
+    """The vertical frame each AOI's DSM lands in: the median of prediction minus truth over
+    its ground cells (truth class 2; every cell without a class raster), no comparison shift
+    and no offset removed. The per-AOI comparisons remove their own shift and offset, so a
+    city whose tiles' bundle adjustments fixed different frames scores as well there as one
+    in a single frame; these offsets, and their differences across each border between
+    adjacent AOIs, show it. The merged DSM spreads such a step over the seam's few cells
+    (a ramp, often a gap), which the error steps of adjacent cells see only in part."""
+    grids, offsets = {}, {}
+    for aoi in aois:
+        pred = gdal.Open(os.path.join(run, aoi, "dsm.tif"))
+        p = pred.GetRasterBand(1).ReadAsArray().astype(np.float64)
+        truth = gdal.Open(os.path.join(root, "Track3-Truth", aoi + "_DSM.tif"))  # kept open while its band is read
+        t = truth.GetRasterBand(1).ReadAsArray().astype(np.float64)
+        d = p - t
+        d[t < -1000] = np.nan  # DFC2019 truth no-data (-9999)
+        cls_path = os.path.join(root, "Track3-Truth", aoi + "_CLS.tif")
+        if os.path.exists(cls_path):
+            classes = gdal.Open(cls_path)
+            d[classes.GetRasterBand(1).ReadAsArray() != 2] = np.nan
+        offsets[aoi] = float(np.nanmedian(d)) if np.isfinite(d).any() else None
+        gt = pred.GetGeoTransform()
+        grids[aoi] = (round(gt[0] / gt[1]), round(gt[3] / gt[1]), p.shape)
+    borders = []
+    for a, (ax, ay, (rows, cols)) in grids.items():
+        for b, (bx, by, _) in grids.items():
+            if (bx, by) in ((ax, ay + rows), (ax + cols, ay)) and offsets[a] is not None and offsets[b] is not None:
+                borders.append({"aois": [a, b], "step_m": offsets[b] - offsets[a]})
+    known = [v for v in offsets.values() if v is not None]
+    return {"offsets_m": offsets, "spread_m": max(known) - min(known) if known else None,
+            "largest_border_step_m": max((abs(b["step_m"]) for b in borders), default=None), "borders": borders}
+
+
 def figures(km, n, block_m, root, run, out, json_name, executor):
     wall = float(open(os.path.join(run, "wall_seconds")).read())
     resumed = os.path.exists(os.path.join(run, "resumed")) and open(os.path.join(run, "resumed")).read().strip() == "true"
@@ -297,6 +339,7 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
     seam = merge_report["seam"]
     doc = {
         "km": km, "executor": executor, "aois": n * n, "aoi_side_m": block_m, "area_km2": area_km2, "cores": os.cpu_count(),
+        "city_options": synth_options(root),
         "resumed": resumed, "sittings": sittings,
         "seconds": wall, "seconds_per_km2": wall / area_km2,
         "stage_seconds": stage_seconds, "tile_stage_seconds_summed": tile_stage_seconds,
@@ -329,6 +372,7 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
                   "interior_mean_step_m": seam["interior_mean_step_m"], "borders": seam.get("borders", [])},
         # The merge's metric steps heights; this one steps the error (error_seams).
         "error_seams": error_seams(root, run, report["aois"]),
+        "aoi_frames": aoi_frames(root, run, report["aois"]),
         "dsm_mae_m_by_aoi": {d["aoi"]: d["mae_m"] for d in report.get("dsm", [])},
     }
     if doc["mean_tile_mae_m"]:
@@ -368,6 +412,10 @@ def figures(km, n, block_m, root, run, out, json_name, executor):
           f"{fmt(es['interior_mean_error_step_m'])} m inside (ratio {fmt(es['ratio'])})"
           + (f"; worst {worst['aois'][0]}|{worst['aois'][1]} {fmt(worst['mean_error_step_m'])} m against "
              f"{fmt(worst['interior_mean_error_step_m'])} m" if worst else ""))
+    fr = doc["aoi_frames"]
+    offsets = ", ".join(f"{aoi} {fmt(v, '{:+.2f}')}" for aoi, v in fr["offsets_m"].items())
+    print(f"  AOI frames (ground, prediction minus truth): {offsets} m; spread {fmt(fr['spread_m'])} m, "
+          f"largest step across a border {fmt(fr['largest_border_step_m'])} m")
     print("bench_city: wrote " + os.path.join(out, json_name))
 
 

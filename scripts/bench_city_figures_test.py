@@ -88,5 +88,34 @@ class ErrorSeams(unittest.TestCase):
             figures.error_seams(self.root, self.run, ["B_X1Y0"])
 
 
+class AoiFrames(unittest.TestCase):
+    def setUp(self):
+        self.dir = tempfile.TemporaryDirectory()
+        self.root, self.run = os.path.join(self.dir.name, "city"), os.path.join(self.dir.name, "run")
+
+    def tearDown(self):
+        self.dir.cleanup()
+
+    def test_each_aoi_is_offset_by_its_ground_median_and_borders_step_by_the_difference(self):
+        rows, cols = np.mgrid[0:SIDE, 0:SIDE]
+        truth = np.where(cols >= 5, 30.0, 10.0)  # ground west of column 5, a roof east of it
+        cls = np.where(cols >= 5, 6, 2).astype(np.float64)
+        # West AOI 1 m high on its ground (its roof 4 m low: not ground, not counted);
+        # east AOI 2 m low, one ground cell an outlier the median ignores.
+        west = truth + np.where(cols >= 5, -4.0, 1.0)
+        east = truth + np.where(cols >= 5, 0.0, -2.0)
+        east[0, 0] += 50.0
+        for name, x0, pred in (("C_X0Y0", 0.0, west), ("C_X1Y0", SIDE * GSD_M, east)):
+            write(os.path.join(self.root, "Track3-Truth", name + "_DSM.tif"), truth, 0.0, float(SIDE))
+            write(os.path.join(self.root, "Track3-Truth", name + "_CLS.tif"), cls, 0.0, float(SIDE))
+            write(os.path.join(self.run, name, "dsm.tif"), pred, x0, 1000.0)
+        frames = figures.aoi_frames(self.root, self.run, ["C_X0Y0", "C_X1Y0"])
+        self.assertAlmostEqual(frames["offsets_m"]["C_X0Y0"], 1.0, places=5)
+        self.assertAlmostEqual(frames["offsets_m"]["C_X1Y0"], -2.0, places=5)
+        self.assertAlmostEqual(frames["spread_m"], 3.0, places=5)
+        self.assertEqual(frames["borders"], [{"aois": ["C_X0Y0", "C_X1Y0"], "step_m": -3.0}])
+        self.assertAlmostEqual(frames["largest_border_step_m"], 3.0, places=5)
+
+
 if __name__ == "__main__":
     unittest.main()

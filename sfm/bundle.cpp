@@ -1,6 +1,7 @@
 #include "sfm/bundle.h"
 
 #include <ceres/ceres.h>
+#include <Eigen/Eigenvalues>
 
 #include "core/error.h"
 #include "core/format.h"
@@ -58,6 +59,7 @@ BundleSummary RunBundleAdjustment(BundleProblem* bp, const BundleOptions& option
     // offset fixes the shift across its image plane, not the shift along its
     // line of sight (mostly height), which only the priors pin.
     if (anchored && static_cast<int>(i) == bp->anchor_image) continue;
+    if (!bp->gauge_image.empty() && !bp->gauge_image[i]) continue;
     // Cauchy: an image with a large pointing error (tens of px happen) does
     // not drag the others' offsets; the majority fixes the gauge.
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetPrior, 2, 2>(
@@ -87,6 +89,47 @@ std::vector<double> ReprojectionErrors(const BundleProblem& bp) {
     }
   }
   return errors;
+}
+
+namespace {
+// Smallest over largest eigenvalue of sum P_i^T P_i that MoveToGaugeAverage
+// accepts: 1e-3 is two views about 2 deg apart (the eigenvalue of the height
+// grows with the square of the angle between the rays).
+constexpr double kGaugeMinConditioning = 1e-3;
+}  // namespace
+
+double MoveToGaugeAverage(BundleProblem* bp) {
+  if (bp->gauge_image.empty() || bp->points.empty()) return 0.0;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : bp->points) centre += p;
+  centre /= static_cast<double>(bp->points.size());
+  // d(pixel)/d(scene point) at the scene's centre, by central differences
+  // over 1 m: a satellite's projection is affine to far below a pixel there.
+  auto jacobian = [&](std::size_t i) {
+    Eigen::Matrix<double, 2, 3> j;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d h = Eigen::Vector3d::Unit(k);
+      j.col(k) = 0.5 * (bp->cameras[i].Project(centre + h) - bp->cameras[i].Project(centre - h));
+    }
+    return j;
+  };
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < bp->offsets_px.size(); ++i) {
+    if (!bp->gauge_image[i] || !bp->image_used[i]) continue;
+    const Eigen::Matrix<double, 2, 3> j = jacobian(i);
+    normal += j.transpose() * j;
+    rhs -= j.transpose() * bp->offsets_px[i];
+  }
+  // Views too alike to fix a height (their rays nearly parallel): leave the
+  // solver's answer rather than amplify noise along the rays.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(normal);
+  if (!(eigen.eigenvalues()(0) > kGaugeMinConditioning * eigen.eigenvalues()(2))) return 0.0;
+  const Eigen::Vector3d v = normal.ldlt().solve(rhs);
+  for (Eigen::Vector3d& p : bp->points) p -= v;
+  for (std::size_t i = 0; i < bp->offsets_px.size(); ++i)
+    if (bp->image_used[i]) bp->offsets_px[i] += jacobian(i) * v;
+  return v.norm();
 }
 
 }  // namespace skyfall

@@ -40,6 +40,9 @@ struct BundleProblem {
   // the height along its line of sight stays the priors' average), or -1:
   // the robust average of all images' RPCs (the prior) fixes it.
   int anchor_image = -1;
+  // The images whose offsets carry the prior, so that their RPCs' average
+  // fixes the frame (AoiCatalog::gauge_acquisitions); empty: every image.
+  std::vector<bool> gauge_image;
 };
 
 struct BundleSummary {
@@ -50,6 +53,18 @@ struct BundleSummary {
 };
 
 BundleSummary RunBundleAdjustment(BundleProblem* problem, const BundleOptions& options);
+
+// Tie points cannot see a shift v of the whole scene that moves every image
+// by its projection's Jacobian P_i v: only the offsets' prior fixes it, and
+// the solver moves along that direction slowly (the tie points' cost is flat
+// there), stopping short of the prior's minimum by a different amount in
+// each tile. With gauge images (BundleProblem::gauge_image) this moves the
+// solution along it to where the gauge images' offsets o_i satisfy
+// sum P_i^T o_i = 0, the least-squares average of their RPCs, exactly:
+// points X - v, every offset o_i + P_i v. Returns |v| [m]; 0 without gauge
+// images or points.
+double MoveToGaugeAverage(BundleProblem* bp);
+
 
 // Reprojection error of every observation [px], in track order.
 std::vector<double> ReprojectionErrors(const BundleProblem& problem);

@@ -6,6 +6,7 @@
 #include <numeric>
 
 #include <fmt/format.h>
+#include <set>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
@@ -187,6 +188,26 @@ VerifiedPairs MatchPairs(const SfmOptions& options, const AoiCatalog& catalog, c
   return kept;
 }
 
+// The images whose RPCs' average fixes the frame: those of the city's gauge
+// acquisitions (AoiCatalog::gauge_acquisitions) that BA uses, when there are
+// two at least (one fixes no height); empty, meaning every image, otherwise.
+std::vector<bool> GaugeImages(const AoiCatalog& catalog, const BundleProblem& bp, SfmResult* result) {
+  if (catalog.gauge_acquisitions.empty()) return {};
+  const std::set<std::string> gauge(catalog.gauge_acquisitions.begin(), catalog.gauge_acquisitions.end());
+  std::vector<bool> on(bp.image_used.size(), false);
+  int count = 0;
+  for (std::size_t i = 0; i < on.size(); ++i) {
+    on[i] = bp.image_used[i] && gauge.count(result->images[i].acquisition_time) > 0;
+    count += on[i];
+  }
+  if (count >= 2) return on;
+  result->report.warnings.push_back(fmt::format(
+      "sfm {}: {} of the {} acquisitions that fix the city's frame are used here; the frame is the average of all "
+      "its images instead, and may differ from its neighbours'",
+      catalog.aoi, count, gauge.size()));
+  return {};
+}
+
 // 3-4. Tracks triangulated with the RPC cameras; images with too few
 // observations are left out. Returns how many images are used.
 int BuildBundleProblem(const SfmOptions& options, const AoiCatalog& catalog, const Loaded& loaded,
@@ -214,6 +235,7 @@ int BuildBundleProblem(const SfmOptions& options, const AoiCatalog& catalog, con
     }
   }
   KeepUsedImages(bp);
+  bp->gauge_image = GaugeImages(catalog, *bp, result);
   return used;
 }
 
@@ -279,9 +301,13 @@ int ReportSfm(const SfmOptions& options, const AoiCatalog& catalog, const Bundle
   m["ba_mean_offset_px"] = mean_offset_px.norm();
   m["ba_largest_offset_px"] = largest_offset_px;
   const bool anchored = bp.anchor_image >= 0 && result->images[bp.anchor_image].used;
+  const auto gauge_images = std::count(bp.gauge_image.begin(), bp.gauge_image.end(), true);
   result->absolute_position =
       anchored ? "the RPC of " + result->images[bp.anchor_image].name + " (sfm.anchor_image)"
-               : "the average of " + std::to_string(images_used) + " images' RPCs";
+      : gauge_images > 0
+          ? fmt::format("the average of {} of the {} images' RPCs: the acquisitions every tile of the city holds",
+                        gauge_images, images_used)
+          : "the average of " + std::to_string(images_used) + " images' RPCs";
   if (bp.anchor_image >= 0 && !anchored) {
     result->report.warnings.push_back("sfm " + catalog.aoi + ": anchor image " + options.anchor_image +
                                       " was left out; the absolute position is the images' average");
@@ -325,6 +351,8 @@ SfmResult RunSfm(const SfmOptions& options, const AoiCatalog& catalog, Progress&
     CutOutliers(&bp, options.max_reprojection_after_ba_px);
   }
   RunBundleAdjustment(&bp, options.bundle);
+  const double gauge_shift_m = MoveToGaugeAverage(&bp);
+  if (!bp.gauge_image.empty()) result.report.metrics["ba_gauge_shift_m"] = gauge_shift_m;
   result.after = ComputeStats(ReprojectionErrors(bp));
   CollectProducts(bp, loaded, &result);
   if (ReportSfm(options, catalog, bp, progress, &result) < 2) {

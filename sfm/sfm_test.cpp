@@ -6,11 +6,14 @@
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "catalogs/aoi_catalog.h"
 #include "core/error.h"
 #include "dense/dense.h"
+#include "sfm/bundle.h"
 #include "sfm/export.h"
 #include "testcity/testcity.h"
 #include "tests/test_support.h"
@@ -125,6 +128,121 @@ TEST(Sfm, BiasedRpcsAreRecoveredByTheBundleOffsets) {
   ASSERT_GT(largest_px, 1.0);  // the biases are there to be recovered
   NullProgress progress;
   ExpectCamerasAndSurfaceRecovered(s, RunSfm(SfmOptions{}, s.catalog, progress), "biased RPCs");
+}
+
+// Two AOIs of a city hold different passes of the same biased acquisitions.
+// Each bundle adjustment fixes its frame by the average of its images' RPCs,
+// so without a shared gauge the two frames differ by their subsets' mean
+// bias: the offsets of the acquisitions both hold disagree by pixels (metres
+// on the ground, and more in height). Fixing both frames by the passes both
+// hold makes their offsets agree.
+TEST(Sfm, TilesHoldingDifferentPassesShareAFrameThroughTheirCommonAcquisitions) {
+  const fs::path root = ScratchDir("synth_gauge");
+  synth::SynthOptions o;
+  o.size_m = 96;
+  o.blocks_x = 2;
+  o.views = 6;
+  o.views_per_aoi = 4;  // two AOIs of 4 of 6 passes share 2 at least
+  o.rpc_bias_px = 8;
+  o.seed = 3;
+  NullProgress progress;
+  synth::RunSynth(o, root.string(), progress);
+  const IngestResult ingest = RunIngest(IngestOptions{}, root.string(), (root / "catalogs").string(), progress);
+  ASSERT_EQ(ingest.aois.size(), 2u);
+  std::vector<AoiCatalog> catalogs = {ingest.aois[0].catalog, ingest.aois[1].catalog};
+  std::set<std::string> first, common;
+  for (const ImageRecord& im : catalogs[0].images) first.insert(im.acquisition_time);
+  for (const ImageRecord& im : catalogs[1].images)
+    if (first.count(im.acquisition_time)) common.insert(im.acquisition_time);
+  ASSERT_GE(common.size(), 2u);
+  ASSERT_LT(common.size(), 4u) << "the AOIs hold the same passes: nothing to show";
+
+  // The largest disagreement between the two AOIs' offsets of a shared pass.
+  auto disagreement_px = [&](bool gauge) {
+    std::map<std::string, Eigen::Vector2d> offsets;
+    double worst = 0;
+    for (AoiCatalog c : catalogs) {
+      if (gauge) c.gauge_acquisitions.assign(common.begin(), common.end());
+      const SfmResult r = RunSfm(SfmOptions{}, c, progress);
+      EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
+      EXPECT_EQ(r.absolute_position.find("acquisitions every tile") != std::string::npos, gauge) << r.absolute_position;
+      for (const SfmImage& im : r.images) {
+        if (!common.count(im.acquisition_time)) continue;
+        const auto [it, first_seen] = offsets.emplace(im.acquisition_time, im.ba_offset_px);
+        if (!first_seen) worst = std::max(worst, (it->second - im.ba_offset_px).norm());
+      }
+    }
+    return worst;
+  };
+  const double own_frames_px = disagreement_px(false), shared_frame_px = disagreement_px(true);
+  RecordProperty("own_frames_px", std::to_string(own_frames_px));
+  RecordProperty("shared_frame_px", std::to_string(shared_frame_px));
+  // Without the gauge the subsets' mean biases differ by pixels here; with it
+  // the offsets agree to the tie points' noise (0.3 px: half a dense cell's
+  // worth of a pixel, well under the bias).
+  EXPECT_GT(own_frames_px, 1.0);
+  EXPECT_LT(shared_frame_px, 0.3);
+}
+
+// A satellite-like camera 600 km away looking at the origin from `from`
+// (a unit direction), 0.5 m pixels.
+PinholeCamera FarCamera(const Eigen::Vector3d& from) {
+  PinholeCamera c;
+  const Eigen::Vector3d centre = 600e3 * from.normalized();
+  const Eigen::Vector3d z = -centre.normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();  // no view is straight down here
+  const Eigen::Vector3d y = z.cross(x);
+  c.cam_from_world_rotation.row(0) = x;
+  c.cam_from_world_rotation.row(1) = y;
+  c.cam_from_world_rotation.row(2) = z;
+  c.cam_from_world_translation = -c.cam_from_world_rotation * centre;
+  c.fx = c.fy = 600e3 / 0.5;
+  c.cx = c.cy = 500;
+  c.width_px = c.height_px = 1000;
+  return c;
+}
+
+// The gauge move leaves every reprojection as it was and puts the gauge
+// images' offsets at their least-squares average (sum P_i^T o_i = 0).
+TEST(Bundle, TheGaugeMoveKeepsTheResidualsAndCentresTheGaugeImagesOffsets) {
+  BundleProblem bp;
+  bp.cameras = {FarCamera({0.3, 0.1, 1}), FarCamera({-0.25, 0.2, 1}), FarCamera({0.05, -0.35, 1})};
+  bp.offsets_px = {{3.0, -2.0}, {-1.5, 4.0}, {0.7, 0.2}};
+  bp.image_used = {true, true, true};
+  bp.gauge_image = {true, true, false};
+  for (double x : {-80.0, 0.0, 90.0})
+    for (double y : {-70.0, 10.0, 60.0}) {
+      bp.points.push_back({x, y, 0.1 * x});
+      std::vector<Observation> track;
+      for (int i = 0; i < 3; ++i) {
+        Observation o;
+        o.image = i;
+        o.pixel = bp.cameras[i].Project(bp.points.back()) + bp.offsets_px[i] + Eigen::Vector2d(0.01 * i, -0.02);
+        track.push_back(o);
+      }
+      bp.tracks.push_back(track);
+    }
+  const std::vector<double> before = ReprojectionErrors(bp);
+  const double moved_m = MoveToGaugeAverage(&bp);
+  EXPECT_GT(moved_m, 1.0);  // offsets of pixels: metres on the ground
+  const std::vector<double> after = ReprojectionErrors(bp);
+  ASSERT_EQ(before.size(), after.size());
+  // A pinhole is affine to a few parts in 1e4 over a scene 200 m deep in
+  // range at 600 km: of the move's 10-20 px, 2e-3 px.
+  for (std::size_t k = 0; k < before.size(); ++k) EXPECT_NEAR(after[k], before[k], 2e-3) << k;
+  Eigen::Vector3d balance = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 2; ++i) {
+    Eigen::Matrix<double, 2, 3> j;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d h = Eigen::Vector3d::Unit(k);
+      j.col(k) = 0.5 * (bp.cameras[i].Project(h) - bp.cameras[i].Project(-h));
+    }
+    balance += j.transpose() * bp.offsets_px[i];
+  }
+  // 1e-4: the move takes its Jacobians at the points' centre, these at the
+  // origin 3 m away; at 600 km they differ by a few parts in 1e7 of sum P^T o (about 10).
+  EXPECT_LT(balance.norm(), 1e-4);
+  EXPECT_LT(MoveToGaugeAverage(&bp), 1e-6);  // already there
 }
 
 TEST(Sfm, DenseHeightsFollowTheSyntheticSurface) {

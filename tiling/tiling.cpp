@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iterator>
 #include <limits>
+#include <set>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "catalogs/aoi_catalog.h"
@@ -282,7 +285,57 @@ TilePlan PlanTiles(const TilingOptions& options, const std::vector<AoiCatalog>& 
       plan.catalogs.push_back(std::move(catalog));
     }
   }
+  AssignGaugeAcquisitions(&plan);
   return plan;
+}
+
+void AssignGaugeAcquisitions(TilePlan* plan) {
+  const auto with_images = std::count_if(plan->catalogs.begin(), plan->catalogs.end(),
+                                         [](const AoiCatalog& c) { return !c.images.empty(); });
+  std::vector<std::set<std::string>> held;  // per tile with images: its acquisitions
+  for (const AoiCatalog& c : plan->catalogs) {
+    if (c.images.empty()) continue;
+    std::set<std::string> times;
+    for (const ImageRecord& im : c.images) {
+      if (im.acquisition_time.empty()) {
+        plan->gauge = "each tile: the average of its images' RPCs (" + im.name +
+                      " has no acquisition time, so the acquisitions the tiles share are unknown)";
+        plan->gauge_shared = with_images <= 1;
+        return;
+      }
+      times.insert(im.acquisition_time);
+    }
+    held.push_back(std::move(times));
+  }
+  if (held.empty()) {
+    plan->gauge = "no tile has images";
+    return;
+  }
+  std::set<std::string> common = held[0];
+  bool all_equal = true;
+  for (const auto& h : held) {
+    all_equal = all_equal && h == held[0];
+    std::set<std::string> both;
+    std::set_intersection(common.begin(), common.end(), h.begin(), h.end(), std::inserter(both, both.end()));
+    common = std::move(both);
+  }
+  if (all_equal) {
+    plan->gauge = fmt::format("every tile: the average of the same {} acquisitions' RPCs", common.size());
+    return;
+  }
+  if (common.size() < 2) {
+    plan->gauge_shared = false;
+    plan->gauge = fmt::format(
+        "each tile: the average of its own images' RPCs; the tiles hold different acquisitions and {} in common, "
+        "so their frames differ by the RPCs' biases and the city may step at tile borders",
+        common.size());
+    return;
+  }
+  const std::vector<std::string> gauge(common.begin(), common.end());
+  for (AoiCatalog& c : plan->catalogs)
+    if (!c.images.empty()) c.gauge_acquisitions = gauge;
+  plan->gauge = fmt::format("every tile: the average of the RPCs of the {} acquisitions all {} tiles hold", gauge.size(),
+                            held.size());
 }
 
 namespace {
@@ -324,6 +377,7 @@ nlohmann::json IndexJson(const TilePlan& plan) {
           {"grid", {{"cols", plan.grid.cols}, {"rows", plan.grid.rows}, {"tile_m", plan.grid.tile_m},
                     {"overlap_m", plan.grid.overlap_m}, {"tile_side", plan.tile_side_automatic ? "auto" : "option"},
                     {"finest_gsd_m", plan.finest_gsd_m}}},
+          {"gauge", plan.gauge},
           {"tiles", tiles}};
 }
 

@@ -75,7 +75,18 @@ struct TilePlan {
   TileGrid grid;
   std::vector<TileSpec> tiles;         // images without crop_path yet
   std::vector<AoiCatalog> catalogs;    // per tile, what SfM reads (paths filled by WriteTiles)
+  // How the tiles' bundle adjustments share one frame (AssignGaugeAcquisitions).
+  std::string gauge;
+  bool gauge_shared = true;  // false: the tiles' frames may differ (no two acquisitions in common)
 };
+
+// A bundle adjustment fixes its frame by the average of its images' RPCs,
+// whose pointing biases (metres for vendor RPCs) differ per acquisition: tiles
+// holding different acquisitions land in frames metres apart, and the city's
+// DSM steps at their borders. When the tiles' acquisitions differ, every tile
+// is given those that all tiles hold (two at least) to fix its frame by
+// (AoiCatalog::gauge_acquisitions); `gauge` says what was chosen.
+void AssignGaugeAcquisitions(TilePlan* plan);
 
 // Plans the tiles of a city made of `aois` (adjacent AOIs ingested
 // separately). Pure computation: nothing is read or written. Throws Error

@@ -131,6 +131,50 @@ TEST(Tiling, CropsAreVrtWindowsWithShiftedRpcs) {
   EXPECT_EQ(fs::last_write_time(r.tile_dirs[3] + "/tile.json"), before);
 }
 
+// The tiles' bundle adjustments share a frame only through the acquisitions
+// they all hold: those go into every tile's catalog when the tiles differ.
+TEST(Tiling, TilesHoldingDifferentPassesAreGivenTheAcquisitionsAllHold) {
+  auto plan_of = [](const std::vector<std::vector<std::string>>& tiles) {
+    TilePlan plan;
+    for (const auto& times : tiles) {
+      AoiCatalog c;
+      for (const std::string& t : times) {
+        ImageRecord im;
+        im.name = "image_" + t;
+        im.acquisition_time = t;
+        c.images.push_back(im);
+      }
+      plan.catalogs.push_back(c);
+    }
+    AssignGaugeAcquisitions(&plan);
+    return plan;
+  };
+  const TilePlan differ = plan_of({{"a", "b", "c", "d"}, {"a", "b", "c", "e"}, {}, {"b", "c", "d", "e"}});
+  EXPECT_TRUE(differ.gauge_shared);
+  EXPECT_EQ(differ.catalogs[0].gauge_acquisitions, (std::vector<std::string>{"b", "c"}));
+  EXPECT_EQ(differ.catalogs[3].gauge_acquisitions, (std::vector<std::string>{"b", "c"}));
+  EXPECT_TRUE(differ.catalogs[2].gauge_acquisitions.empty());  // no images, nothing to fix
+  EXPECT_NE(differ.gauge.find("2 acquisitions all 3 tiles hold"), std::string::npos) << differ.gauge;
+  // The same passes everywhere: every tile's average is already the same one.
+  const TilePlan same = plan_of({{"a", "b"}, {"a", "b"}});
+  EXPECT_TRUE(same.gauge_shared);
+  EXPECT_TRUE(same.catalogs[0].gauge_acquisitions.empty());
+  // One pass in common fixes no height: said, and left to each tile.
+  const TilePlan one = plan_of({{"a", "b"}, {"b", "c"}});
+  EXPECT_FALSE(one.gauge_shared);
+  EXPECT_TRUE(one.catalogs[0].gauge_acquisitions.empty());
+  EXPECT_NE(one.gauge.find("may step at tile borders"), std::string::npos) << one.gauge;
+  // Without acquisition times the shared passes are unknown.
+  const TilePlan unknown = plan_of({{"a", ""}, {"a", "b"}});
+  EXPECT_FALSE(unknown.gauge_shared);
+  EXPECT_TRUE(unknown.catalogs[1].gauge_acquisitions.empty());
+  // The catalog keeps the list, and writes nothing when there is none.
+  AoiCatalog listed;  // no images: the round trip is about the list
+  listed.gauge_acquisitions = differ.catalogs[0].gauge_acquisitions;
+  EXPECT_EQ(AoiCatalogFromJson(AoiCatalogToJson(listed), "test").gauge_acquisitions, listed.gauge_acquisitions);
+  EXPECT_EQ(AoiCatalogToJson(AoiCatalog()).find("gauge_acquisitions"), std::string::npos);
+}
+
 TEST(Tiling, EmptyOrInconsistentInputIsAClearError) {
   SKYFALL_REQUIRE_DFC2019();
   const fs::path dir = ScratchDir("tiles");
