@@ -142,6 +142,9 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_EQ(t["status"], "ok") << t.dump();
     // Each automatic choice is reported with what decided it.
     EXPECT_EQ(t["decisions"]["densify"]["on"], false) << t.dump();
+    // How the absolute position was fixed: the AOIs are crops of the same 4
+    // passes, so every tile averages all its images' RPCs.
+    EXPECT_EQ(t["decisions"]["absolute_position"].get<std::string>().rfind("the average of ", 0), 0u) << t.dump();
     EXPECT_FALSE(t["decisions"]["appearance"]["why"].get<std::string>().empty());
     const json& idu = t["decisions"]["idu"];
     EXPECT_FALSE(idu["why"].get<std::string>().empty()) << t.dump();
@@ -169,6 +172,8 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_NE(page.find("SYN_001/tiles/SYN_001_c0_r0/splat/heldout/"), std::string::npos);
   }
   EXPECT_GE(report["decisions"]["lod_levels"]["levels"].get<int>(), 2);
+  EXPECT_EQ(report["decisions"]["absolute_position"]["tiles"],
+            "every tile: the average of the same 4 acquisitions' RPCs");
   EXPECT_EQ(report["options"], json::parse(RunOptionsToJson(options)));
   EXPECT_EQ(ReadJson(city_dir / "run_config.json"), report["options"]);
   ASSERT_EQ(run.cities[0].dsm_mae_m.size(), 2u);
