@@ -175,6 +175,19 @@ def viewer_figures(path):
             **{view: {k: v[view].get(k) for k in keep} for view in ("whole_city", "street")}}
 
 
+def adjacent_aois(corners):
+    """Pairs (a, b, side) of AOIs whose grids touch, b north or east of a. `corners` maps
+    each AOI to (x, y, rows, cols): its upper-left corner in cells and its shape."""
+    pairs = []
+    for a, (ax, ay, rows, cols) in corners.items():
+        for b, (bx, by, _, _) in corners.items():
+            if (bx, by) == (ax, ay + rows):
+                pairs.append((a, b, "north"))
+            elif (bx, by) == (ax + cols, ay):
+                pairs.append((a, b, "east"))
+    return pairs
+
+
 def error_seams(root, run, aois):
     """Steps of the DSM's error across the borders between adjacent AOIs, against the same
     steps inside them.
@@ -206,21 +219,20 @@ def error_seams(root, run, aois):
         d = np.abs(d)
         return float(np.nanmean(d)) if np.isfinite(d).any() else None
     borders = []
-    for a, (ax, ay, ea, ta) in grids.items():
-        rows, cols = ea.shape
-        for b, (bx, by, eb, tb) in grids.items():
-            if (bx, by) == (ax, ay + rows) and eb.shape == ea.shape:  # b north of a
-                across = smooth(eb[-1, :] - ea[0, :], tb[-1, :] - ta[0, :])
-                inside = [inner(ea, ta, 0), inner(eb, tb, 0)]
-            elif (bx, by) == (ax + cols, ay) and eb.shape == ea.shape:  # b east of a
-                across = smooth(eb[:, 0] - ea[:, -1], tb[:, 0] - ta[:, -1])
-                inside = [inner(ea, ta, 1), inner(eb, tb, 1)]
-            else:
-                continue
-            step, interior = mean_abs(across), mean_abs(np.concatenate(inside))
-            borders.append({"aois": [a, b], "pairs": int(np.isfinite(across).sum()), "mean_error_step_m": step,
-                            "interior_mean_error_step_m": interior,
-                            "ratio": step / interior if step is not None and interior else None})
+    for a, b, side in adjacent_aois({k: (x, y) + e.shape for k, (x, y, e, _) in grids.items()}):
+        (_, _, ea, ta), (_, _, eb, tb) = grids[a], grids[b]
+        if eb.shape != ea.shape:
+            continue
+        if side == "north":
+            across = smooth(eb[-1, :] - ea[0, :], tb[-1, :] - ta[0, :])
+            inside = [inner(ea, ta, 0), inner(eb, tb, 0)]
+        else:
+            across = smooth(eb[:, 0] - ea[:, -1], tb[:, 0] - ta[:, -1])
+            inside = [inner(ea, ta, 1), inner(eb, tb, 1)]
+        step, interior = mean_abs(across), mean_abs(np.concatenate(inside))
+        borders.append({"aois": [a, b], "pairs": int(np.isfinite(across).sum()), "mean_error_step_m": step,
+                        "interior_mean_error_step_m": interior,
+                        "ratio": step / interior if step is not None and interior else None})
     steps = [b["mean_error_step_m"] * b["pairs"] for b in borders if b["mean_error_step_m"] is not None]
     pairs = sum(b["pairs"] for b in borders if b["mean_error_step_m"] is not None)
     interior = [inner(e, t, k) for _, _, e, t in grids.values() for k in (0, 1)]
@@ -262,12 +274,9 @@ def aoi_frames(root, run, aois):
             d[classes.GetRasterBand(1).ReadAsArray() != 2] = np.nan
         offsets[aoi] = float(np.nanmedian(d)) if np.isfinite(d).any() else None
         gt = pred.GetGeoTransform()
-        grids[aoi] = (round(gt[0] / gt[1]), round(gt[3] / gt[1]), p.shape)
-    borders = []
-    for a, (ax, ay, (rows, cols)) in grids.items():
-        for b, (bx, by, _) in grids.items():
-            if (bx, by) in ((ax, ay + rows), (ax + cols, ay)) and offsets[a] is not None and offsets[b] is not None:
-                borders.append({"aois": [a, b], "step_m": offsets[b] - offsets[a]})
+        grids[aoi] = (round(gt[0] / gt[1]), round(gt[3] / gt[1])) + p.shape
+    borders = [{"aois": [a, b], "step_m": offsets[b] - offsets[a]} for a, b, _ in adjacent_aois(grids)
+               if offsets[a] is not None and offsets[b] is not None]
     known = [v for v in offsets.values() if v is not None]
     return {"offsets_m": offsets, "spread_m": max(known) - min(known) if known else None,
             "largest_border_step_m": max((abs(b["step_m"]) for b in borders), default=None), "borders": borders}

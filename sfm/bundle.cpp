@@ -105,21 +105,19 @@ double MoveToGaugeAverage(BundleProblem* bp) {
   centre /= static_cast<double>(bp->points.size());
   // d(pixel)/d(scene point) at the scene's centre, by central differences
   // over 1 m: a satellite's projection is affine to far below a pixel there.
-  auto jacobian = [&](std::size_t i) {
-    Eigen::Matrix<double, 2, 3> j;
+  std::vector<Eigen::Matrix<double, 2, 3>> jacobians(bp->offsets_px.size());
+  for (std::size_t i = 0; i < jacobians.size(); ++i) {
     for (int k = 0; k < 3; ++k) {
       const Eigen::Vector3d h = Eigen::Vector3d::Unit(k);
-      j.col(k) = 0.5 * (bp->cameras[i].Project(centre + h) - bp->cameras[i].Project(centre - h));
+      jacobians[i].col(k) = 0.5 * (bp->cameras[i].Project(centre + h) - bp->cameras[i].Project(centre - h));
     }
-    return j;
-  };
+  }
   Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < bp->offsets_px.size(); ++i) {
     if (!bp->gauge_image[i] || !bp->image_used[i]) continue;
-    const Eigen::Matrix<double, 2, 3> j = jacobian(i);
-    normal += j.transpose() * j;
-    rhs -= j.transpose() * bp->offsets_px[i];
+    normal += jacobians[i].transpose() * jacobians[i];
+    rhs -= jacobians[i].transpose() * bp->offsets_px[i];
   }
   // Views too alike to fix a height (their rays nearly parallel): leave the
   // solver's answer rather than amplify noise along the rays.
@@ -128,7 +126,7 @@ double MoveToGaugeAverage(BundleProblem* bp) {
   const Eigen::Vector3d v = normal.ldlt().solve(rhs);
   for (Eigen::Vector3d& p : bp->points) p -= v;
   for (std::size_t i = 0; i < bp->offsets_px.size(); ++i)
-    if (bp->image_used[i]) bp->offsets_px[i] += jacobian(i) * v;
+    if (bp->image_used[i]) bp->offsets_px[i] += jacobians[i] * v;
   return v.norm();
 }
 
