@@ -1,7 +1,7 @@
 // What follows the imagery's ground sampling distance (GSD): the dense height
 // grid's automatic cell, shared by the tiling (which sizes tiles in cells) and
-// the dense stage (which sweeps on it), and the training images' automatic
-// downscale.
+// the dense stage (which sweeps on it), the training images' automatic
+// downscale and the initial Gaussians' automatic spacing.
 #pragma once
 
 #include <algorithm>
@@ -38,6 +38,19 @@ constexpr double kTrainAtFullResolutionGsdM = 1.0;
 inline int TrainDownscaleForGsdM(double finest_gsd_m) {
   if (!(finest_gsd_m > 0) || !std::isfinite(finest_gsd_m)) return 2;
   return finest_gsd_m >= kTrainAtFullResolutionGsdM ? 1 : 2;
+}
+
+// The automatic spacing of a dense start's Gaussians for a dense grid of
+// `dense_cell_m`: two cells, at least kMinInitSpacingM. Sub-metre sensors'
+// 0.5 m cells give the 1 m every sub-metre figure was measured with; a 2.1 m
+// sensor's 1 m cells give 2 m, one Gaussian per pixel: at one per 1 m cell,
+// four Gaussians shared each pixel, stayed faint (median opacity 0.25) and
+// let the ground through the roofs (decision D-153). A cell that is not
+// positive and finite gets kMinInitSpacingM.
+constexpr double kMinInitSpacingM = 1.0;
+inline double InitSpacingForDenseCellM(double dense_cell_m) {
+  if (!(dense_cell_m > 0) || !std::isfinite(dense_cell_m)) return kMinInitSpacingM;
+  return std::max(kMinInitSpacingM, 2.0 * dense_cell_m);
 }
 
 }  // namespace skyfall

@@ -29,14 +29,16 @@ template <class IO> void Visit(IO& io, TrainStageOptions& o) {
   io("appearance", o.appearance,
      "Per-image appearance model: 'auto' (on for views from more than one date), 'on' or 'off'");
   io("init_max_scale_m", o.init_max_scale_m,
-     "Cap on the initial Gaussian size (0 = none)", range::AtLeast(0));
+     "Cap on the initial Gaussian size (0 = none); a dense start's cap is at least its spacing", range::AtLeast(0));
   io("init_pieces", o.init_pieces,
      "Up to this many capped Gaussians per tie point (1 = one per point)", range::AtLeast(1));
   io("init_points", o.init_points,
      "Initial Gaussians from 'dense' heights, 'sparse' tie points (no dense stage) or 'auto' (dense when dense "
      "heights exist)");
   io("init_spacing_m", o.init_spacing_m,
-     "A dense start keeps one dense point per cell of this size", range::Above(0));
+     "A dense start keeps one dense point per cell of this size; 0 = automatic: two dense cells, at least 1 m (1 m "
+     "for sub-metre imagery, 2 m for a 2 m sensor)",
+     range::Or(range::Above(0), 0, "automatic"));
   io("init_step_reach_m", o.init_step_reach_m,
      "A dense start keeps every dense cell (not one per init_spacing_m) within this distance of a step; 0 = none",
      range::AtLeast(0));

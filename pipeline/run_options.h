@@ -68,7 +68,8 @@ struct TrainStageOptions {
   Switch appearance = Switch::kAuto;
   // [m] cap on the initial Gaussian size (0 = none): uncapped, Gaussians sized
   // by the tie-point spacing start as blobs that the scaling learning rate
-  // shrinks only slowly.
+  // shrinks only slowly. A dense start's cap is at least its spacing: capped
+  // below it, its Gaussians leave gaps between them.
   double init_max_scale_m = 1.0;
   // Up to this many capped Gaussians per tie point, covering its neighbourhood
   // (1 = one per point): the cap alone leaves gaps between sparse points.
@@ -77,7 +78,9 @@ struct TrainStageOptions {
   // to init_spacing_m, plus tie points in their holes), "sparse" (tie points
   // only; the dense stage is skipped) or "auto" (dense when dense heights exist).
   InitPoints init_points = InitPoints::kAuto;
-  double init_spacing_m = 1.0;          // [m] one dense point per cell of this size
+  // [m] one dense point per cell of this size; 0 = automatic, two dense
+  // cells (InitSpacingForDenseCellM, core/ground_cell.h).
+  double init_spacing_m = 0.0;
   // Dense cells within init_step_reach_m of a step of more than
   // init_step_min_m are all kept (at the dense grid's spacing); 0 = none.
   double init_step_reach_m = 0.0;

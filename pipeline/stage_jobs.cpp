@@ -312,6 +312,12 @@ SfmResult RunSfmJob(const SfmOptions& options, const AoiCatalog& catalog, const 
   return r;
 }
 
+InitSpacing InitSpacingM(const TrainStageOptions& stage, const DenseCells& dense) {
+  if (stage.init_spacing_m > 0) return {stage.init_spacing_m, "train.init_spacing_m"};
+  return {InitSpacingForDenseCellM(dense.cell_m),
+          fmt::format("automatic: two dense cells of {:.2f} m, at least {:.1f} m", dense.cell_m, kMinInitSpacingM)};
+}
+
 void MaskViews(const TrainStageOptions& stage, const DenseCells& dense, const RasterOptions& raster,
                std::vector<TrainView>* views, TrainDecisions* decided,
                std::vector<std::vector<std::uint8_t>>* cloudy) {
@@ -328,7 +334,8 @@ void MaskViews(const TrainStageOptions& stage, const DenseCells& dense, const Ra
                                 : "";
   const bool clouds = decided->cloud_mask_why.empty();
   if (dense.points.empty() || (!stage.mask_beyond_reconstruction && !clouds)) return;
-  const std::vector<RenderOutput<float>> covers = RenderDenseCover(dense, stage.init_spacing_m, raster, *views);
+  const std::vector<RenderOutput<float>> covers =
+      RenderDenseCover(dense, InitSpacingM(stage, dense).value_m, raster, *views);
   if (stage.mask_beyond_reconstruction) decided->masked_beyond_fraction = MaskBeyondReconstruction(covers, views);
   if (!clouds) return;
   std::vector<std::vector<std::uint8_t>> before;
@@ -393,7 +400,8 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
     // size, so a roof's edge is not drawn with init_spacing_m blobs.
     const std::vector<std::uint8_t> fine = CellsNearSteps(dense, stage.init_step_reach_m, stage.init_step_min_m);
     decided.init_fine_points = static_cast<std::size_t>(std::count(fine.begin(), fine.end(), 1));
-    ThinToGrid(stage.init_spacing_m, dense.points, dense.colours, points, colours, &points, &colours, &fine);
+    decided.init_spacing = InitSpacingM(stage, dense);
+    ThinToGrid(decided.init_spacing.value_m, dense.points, dense.colours, points, colours, &points, &colours, &fine);
   }
   decided.surface_anchor = surface != nullptr;
   decided.densify = stage.densify == Switch::kOn || (stage.densify == Switch::kAuto && !decided.dense_start);
@@ -416,12 +424,13 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
       std::count_if(views.begin(), views.end(), [](const TrainView& v) { return v.held_out; }),
       decided.downscale.factor, decided.downscale.why, points.size(),
       decided.dense_start ? fmt::format("dense heights thinned to {} m ({} cells beside steps kept), and tie points in "
-                                        "their holes", stage.init_spacing_m, decided.init_fine_points)
+                                        "their holes", decided.init_spacing.value_m, decided.init_fine_points)
                           : fmt::format("{} tie points", tie_points),
       options.iterations, decided.densify ? "on" : "off"));
   std::unique_ptr<DepthPrior> depth_prior;
   if (stage.depth_prior == "surface") {
-    depth_prior = std::make_unique<SurfaceDepthPrior>(points, decided.dense_start ? 2.0 * stage.init_spacing_m : 2.0);
+    depth_prior =
+        std::make_unique<SurfaceDepthPrior>(points, decided.dense_start ? 2.0 * decided.init_spacing.value_m : 2.0);
   } else if (stage.depth_prior.rfind("cmd:", 0) == 0) {
     fs::create_directories(fs::path(out_dir) / "pseudo");
     depth_prior = std::make_unique<CommandDepthPrior>(stage.depth_prior.substr(4), (fs::path(out_dir) / "pseudo").string());
@@ -442,7 +451,11 @@ TrainJobResult RunTrainJob(const TrainStageOptions& stage, const std::string& sf
                            {"densify", decided.densify},
                            {"surface_anchor", decided.surface_anchor}},
                           {{"options", nlohmann::json::parse(TrainCheckpointJson(TrainStageOptions()))}}, progress);
-  const double init_cap_m = stage.init_max_scale_m > 0 ? stage.init_max_scale_m : std::numeric_limits<double>::infinity();
+  // A dense start capped below its spacing would leave gaps between its Gaussians.
+  const double init_cap_m =
+      stage.init_max_scale_m <= 0 ? std::numeric_limits<double>::infinity()
+      : decided.dense_start       ? std::max(stage.init_max_scale_m, decided.init_spacing.value_m)
+                                  : stage.init_max_scale_m;
   GaussianCloud init = InitializeFromPoints(points, colours, init_cap_m, decided.dense_start ? 1 : stage.init_pieces);
   result.train = TrainGaussians(options, std::move(init), views, checkpoints.string(), progress, depth_prior.get(),
                                 surface.get());

@@ -59,9 +59,17 @@ struct TrainDownscale {
 TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir);
 
 // What the training job decided and why (for the reports).
+// The spacing of a dense start's Gaussians and where it came from.
+struct InitSpacing {
+  double value_m = 0;
+  std::string why;
+};
+InitSpacing InitSpacingM(const TrainStageOptions& stage, const DenseCells& dense);
+
 struct TrainDecisions {
   TrainDownscale downscale;
   bool dense_start = false;
+  InitSpacing init_spacing;  // with a dense start
   std::size_t init_fine_points = 0;  // dense cells kept beside steps (train.init_step_reach_m)
   bool densify = false;
   bool appearance = false;

@@ -47,6 +47,29 @@ TEST(TrainDownscale, HalvesSubMetreImageryAndKeepsCoarserAtItsOwnResolution) {
   EXPECT_EQ(TrainDownscaleForGsdM(0.0), 2);
 }
 
+// The automatic spacing of a dense start: two dense cells, at least 1 m,
+// so every sub-metre sensor (0.5 m cells) keeps the 1 m it was measured
+// with and a 2.1 m sensor (1 m cells) starts one Gaussian per pixel.
+TEST(InitSpacing, TwoDenseCellsAtLeastAMetreUnlessAsked) {
+  TrainStageOptions stage;  // init_spacing_m 0: automatic
+  DenseCells cells;
+  for (const auto& [cell_m, expected_m] : {std::pair{0.5, 1.0}, {1.0, 2.0}, {1.5, 3.0}, {0.25, 1.0}}) {
+    cells.cell_m = cell_m;
+    const InitSpacing s = InitSpacingM(stage, cells);
+    EXPECT_DOUBLE_EQ(s.value_m, expected_m) << cell_m;
+    EXPECT_NE(s.why.find("automatic"), std::string::npos) << s.why;
+  }
+  // A grid without a usable cell: the sub-metre setting.
+  for (double bad : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
+    EXPECT_DOUBLE_EQ(InitSpacingForDenseCellM(bad), kMinInitSpacingM) << bad;
+  // Asked for, the spacing is kept whatever the grid.
+  stage.init_spacing_m = 0.75;
+  cells.cell_m = 1.0;
+  const InitSpacing asked = InitSpacingM(stage, cells);
+  EXPECT_DOUBLE_EQ(asked.value_m, 0.75);
+  EXPECT_EQ(asked.why, "train.init_spacing_m");
+}
+
 // Dense cells of `cell_m` on an n x n grid: ground at 0 m, a roof of
 // `roof_m` over the columns i >= n / 2, and one filled ground cell at (1, 1).
 DenseCells RoofBesideGround(int n, double cell_m, float roof_m) {

@@ -132,6 +132,7 @@ void AddTrainDecisions(const TrainStageOptions& train, const TrainDecisions& d, 
   out["initial_points"] = d.dense_start ? "dense" : "sparse";
   // Dense cells kept at the dense grid's spacing beside steps (train.init_step_reach_m; 0 when off).
   out["initial_cells_beside_steps"] = d.init_fine_points;
+  if (d.dense_start) out["initial_spacing"] = {{"m", d.init_spacing.value_m}, {"why", d.init_spacing.why}};
   out["train_downscale"] = {{"factor", d.downscale.factor}, {"why", d.downscale.why}};
   out["densify"] = {{"on", d.densify},
                     {"why", std::string("train.densify '") + EnumName(train.densify) + "', " +
