@@ -142,6 +142,9 @@ TEST(CityRun, TwoBlockCityRunsMergesAndResumesInProcess) {
     EXPECT_EQ(t["status"], "ok") << t.dump();
     // Each automatic choice is reported with what decided it.
     EXPECT_EQ(t["decisions"]["densify"]["on"], false) << t.dump();
+    // A 0.5 m city's dense cells are 0.5 m: its Gaussians start 1 m apart.
+    EXPECT_EQ(t["decisions"]["initial_spacing"]["m"], 1.0) << t.dump();
+    EXPECT_NE(t["decisions"]["initial_spacing"]["why"].get<std::string>().find("automatic"), std::string::npos);
     // How the absolute position was fixed: the AOIs are crops of the same 4
     // passes, so every tile averages all its images' RPCs.
     EXPECT_EQ(t["decisions"]["absolute_position"].get<std::string>().rfind("the average of ", 0), 0u) << t.dump();

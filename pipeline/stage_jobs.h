@@ -58,14 +58,16 @@ struct TrainDownscale {
 // finest GSD of the views in sfm_dir/cameras.json (core/ground_cell.h).
 TrainDownscale ResolveTrainDownscale(int asked, const std::string& sfm_dir);
 
-// What the training job decided and why (for the reports).
-// The spacing of a dense start's Gaussians and where it came from.
+// The spacing of a dense start's Gaussians and where it came from:
+// train.init_spacing_m, or automatic from the dense cell
+// (InitSpacingForDenseCellM, core/ground_cell.h).
 struct InitSpacing {
   double value_m = 0;
   std::string why;
 };
 InitSpacing InitSpacingM(const TrainStageOptions& stage, const DenseCells& dense);
 
+// What the training job decided and why (for the reports).
 struct TrainDecisions {
   TrainDownscale downscale;
   bool dense_start = false;
