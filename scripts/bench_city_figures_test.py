@@ -27,7 +27,9 @@ def write(path, array, x0_m, y_top_m):
     ds.FlushCache()
 
 
-class ErrorSeams(unittest.TestCase):
+class CityFolders(unittest.TestCase):
+    """A DFC-style city folder (truth) and a run folder (predictions) in a scratch directory."""
+
     def setUp(self):
         self.dir = tempfile.TemporaryDirectory()
         self.root, self.run = os.path.join(self.dir.name, "city"), os.path.join(self.dir.name, "run")
@@ -35,9 +37,15 @@ class ErrorSeams(unittest.TestCase):
     def tearDown(self):
         self.dir.cleanup()
 
-    def aoi(self, name, x0_m, truth, pred):
-        write(os.path.join(self.root, "Track3-Truth", name + "_DSM.tif"), truth, 0.0, float(SIDE))  # DFC: no georeference
+    def aoi(self, name, x0_m, truth, pred, cls=None):
+        truth_dir = os.path.join(self.root, "Track3-Truth")
+        write(os.path.join(truth_dir, name + "_DSM.tif"), truth, 0.0, float(SIDE))  # DFC: no georeference
+        if cls is not None:
+            write(os.path.join(truth_dir, name + "_CLS.tif"), cls, 0.0, float(SIDE))
         write(os.path.join(self.run, name, "dsm.tif"), pred, x0_m, 1000.0)
+
+
+class ErrorSeams(CityFolders):
 
     def test_a_jump_where_the_truth_is_smooth_counts_and_a_wall_does_not(self):
         rows, cols = np.mgrid[0:SIDE, 0:SIDE]
@@ -88,14 +96,7 @@ class ErrorSeams(unittest.TestCase):
             figures.error_seams(self.root, self.run, ["B_X1Y0"])
 
 
-class AoiFrames(unittest.TestCase):
-    def setUp(self):
-        self.dir = tempfile.TemporaryDirectory()
-        self.root, self.run = os.path.join(self.dir.name, "city"), os.path.join(self.dir.name, "run")
-
-    def tearDown(self):
-        self.dir.cleanup()
-
+class AoiFrames(CityFolders):
     def test_each_aoi_is_offset_by_its_ground_median_and_borders_step_by_the_difference(self):
         rows, cols = np.mgrid[0:SIDE, 0:SIDE]
         truth = np.where(cols >= 5, 30.0, 10.0)  # ground west of column 5, a roof east of it
@@ -106,9 +107,7 @@ class AoiFrames(unittest.TestCase):
         east = truth + np.where(cols >= 5, 0.0, -2.0)
         east[0, 0] += 50.0
         for name, x0, pred in (("C_X0Y0", 0.0, west), ("C_X1Y0", SIDE * GSD_M, east)):
-            write(os.path.join(self.root, "Track3-Truth", name + "_DSM.tif"), truth, 0.0, float(SIDE))
-            write(os.path.join(self.root, "Track3-Truth", name + "_CLS.tif"), cls, 0.0, float(SIDE))
-            write(os.path.join(self.run, name, "dsm.tif"), pred, x0, 1000.0)
+            self.aoi(name, x0, truth, pred, cls)
         frames = figures.aoi_frames(self.root, self.run, ["C_X0Y0", "C_X1Y0"])
         self.assertAlmostEqual(frames["offsets_m"]["C_X0Y0"], 1.0, places=5)
         self.assertAlmostEqual(frames["offsets_m"]["C_X1Y0"], -2.0, places=5)
