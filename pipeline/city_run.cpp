@@ -285,12 +285,8 @@ CityOutcome FinishCity(const RunOptions& options, const std::vector<AoiCatalog>&
   report.merge = merged.report.metrics;
   report.decisions = MergeDecisions(options, merged);
   // How the tiles' bundle adjustments share one frame (the tiling's choice).
-  try {
-    const json index = json::parse(ReadTextFile((work.city_dir / "tiles" / "tiles.json").string()));
-    if (index.contains("gauge")) report.decisions["absolute_position"] = {{"tiles", index["gauge"]}};
-  } catch (const std::exception&) {
-    // tiles.json is the tiling's own record; a report without this line is still whole
-  }
+  const json index = ReadRecordOrNull((work.city_dir / "tiles" / "tiles.json").string());
+  if (index.contains("gauge")) report.decisions["absolute_position"] = {{"tiles", index["gauge"]}};
   report.seam = {{"ratio", FiniteOrNull(merged.seam.ratio)},
                  {"boundary_mean_step_m", FiniteOrNull(merged.seam.boundary_mean_step_m)},
                  {"interior_mean_step_m", FiniteOrNull(merged.seam.interior_mean_step_m)}};

@@ -90,4 +90,12 @@ std::optional<TileReport> ReadTileReport(const std::string& tile_dir) {
   }
 }
 
+json ReadRecordOrNull(const std::string& path) {
+  try {
+    return std::filesystem::exists(path) ? json::parse(ReadTextFile(path)) : json();
+  } catch (const std::exception&) {
+    return json();
+  }
+}
+
 }  // namespace skyfall

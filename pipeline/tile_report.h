@@ -43,4 +43,8 @@ nlohmann::json StageReportsJson(const std::vector<StageReport>& reports);
 
 std::optional<StageStatus> StageStatusFromString(const std::string& text);
 
+// Another stage's record (sfm_report.json, tiles.json) as JSON, or null when it
+// is missing or cannot be read: for a report that can do without what it adds.
+nlohmann::json ReadRecordOrNull(const std::string& path);
+
 }  // namespace skyfall

@@ -39,16 +39,6 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-// The JSON at `path`, or null when it is missing or unreadable (a record the
-// report can do without).
-json ReadJsonOr(const fs::path& path) {
-  try {
-    return fs::exists(path) ? json::parse(ReadTextFile(path.string())) : json();
-  } catch (const std::exception&) {
-    return json();
-  }
-}
-
 json OptionsJson(const RunOptions& o) { return json::parse(TileOptionsJson(o)); }
 
 StageReport WriteReport(const std::string& dir, const TileSpec& spec, const RunOptions& o, StageReport report,
@@ -194,7 +184,7 @@ StageReport RunTile(const std::string& tile_dir, const RunOptions& options, int 
   // What fixed the tile's absolute position (the images' RPC average, the
   // acquisitions every tile of the city holds, or an anchor image), as the
   // SfM that made its cameras, run now or before, recorded it.
-  const json sfm_record = ReadJsonOr(sfm_dir / "sfm_report.json");
+  const json sfm_record = ReadRecordOrNull((sfm_dir / "sfm_report.json").string());
   if (sfm_record.contains("absolute_position")) decisions["absolute_position"] = sfm_record["absolute_position"];
   if (options.train.init_points == InitPoints::kSparse) {
     decisions["dense"] = {{"ran", false}, {"why", "train.init_points is 'sparse'"}};

@@ -65,7 +65,6 @@ BundleSummary RunBundleAdjustment(BundleProblem* problem, const BundleOptions& o
 // images or points.
 double MoveToGaugeAverage(BundleProblem* bp);
 
-
 // Reprojection error of every observation [px], in track order.
 std::vector<double> ReprojectionErrors(const BundleProblem& problem);
 

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <mutex>
 #include <numeric>
+#include <set>
 
 #include <fmt/format.h>
-#include <set>
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
