@@ -89,6 +89,12 @@ struct DenseStepOptions {
   double min_m = 2.0;       // [m] a rise beyond this within reach_cells is a step
   int reach_cells = 3;      // [cells] measured ground this near keeps a filled cell at the ground
   double cost_margin = 0.1; // a cell changes side only for a cost this much lower (and <= max_cost)
+  // A cell filled at the ground where no view sees the ground (beside a
+  // wall every view looks away from, as both views of a pair often do)
+  // takes its roof when the roof matches at most this well; 0 = never.
+  // Stricter than max_cost: the hidden ground beside a wall is also where a
+  // roof's windows reach over the edge (decision D-154).
+  double unseen_ground_roof_cost = 0.3;
   bool decide_filled_sides = true;
 };
 
@@ -226,6 +232,10 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
      "1)", range::Above(0));
   io("step_cost_margin", o.steps.cost_margin,
      "A cell changes side only when the other side's cost is lower by this much (and at most max_cost)",
+     range::AtLeast(0));
+  io("unseen_ground_roof_cost", o.steps.unseen_ground_roof_cost,
+     "decide_filled_sides: a cell filled at the ground where no view can see the ground takes the roof when the "
+     "roof's cost is at most this (0 = never)",
      range::AtLeast(0));
   io("decide_filled_sides", o.steps.decide_filled_sides,
      "After filling, score each filled cell at the ground and at a roof, and let it take the other side where that "

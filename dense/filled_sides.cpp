@@ -158,7 +158,10 @@ std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vect
 // where that side's cost is at most max_cost and step_cost_margin below its
 // fill's, and where a cell filled at the ground has no measured ground
 // within step_reach_cells: there the roof's side wins by the windows'
-// fattening, as beside any step. A side no view can score decides nothing.
+// fattening, as beside any step. Where no view can score the ground, a cell
+// filled at the ground takes the roof if that costs at most
+// steps.unseen_ground_roof_cost; otherwise a side no view can score
+// decides nothing.
 // Views count where they see the point past the measured surface
 // (`measured_m`; holes hide nothing), near cells excepted as in the
 // visibility pass. Returns how many cells changed side.
@@ -169,6 +172,7 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
   const HeightGrid& g = s.grid;
   const float step_min = static_cast<float>(s.o.steps.min_m);
   const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.steps.cost_margin);
+  const float unseen_roof_cost = static_cast<float>(s.o.steps.unseen_ground_roof_cost);
   // The measured heights raised above the ground, and their lowest within
   // the two reaches (the fill's first and largest, 5 and 20 m by default).
   std::vector<float> raised(measured_m.size(), kNan);
@@ -203,7 +207,16 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
       if (!std::isfinite(roof)) continue;
       const float cost_ground = SupportWeightedCost(s, &seen_above, nadir_first, i, j, ground, t);
       const float cost_roof = SupportWeightedCost(s, &seen_above, nadir_first, i, j, roof, t);
-      if (!std::isfinite(cost_ground) || !std::isfinite(cost_roof)) continue;
+      if (!std::isfinite(cost_roof)) continue;
+      if (!std::isfinite(cost_ground)) {
+        // No view sees the ground here: a roof that matches well is the
+        // surface, else the ground stays (there is nothing to weigh it against).
+        if (!filled_raised && cost_roof <= unseen_roof_cost) {
+          height_m[k] = roof;
+          ++changed;
+        }
+        continue;
+      }
       const float other = filled_raised ? cost_ground : cost_roof, own = filled_raised ? cost_roof : cost_ground;
       if (other > max_cost || own - other < margin) continue;
       height_m[k] = filled_raised ? ground : roof;
