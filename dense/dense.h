@@ -91,7 +91,7 @@ struct DenseStepOptions {
   double cost_margin = 0.1; // a cell changes side only for a cost this much lower (and <= max_cost)
   // A cell filled at the ground where no view sees the ground (beside a
   // wall every view looks away from, as both views of a pair often do)
-  // takes its roof when the roof matches at most this well; 0 = never.
+  // takes its roof when the roof's cost is at most this; 0 = never.
   // Stricter than max_cost: the hidden ground beside a wall is also where a
   // roof's windows reach over the edge (decision D-154).
   double unseen_ground_roof_cost = 0.3;
