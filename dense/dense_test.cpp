@@ -23,6 +23,12 @@ int ArgMin(const std::vector<float>& volume, std::size_t cell, int heights) {
   return static_cast<int>(std::min_element(s, s + heights) - s);
 }
 
+// Calls visit(x_m, y_m, height_m) for every cell of `g` (ENU).
+template <class Visit> void ForEachCell(const HeightGrid& g, Visit visit) {
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) visit(g.x0_m + i * g.cell_m, g.y0_m + j * g.cell_m, g.height_m[g.Index(i, j)]);
+}
+
 TEST(Dense, SgmWithoutPenaltiesIsEightTimesTheCost) {
   // With P1 = P2 = 0 each path adds exactly its own cost (the previous
   // cell's minimum is added and subtracted), so any difference is a bug in
@@ -629,7 +635,7 @@ TEST(Dense, FilledCellsTakeTheSideTheViewsMatchBetter) {
 // (decision D-142).
 TEST(Dense, AStereoPairDecidesTheSidesOfItsFilledCellsToo) {
   NullProgress progress;
-  constexpr double kRoofM = 20.0, kRoofHalfM = 12.0;
+  constexpr double kRoofM = 20.0;
   const std::vector<DenseView> views = {testing::TwoBuildingsView("east", LookingDown(15, 90, 128), 2.0, kRoofM),
                                         testing::TwoBuildingsView("west", LookingDown(15, 270, 128), 2.0, kRoofM)};
   const std::vector<DensePair> pairs = {{0, 1, 100}};
@@ -645,20 +651,17 @@ TEST(Dense, AStereoPairDecidesTheSidesOfItsFilledCellsToo) {
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     Counts c;
     c.changed = r.report.metrics.at("filled_sides_changed_fraction");
-    for (int j = 0; j < r.grid.ny; ++j)
-      for (int i = 0; i < r.grid.nx; ++i) {
-        const double x = r.grid.x0_m + i * r.grid.cell_m, y = r.grid.y0_m + j * r.grid.cell_m;
-        // The buildings: 2 <= |x| <= 14, |y| <= 12 (TwoBuildingsView).
-        const double from_edge = std::max({2.0 - std::abs(x), std::abs(x) - 14.0, std::abs(y) - 12.0});
-        const float h = r.grid.height_m[r.grid.Index(i, j)];
-        if (from_edge < -0.5) {
-          ++c.roof;
-          c.roof_right += std::abs(h - kRoofM) <= 1.0f;
-        } else if (from_edge > 0.5 && from_edge < 8.0) {
-          ++c.ground;
-          c.ground_right += std::abs(h) <= 1.0f;
-        }
+    ForEachCell(r.grid, [&](double x, double y, float h) {
+      // The buildings: 2 <= |x| <= 14, |y| <= 12 (TwoBuildingsView).
+      const double from_edge = std::max({2.0 - std::abs(x), std::abs(x) - 14.0, std::abs(y) - 12.0});
+      if (from_edge < -0.5) {
+        ++c.roof;
+        c.roof_right += std::abs(h - kRoofM) <= 1.0f;
+      } else if (from_edge > 0.5 && from_edge < 8.0) {
+        ++c.ground;
+        c.ground_right += std::abs(h) <= 1.0f;
       }
+    });
     return c;
   };
   const Counts rules = run(false), decided = run(true);
@@ -695,23 +698,20 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
     const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     Counts c;
-    for (int j = 0; j < r.grid.ny; ++j)
-      for (int i = 0; i < r.grid.nx; ++i) {
-        const double x = r.grid.x0_m + i * r.grid.cell_m, y = r.grid.y0_m + j * r.grid.cell_m;
-        if (std::abs(y) > 11.0) continue;  // the west walls' length, their ends left out
-        const float h = r.grid.height_m[r.grid.Index(i, j)];
-        // West walls at x = -18 and x = 6 (TwoBuildingsView's boxes).
-        for (const double wall_x : {-kStreetHalfM - 12.0, kStreetHalfM}) {
-          const double east_of_wall = x - wall_x;
-          if (east_of_wall > 0.25 && east_of_wall < 2.0) {
-            ++c.rim;
-            c.rim_right += std::abs(h - kRoofM) <= 1.0f;
-          } else if (east_of_wall < -0.75 && east_of_wall > -4.0) {
-            ++c.ground;
-            c.ground_right += std::abs(h) <= 1.0f;
-          }
+    ForEachCell(r.grid, [&](double x, double y, float h) {
+      if (std::abs(y) > 11.0) return;  // the west walls' length, their ends left out
+      // West walls at x = -18 and x = 6 (TwoBuildingsView's boxes).
+      for (const double wall_x : {-kStreetHalfM - 12.0, kStreetHalfM}) {
+        const double east_of_wall = x - wall_x;
+        if (east_of_wall > 0.25 && east_of_wall < 2.0) {
+          ++c.rim;
+          c.rim_right += std::abs(h - kRoofM) <= 1.0f;
+        } else if (east_of_wall < -0.75 && east_of_wall > -4.0) {
+          ++c.ground;
+          c.ground_right += std::abs(h) <= 1.0f;
         }
       }
+    });
     return c;
   };
   const Counts undecided = run(0.0), decided = run(0.3);
