@@ -47,7 +47,8 @@ source scripts/bench_env.sh
 mkdir -p "$OUT"
 
 # name | tuned_on | synth flags ("dfc2019" for the real AOI, "own:DIR" for a
-# user's own-data folder)
+# user's own-data folder, "own:DIR:A,B" for a folder of DIR's images A and B
+# and its truth, made under the scene's output)
 # Settings of the dense stage and the trainer were chosen on JAX_068 (the only
 # real AOI with LiDAR truth here), the surface-anchor weights on syn_default
 # (its 128 m quick form); the other scenes are held out of all tuning.
@@ -56,8 +57,9 @@ mkdir -p "$OUT"
 # at, held out"), none of them listed here.
 # The rows after syn_multidate are the real-sensor defect classes: a second
 # real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
-# mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair,
-# a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km), and
+# mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair
+# (synthetic, and two of the real Pleiades triplet against s2p's DSM of all
+# three), a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km), and
 # hazy imagery (path radiance 0.7: crowns barely greener than roofs, as in the
 # DFC2019 crops, and a third of the contrast), and clouds over half the dates
 # (cumulus 1 km above the roofs that hide the ground in six of the twelve
@@ -77,6 +79,7 @@ SCENES=(
   "syn_alt4000|false|--ground-height-m 4000"
   "syn_biased|false|--rpc-bias-px 3 --rpc-bias-rotation-deg 0.01"
   "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
+  "pleiades_pair|false|own:../shared/data/pleiades-mrs:img_01.tif,img_02.tif"
   "syn_zy3|false|--size-m 1512 --gsd-m 2.1 --views 3 --views-per-date 3 --along-track-deg 22"
   "syn_haze|false|--haze 0.7"
   "syn_clouds|false|--clouds 0.3"
@@ -102,7 +105,20 @@ for entry in "${SCENES[@]}"; do
     extra=(--aoi JAX_068)
   elif [[ "$flags" == own:* ]]; then
     root=${flags#own:}
+    images=""
+    if [[ "$root" == *:* ]]; then images=${root#*:}; root=${root%%:*}; fi
     if [ ! -d "$root" ]; then echo "bench_accuracy: $name skipped: no $root" >&2; continue; fi
+    if [ -n "$images" ]; then
+      # A subset of a real folder (a stereo pair of a triplet): links to the
+      # named images and to the folder's truth (a raster named *dsm*).
+      subset="$dir/input"
+      rm -rf "$subset"
+      mkdir -p "$subset"
+      IFS=',' read -r -a picked <<< "$images"
+      for f in "${picked[@]}"; do ln -s "$(realpath "$root/$f")" "$subset/$f"; done
+      for f in "$root"/*[dD][sS][mM]*.tif; do [ -e "$f" ] && ln -s "$(realpath "$f")" "$subset/$(basename "$f")"; done
+      root=$subset
+    fi
     extra=()
   else
     root="$dir/input"
