@@ -196,6 +196,7 @@ void RaiseRangeToProbe(const DenseOptions& o, const HeightGrid& g, const ViewSlo
 // What the steps after the sweep count, for the report.
 struct DenseCounts {
   std::size_t visibility_changed = 0, measured = 0, occluded = 0, coarse = 0, floating = 0, sides_changed = 0;
+  std::size_t roofs_over_unseen_ground = 0;
   std::size_t valid = 0;
   int terrain_trend_terms = 0;
 };
@@ -266,9 +267,11 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
     std::vector<std::uint8_t> candidates = g->filled;
     for (std::size_t k = 0; k < cells; ++k) candidates[k] &= from_coarse[k] ? 0 : 1;
     const std::vector<float> before = g->height_m;
-    counts->sides_changed = dense_detail::DecideFilledSides(
+    const dense_detail::SidesDecided decided = dense_detail::DecideFilledSides(
         sweep, v.to_cameras, dense_detail::NadirFirst(views, v.used, centre), measured_m, model.terrain_m,
         candidates, fill.radius_cells, g->height_m, progress);
+    counts->sides_changed = decided.changed;
+    counts->roofs_over_unseen_ground = decided.over_unseen_ground;
     for (std::size_t k = 0; k < cells; ++k)
       if (candidates[k] && g->height_m[k] != before[k]) g->fill_rule[k] = FillRule::kSideByViews;
   }
@@ -355,6 +358,7 @@ void ReportMetrics(const DenseOptions& o, const SweepPlan& plan, const ViewSlots
   r->metrics["occluded_fraction"] = static_cast<double>(n.occluded) / all;
   r->metrics["terrain_trend_terms"] = n.terrain_trend_terms;
   r->metrics["filled_sides_changed_fraction"] = static_cast<double>(n.sides_changed) / all;
+  r->metrics["filled_roof_over_unseen_ground_fraction"] = static_cast<double>(n.roofs_over_unseen_ground) / all;
   r->metrics["visibility_changed_fraction"] = static_cast<double>(n.visibility_changed) / all;
 }
 

@@ -691,6 +691,7 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
   const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {8, 0, kRoofM}};
   struct Counts {
     int rim = 0, rim_right = 0, ground = 0, ground_right = 0;
+    double over_unseen_ground = 0;
   };
   auto run = [&](double unseen_roof_cost) {
     DenseOptions o;
@@ -698,6 +699,7 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
     const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     Counts c;
+    c.over_unseen_ground = r.report.metrics.at("filled_roof_over_unseen_ground_fraction");
     ForEachCell(r.grid, [&](double x, double y, float h) {
       if (std::abs(y) > 11.0) return;  // the west walls' length, their ends left out
       // West walls at x = -18 and x = 6 (TwoBuildingsView's boxes).
@@ -721,6 +723,9 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
   // either way. Bars: 15 more rim cells, at most 1% of the ground lost.
   ASSERT_LT(undecided.rim_right, undecided.rim - 20) << "the pair no longer leaves its west rims at the ground";
   EXPECT_GE(decided.rim_right, undecided.rim_right + 15);
+  // The tile report counts the cells the rule gave a roof.
+  EXPECT_EQ(undecided.over_unseen_ground, 0.0);
+  EXPECT_GT(decided.over_unseen_ground, 0.0);
   EXPECT_GE(decided.ground_right, undecided.ground_right - undecided.ground / 100);
 }
 

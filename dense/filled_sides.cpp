@@ -164,11 +164,12 @@ std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vect
 // decides nothing.
 // Views count where they see the point past the measured surface
 // (`measured_m`; holes hide nothing), near cells excepted as in the
-// visibility pass. Returns how many cells changed side.
-std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
-                              const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
-                              const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
-                              int reach_cells, std::vector<float>& height_m, Progress& progress) {
+// visibility pass. Returns how many cells changed side, and how many of
+// them took the roof over ground no view sees.
+SidesDecided DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
+                               const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                               const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
+                               int reach_cells, std::vector<float>& height_m, Progress& progress) {
   const HeightGrid& g = s.grid;
   const float step_min = static_cast<float>(s.o.steps.min_m);
   const float max_cost = static_cast<float>(s.o.max_cost), margin = static_cast<float>(s.o.steps.cost_margin);
@@ -192,7 +193,7 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
                 s.o.visibility.near_cells >= 0 ? s.o.visibility.near_cells : s.o.window_cells / 2);
   progress.Begin("dense: deciding filled cells between ground and roof", g.ny);
   std::atomic<int> rows_done{0};
-  std::atomic<std::size_t> changed{0};
+  std::atomic<std::size_t> changed{0}, over_unseen_ground{0};
   tbb::enumerable_thread_specific<SupportScratch> scratch;
   const std::vector<float> before = height_m;
   tbb::parallel_for(0, g.ny, [&](int j) {
@@ -214,6 +215,7 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
         if (!filled_raised && cost_roof <= unseen_roof_cost) {
           height_m[k] = roof;
           ++changed;
+          ++over_unseen_ground;
         }
         continue;
       }
@@ -225,7 +227,7 @@ std::size_t DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>
     progress.Advance(++rows_done, "");
   });
   progress.End();
-  return changed;
+  return {changed, over_unseen_ground};
 }
 
 }  // namespace skyfall::dense_detail
