@@ -72,6 +72,10 @@ void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::
                   "Atmospheric haze: the share of each pixel's light that is path radiance, lowering contrast and "
                   "colour (0 clear; 0.7 as grey as the DFC2019 crops' trees) [0, 0.9]")
       ->capture_default_str();
+  cmd->add_option("--noise-dn", opts->noise_dn,
+                  "Sensor noise: Gaussian, this standard deviation in DN of the 8-bit scale per band and pixel, on "
+                  "top of the +-1 DN every image has (real satellite images: a few DN) [0, 20]")
+      ->capture_default_str();
   cmd->add_option("--clouds", opts->clouds,
                   "Cumulus 1 km above the tallest roof over every second date (dates 1, 3, ...): the share of the "
                   "sky their puffs cover before overlaps; they hide the ground and shade it [0, 0.8]")

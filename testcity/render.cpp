@@ -281,6 +281,19 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
   return false;
 }
 
+// SplitMix64's finalizer: every input bit reaches every output bit, so
+// keys that differ by one (neighbouring views, pixels) give independent
+// draws.
+std::uint64_t SplitMix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// The top 24 bits of `x` as a float in [0, 1).
+float Unit01(std::uint64_t x) { return static_cast<float>((x >> 40) * (1.0 / 16777216.0)); }
+
 float Hash01(std::uint64_t a, std::uint64_t b) {
   std::uint64_t x = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull);
   x = (x ^ (x >> 31)) * 0xBF58476D1CE4E5B9ull;
@@ -416,9 +429,17 @@ Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int
 constexpr float kHazeColour[3] = {0.55f, 0.58f, 0.64f};
 
 // A sensor's 8-bit value of a colour channel: haze, tint, gain, and +-1 DN
-// of noise unless `noise` is off.
+// of noise and lighting.noise_dn of Gaussian noise (Box-Muller on two more
+// hashes of the pixel) unless `noise` is off.
 std::uint8_t SensorValue(const Lighting& lighting, float colour, int channel, std::size_t pixel, bool noise) {
-  const float dn = noise ? (Hash01(lighting.noise_seed + channel, pixel) - 0.5f) * 2.0f : 0.0f;
+  float dn = noise ? (Hash01(lighting.noise_seed + channel, pixel) - 0.5f) * 2.0f : 0.0f;
+  if (noise && lighting.noise_dn > 0) {
+    const std::uint64_t sample = 3 * static_cast<std::uint64_t>(pixel) + channel;
+    const std::uint64_t view_key = SplitMix64(lighting.noise_seed);
+    const float u1 = std::max(Unit01(SplitMix64(view_key + 2 * sample)), 1e-7f);
+    const float u2 = Unit01(SplitMix64(view_key + 2 * sample + 1));
+    dn += lighting.noise_dn * std::sqrt(-2.0f * std::log(u1)) * std::cos(6.2831853f * u2);
+  }
   const float seen = colour * (1.0f - lighting.haze) + lighting.haze * kHazeColour[channel];
   const float v = seen * lighting.tint[channel] * lighting.gain * 255.0f + dn;
   return static_cast<std::uint8_t>(std::min(255.0f, std::max(0.0f, v) + 0.5f));

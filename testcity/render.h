@@ -71,6 +71,7 @@ struct Lighting {
   // is drawn without them.
   CloudLayer clouds;
   std::uint64_t noise_seed = 0;                           // sensor noise pattern
+  float noise_dn = 0.0f;  // Gaussian sensor noise [DN, 8-bit scale], beside the +-1 DN always there
   bool cast_shadows = true;                               // off only to test shadowing
   // A detector integrates the light over its pixel. Point-sampled at the
   // pixel's centre, textures finer than two pixels (tile courses, road

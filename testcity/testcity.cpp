@@ -44,6 +44,7 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"relief_m", o.relief_m},
           {"date_contrast", o.date_contrast},
           {"haze", o.haze},
+          {"noise_dn", o.noise_dn},
           {"clouds", o.clouds},
           {"rpc_height_offset_m", o.rpc_height_offset_m},
           {"ground_height_m", o.ground_height_m},
@@ -404,6 +405,7 @@ void SynthOptions::Check() const {
   need(relief_m >= 0 && relief_m <= 1000, "relief_m", FormatDouble(relief_m), "must be 0..1000 m");
   need(date_contrast >= 0 && date_contrast <= 4, "date_contrast", FormatDouble(date_contrast), "must be 0..4");
   need(haze >= 0 && haze <= 0.9, "haze", FormatDouble(haze), "must be 0..0.9");
+  need(noise_dn >= 0 && noise_dn <= 20, "noise_dn", FormatDouble(noise_dn), "must be 0..20 DN");
   need(clouds >= 0 && clouds <= 0.8, "clouds", FormatDouble(clouds), "must be 0..0.8");
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
@@ -517,6 +519,7 @@ Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx
                                1.0f + static_cast<float>(s * 0.08 * (Frac(date * 0.53) - 0.5)));
   light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
   light.haze = static_cast<float>(o.haze);
+  light.noise_dn = static_cast<float>(o.noise_dn);
   if (o.clouds > 0 && date % 2 == 1) light.clouds = CloudsOfDate(o, r.city, date);
   return light;
 }

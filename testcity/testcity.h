@@ -46,6 +46,12 @@ struct SynthOptions {
   // (0 clear; 0.7 leaves crowns about as little greener than roofs as in
   // the DFC2019 WorldView-3 crops) [0, 0.9].
   double haze = 0.0;
+  // Sensor noise: Gaussian, this many DN (8-bit scale) of standard deviation
+  // per band and pixel, on top of the +-1 DN every image has. Real
+  // satellite images carry a few DN; the default city's images are nearly
+  // noise-free, and a matcher tuned on them can trust grey levels more than
+  // real imagery allows (decision D-157) [0, 20].
+  double noise_dn = 0.0;
   // Cumulus over every second date (dates 1, 3, ...; date 0 stays clear): a
   // layer 1,000 m above the tallest roof whose puffs (60-200 m in radius) would
   // cover this share of the sky if none overlapped [0, 0.8]. Each cloudy

@@ -406,6 +406,48 @@ TEST(Synth, HazePullsColoursTowardsGreyAndLowersContrast) {
       Error);
 }
 
+// Sensor noise (`--noise-dn`): each view gains Gaussian noise of the asked
+// standard deviation per band and pixel, independent between views; 0 keeps
+// the images as they were.
+TEST(Synth, SensorNoiseHasTheAskedSpreadAndIsIndependentBetweenViews) {
+  const Scene s = MakeScene(SmallScene());
+  const SynthView& v = s.result.aois.at(0).views.at(0);
+  const SynthView& w = s.result.aois.at(0).views.at(1);
+  constexpr float kNoiseDn = 4.0f;
+  auto render = [&](const SynthView& view, float noise_dn) {
+    Lighting light = view.lighting;
+    light.noise_dn = noise_dn;
+    return RenderView(s.result.city, view.camera, s.result.scene_from_enu, light).rgb;
+  };
+  const std::vector<std::uint8_t> clean = render(v, 0.0f), noisy = render(v, kNoiseDn);
+  const std::vector<std::uint8_t> clean_w = render(w, 0.0f), noisy_w = render(w, kNoiseDn);
+  EXPECT_EQ(clean, RenderView(s.result.city, v.camera, s.result.scene_from_enu, v.lighting).rgb);
+  // The added noise's spread, away from 0 and 255 where clipping cuts it, and
+  // its correlation between the two views at the same pixel index.
+  double sum = 0, sum2 = 0, cross = 0;
+  std::size_t n = 0;
+  for (std::size_t p = 0; p < clean.size() && p < clean_w.size(); ++p) {
+    if (clean[p] < 30 || clean[p] > 225 || clean_w[p] < 30 || clean_w[p] > 225) continue;
+    const double d = static_cast<double>(noisy[p]) - clean[p], e = static_cast<double>(noisy_w[p]) - clean_w[p];
+    sum += d, sum2 += d * d, cross += d * e, ++n;
+  }
+  ASSERT_GT(n, 10000u);
+  const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
+  std::printf("[figures] --noise-dn %.0f: added noise %.3f DN (mean %+.3f), correlation between two views %+.4f\n",
+              kNoiseDn, sd, mean, cross / n / (sd * sd));
+  // Rounding to whole DN adds 1/12 DN^2 of variance: 4.01 DN expected.
+  EXPECT_NEAR(sd, kNoiseDn, 0.15);
+  EXPECT_NEAR(mean, 0.0, 0.1);
+  EXPECT_LT(std::abs(cross / n) / (sd * sd), 0.02);
+  EXPECT_THROW(
+      [] {
+        SynthOptions o;
+        o.noise_dn = 25;
+        o.Check();
+      }(),
+      Error);
+}
+
 // Clouds: a puff on the view's ray through the AOI's centre hides the
 // ground there (cloud-white pixels), a puff on the sun's ray from it shades
 // the ground around it (lit pixels lose most of their direct light), and
