@@ -429,8 +429,9 @@ Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int
 constexpr float kHazeColour[3] = {0.55f, 0.58f, 0.64f};
 
 // A sensor's 8-bit value of a colour channel: haze, tint, gain, and +-1 DN
-// of noise and lighting.noise_dn of Gaussian noise (Box-Muller on two more
-// hashes of the pixel) unless `noise` is off.
+// of noise and lighting.noise_dn of Gaussian noise (Box-Muller on two
+// SplitMix64 draws keyed by the view and the pixel's band) unless `noise`
+// is off.
 std::uint8_t SensorValue(const Lighting& lighting, float colour, int channel, std::size_t pixel, bool noise) {
   float dn = noise ? (Hash01(lighting.noise_seed + channel, pixel) - 0.5f) * 2.0f : 0.0f;
   if (noise && lighting.noise_dn > 0) {
