@@ -76,6 +76,10 @@ void AddSceneOptions(CLI::App* cmd, synth::SynthOptions* opts, std::vector<CLI::
                   "Sensor noise: Gaussian, this standard deviation in DN of the 8-bit scale per band and pixel, on "
                   "top of the +-1 DN every image has (real satellite images: a few DN) [0, 20]")
       ->capture_default_str();
+  cmd->add_option("--blur-px", opts->blur_px,
+                  "Sensor blur: each image's optics as a Gaussian point-spread function of this standard deviation, "
+                  "before the detector's noise (real crops are softer than the default sharp views) [px, 0..3]")
+      ->capture_default_str();
   cmd->add_option("--clouds", opts->clouds,
                   "Cumulus 1 km above the tallest roof over every second date (dates 1, 3, ...): the share of the "
                   "sky their puffs cover before overlaps; they hide the ground and shade it [0, 0.8]")

@@ -58,7 +58,8 @@ mkdir -p "$OUT"
 # The rows after syn_multidate are the real-sensor defect classes: a second
 # real AOI (Pleiades, 16-bit pan, truth = s2p's stereo DSM), a city in the
 # mountains (heights ellipsoidal vs ENU), biased vendor RPCs, a stereo pair
-# (synthetic, the same with 3 DN of sensor noise, and two of the real
+# (synthetic, the same with 3 DN of sensor noise and with a real sensor's
+# blur, and two of the real
 # Pleiades triplet against s2p's DSM of all three), a ZY-3-like three-line camera (2.1 m GSD, nadir and +-22 deg, 1.5 km), and
 # hazy imagery (path radiance 0.7: crowns barely greener than roofs, as in the
 # DFC2019 crops, and a third of the contrast), and clouds over half the dates
@@ -80,6 +81,7 @@ SCENES=(
   "syn_biased|false|--rpc-bias-px 3 --rpc-bias-rotation-deg 0.01"
   "syn_stereo|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25"
   "syn_stereo_noise|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25 --noise-dn 3"
+  "syn_stereo_blur|false|--views 2 --views-per-date 2 --min-off-nadir 10 --max-off-nadir 25 --blur-px 0.6"
   "pleiades_pair|false|own:../shared/data/pleiades-mrs:img_01.tif,img_02.tif"
   "syn_zy3|false|--size-m 1512 --gsd-m 2.1 --views 3 --views-per-date 3 --along-track-deg 22"
   "syn_haze|false|--haze 0.7"

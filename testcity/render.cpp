@@ -425,6 +425,26 @@ Hit ShadePixel(const City& city, const Lighting& lighting, const RayFn& ray, int
   return hit;
 }
 
+// The optics' blur: a Gaussian point-spread function of `sigma_px`, applied
+// along rows and then columns, edges clamped.
+void BlurImage(std::vector<Eigen::Vector3f>& image, int width, int height, float sigma_px) {
+  const int radius = static_cast<int>(std::ceil(3.0f * sigma_px));
+  std::vector<float> kernel(2 * radius + 1);
+  float total = 0;
+  for (int k = -radius; k <= radius; ++k) total += kernel[k + radius] = std::exp(-0.5f * k * k / (sigma_px * sigma_px));
+  for (float& k : kernel) k /= total;
+  auto pass = [&](int lines, int length, auto at) {
+    tbb::parallel_for(0, lines, [&](int line) {
+      std::vector<Eigen::Vector3f> out(length, Eigen::Vector3f::Zero());
+      for (int i = 0; i < length; ++i)
+        for (int k = -radius; k <= radius; ++k) out[i] += kernel[k + radius] * at(line, std::clamp(i + k, 0, length - 1));
+      for (int i = 0; i < length; ++i) at(line, i) = out[i];
+    });
+  };
+  pass(height, width, [&](int row, int col) -> Eigen::Vector3f& { return image[static_cast<std::size_t>(row) * width + col]; });
+  pass(width, height, [&](int col, int row) -> Eigen::Vector3f& { return image[static_cast<std::size_t>(row) * width + col]; });
+}
+
 // The colour of haze's path radiance (a bright sky's blue-grey).
 constexpr float kHazeColour[3] = {0.55f, 0.58f, 0.64f};
 
@@ -500,11 +520,12 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
                           Eigen::Vector3d((scene_from_enu.linear * d_enu).normalized()));
   };
   std::atomic<std::size_t> covered{0};
+  std::vector<Eigen::Vector3f> radiance(n);  // what reaches the optics, before blur and the detector
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height_px), [&](const tbb::blocked_range<int>& rows) {
     for (int r = rows.begin(); r < rows.end(); ++r) {
       for (int c = 0; c < camera.width_px; ++c) {
         const std::size_t p = static_cast<std::size_t>(r) * camera.width_px + c;
-        Eigen::Vector3f colour;
+        Eigen::Vector3f& colour = radiance[p];
         const Hit hit = ShadePixel(city, lighting, ray, c, r, &colour);
         if (!lighting.clouds.puffs.empty()) {
           const auto [o_scene, d_scene] = ray(c, r);
@@ -517,9 +538,12 @@ RenderedView RenderView(const City& city, const SatelliteCamera& camera,
           const std::int32_t obj = city.object[city.Index(hit.i, hit.j)];
           view.hit_object[p] = obj >= 0 ? obj : -1;
         }
-        for (int ch = 0; ch < 3; ++ch) view.rgb[3 * p + ch] = SensorValue(lighting, colour[ch], ch, p, true);
       }
     }
+  });
+  if (lighting.blur_px > 0) BlurImage(radiance, camera.width_px, camera.height_px, lighting.blur_px);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t p) {
+    for (int ch = 0; ch < 3; ++ch) view.rgb[3 * p + ch] = SensorValue(lighting, radiance[p][ch], ch, p, true);
   });
   view.cloud_covered_fraction = n ? static_cast<double>(covered.load()) / static_cast<double>(n) : 0.0;
   return view;

@@ -72,6 +72,7 @@ struct Lighting {
   CloudLayer clouds;
   std::uint64_t noise_seed = 0;                           // sensor noise pattern
   float noise_dn = 0.0f;  // Gaussian sensor noise [DN, 8-bit scale], beside the +-1 DN always there
+  float blur_px = 0.0f;   // the optics' Gaussian point-spread function, standard deviation [px]; 0 none
   bool cast_shadows = true;                               // off only to test shadowing
   // A detector integrates the light over its pixel. Point-sampled at the
   // pixel's centre, textures finer than two pixels (tile courses, road

@@ -45,6 +45,7 @@ json SceneOptionsJson(const SynthOptions& o) {
           {"date_contrast", o.date_contrast},
           {"haze", o.haze},
           {"noise_dn", o.noise_dn},
+          {"blur_px", o.blur_px},
           {"clouds", o.clouds},
           {"rpc_height_offset_m", o.rpc_height_offset_m},
           {"ground_height_m", o.ground_height_m},
@@ -406,6 +407,7 @@ void SynthOptions::Check() const {
   need(date_contrast >= 0 && date_contrast <= 4, "date_contrast", FormatDouble(date_contrast), "must be 0..4");
   need(haze >= 0 && haze <= 0.9, "haze", FormatDouble(haze), "must be 0..0.9");
   need(noise_dn >= 0 && noise_dn <= 20, "noise_dn", FormatDouble(noise_dn), "must be 0..20 DN");
+  need(blur_px >= 0 && blur_px <= 3, "blur_px", FormatDouble(blur_px), "must be 0..3 px");
   need(clouds >= 0 && clouds <= 0.8, "clouds", FormatDouble(clouds), "must be 0..0.8");
   need(bands == 1 || bands == 3, "bands", std::to_string(bands), "must be 1 (panchromatic) or 3 (RGB)");
   need(orbit_height_m >= 200e3 && orbit_height_m <= 2000e3, "orbit_height_m",
@@ -520,6 +522,7 @@ Lighting ViewLighting(const SynthOptions& o, const SynthResult& r, int v, int bx
   light.noise_seed = o.seed * 100003 + static_cast<std::uint64_t>(by * 1000 + bx * 100 + v);
   light.haze = static_cast<float>(o.haze);
   light.noise_dn = static_cast<float>(o.noise_dn);
+  light.blur_px = static_cast<float>(o.blur_px);
   if (o.clouds > 0 && date % 2 == 1) light.clouds = CloudsOfDate(o, r.city, date);
   return light;
 }

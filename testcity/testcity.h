@@ -52,6 +52,11 @@ struct SynthOptions {
   // noise-free, and a matcher tuned on them can trust grey levels more than
   // real imagery allows (decision D-157) [0, 20].
   double noise_dn = 0.0;
+  // Sensor blur: each image's optics as a Gaussian point-spread function of
+  // this standard deviation [px], before the detector's noise. Real crops
+  // carry 2.5-3x less texture at the pixel's scale than the generator's
+  // sharp views (decision D-157) [0, 3].
+  double blur_px = 0.0;
   // Cumulus over every second date (dates 1, 3, ...; date 0 stays clear): a
   // layer 1,000 m above the tallest roof whose puffs (60-200 m in radius) would
   // cover this share of the sky if none overlapped [0, 0.8]. Each cloudy

@@ -448,6 +448,52 @@ TEST(Synth, SensorNoiseHasTheAskedSpreadAndIsIndependentBetweenViews) {
       Error);
 }
 
+// Sensor blur (`--blur-px`): the optics' point-spread function softens the
+// texture at the pixel's scale (what a 3 x 3 Laplacian responds to) and
+// keeps the image's mean; 0 leaves the view as it was.
+TEST(Synth, SensorBlurSoftensPixelScaleTextureAndKeepsTheMean) {
+  const Scene s = MakeScene(SmallScene());
+  const SynthView& v = s.result.aois.at(0).views.at(0);
+  auto render = [&](float blur_px) {
+    Lighting light = v.lighting;
+    light.blur_px = blur_px;
+    return RenderView(s.result.city, v.camera, s.result.scene_from_enu, light);
+  };
+  const RenderedView sharp = render(0.0f), soft = render(1.0f);
+  EXPECT_EQ(sharp.rgb, RenderView(s.result.city, v.camera, s.result.scene_from_enu, v.lighting).rgb);
+  // Mean absolute 3 x 3 Laplacian response of the grey image, and its mean.
+  auto texture = [](const RenderedView& img, double* mean) {
+    const int w = img.width_px, h = img.height_px;
+    auto grey = [&](int c, int r) {
+      const std::size_t p = 3 * (static_cast<std::size_t>(r) * w + c);
+      return (img.rgb[p] + img.rgb[p + 1] + img.rgb[p + 2]) / 3.0;
+    };
+    double response = 0, sum = 0;
+    for (int r = 1; r + 1 < h; ++r)
+      for (int c = 1; c + 1 < w; ++c) {
+        response += std::abs(4 * grey(c, r) - grey(c - 1, r) - grey(c + 1, r) - grey(c, r - 1) - grey(c, r + 1));
+        sum += grey(c, r);
+      }
+    *mean = sum / ((w - 2.0) * (h - 2.0));
+    return response / ((w - 2.0) * (h - 2.0));
+  };
+  double mean_sharp = 0, mean_soft = 0;
+  const double t_sharp = texture(sharp, &mean_sharp), t_soft = texture(soft, &mean_soft);
+  std::printf("[figures] --blur-px 1: pixel-scale texture %.2f -> %.2f DN, mean %.2f -> %.2f DN\n", t_sharp, t_soft,
+              mean_sharp, mean_soft);
+  // A Gaussian of 1 px passes about a fifth of a Laplacian's response to
+  // texture at the pixel's scale; the +-1 DN noise added after it stays.
+  EXPECT_LT(t_soft, 0.5 * t_sharp);
+  EXPECT_NEAR(mean_soft, mean_sharp, 0.5);
+  EXPECT_THROW(
+      [] {
+        SynthOptions o;
+        o.blur_px = 4;
+        o.Check();
+      }(),
+      Error);
+}
+
 // Clouds: a puff on the view's ray through the AOI's centre hides the
 // ground there (cloud-white pixels), a puff on the sun's ray from it shades
 // the ground around it (lit pixels lose most of their direct light), and
