@@ -59,6 +59,20 @@ const SynthView& ExtremeView(const SynthResult& r, bool most_oblique) {
   });
 }
 
+// `v` rendered under its own lighting as `change` alters it.
+RenderedView RenderUnder(const SynthResult& r, const SynthView& v, const std::function<void(Lighting&)>& change) {
+  Lighting light = v.lighting;
+  change(light);
+  return RenderView(r.city, v.camera, r.scene_from_enu, light);
+}
+
+// SynthOptions::Check refuses the options as `set` changes them.
+void ExpectCheckRefuses(const std::function<void(SynthOptions&)>& set) {
+  SynthOptions o;
+  set(o);
+  EXPECT_THROW(o.Check(), Error);
+}
+
 // A view rendered without and with cast shadows.
 struct ShadowPair {
   RenderedView lit, shaded;
@@ -397,13 +411,7 @@ TEST(Synth, HazePullsColoursTowardsGreyAndLowersContrast) {
   // Path radiance is an offset: the spread scales by the clear share, 0.3,
   // up to the 8-bit rounding.
   EXPECT_NEAR(spread(hazy) / spread(clear), 0.3, 0.02);
-  EXPECT_THROW(
-      [] {
-        SynthOptions o;
-        o.haze = 0.95;
-        o.Check();
-      }(),
-      Error);
+  ExpectCheckRefuses([](SynthOptions& o) { o.haze = 0.95; });
 }
 
 // Sensor noise (`--noise-dn`): each view gains Gaussian noise of the asked
@@ -415,9 +423,7 @@ TEST(Synth, SensorNoiseHasTheAskedSpreadAndIsIndependentBetweenViews) {
   const SynthView& w = s.result.aois.at(0).views.at(1);
   constexpr float kNoiseDn = 4.0f;
   auto render = [&](const SynthView& view, float noise_dn) {
-    Lighting light = view.lighting;
-    light.noise_dn = noise_dn;
-    return RenderView(s.result.city, view.camera, s.result.scene_from_enu, light).rgb;
+    return RenderUnder(s.result, view, [&](Lighting& light) { light.noise_dn = noise_dn; }).rgb;
   };
   const std::vector<std::uint8_t> clean = render(v, 0.0f), noisy = render(v, kNoiseDn);
   const std::vector<std::uint8_t> clean_w = render(w, 0.0f), noisy_w = render(w, kNoiseDn);
@@ -439,13 +445,7 @@ TEST(Synth, SensorNoiseHasTheAskedSpreadAndIsIndependentBetweenViews) {
   EXPECT_NEAR(sd, kNoiseDn, 0.15);
   EXPECT_NEAR(mean, 0.0, 0.1);
   EXPECT_LT(std::abs(cross / n) / (sd * sd), 0.02);
-  EXPECT_THROW(
-      [] {
-        SynthOptions o;
-        o.noise_dn = 25;
-        o.Check();
-      }(),
-      Error);
+  ExpectCheckRefuses([](SynthOptions& o) { o.noise_dn = 25; });
 }
 
 // Sensor blur (`--blur-px`): the optics' point-spread function softens the
@@ -455,9 +455,7 @@ TEST(Synth, SensorBlurSoftensPixelScaleTextureAndKeepsTheMean) {
   const Scene s = MakeScene(SmallScene());
   const SynthView& v = s.result.aois.at(0).views.at(0);
   auto render = [&](float blur_px) {
-    Lighting light = v.lighting;
-    light.blur_px = blur_px;
-    return RenderView(s.result.city, v.camera, s.result.scene_from_enu, light);
+    return RenderUnder(s.result, v, [&](Lighting& light) { light.blur_px = blur_px; });
   };
   const RenderedView sharp = render(0.0f), soft = render(1.0f);
   EXPECT_EQ(sharp.rgb, RenderView(s.result.city, v.camera, s.result.scene_from_enu, v.lighting).rgb);
@@ -485,13 +483,7 @@ TEST(Synth, SensorBlurSoftensPixelScaleTextureAndKeepsTheMean) {
   // texture at the pixel's scale; the +-1 DN noise added after it stays.
   EXPECT_LT(t_soft, 0.5 * t_sharp);
   EXPECT_NEAR(mean_soft, mean_sharp, 0.5);
-  EXPECT_THROW(
-      [] {
-        SynthOptions o;
-        o.blur_px = 4;
-        o.Check();
-      }(),
-      Error);
+  ExpectCheckRefuses([](SynthOptions& o) { o.blur_px = 4; });
 }
 
 // Clouds: a puff on the view's ray through the AOI's centre hides the
@@ -527,10 +519,10 @@ TEST(Synth, CloudsHideTheGroundFromTheViewAndShadeItFromTheSun) {
   // The two crossings lie far apart: each puff acts on one ray only.
   ASSERT_GT((crossing(to_camera) - crossing(sun)).norm(), 2.5 * kRadiusM);
   auto render = [&](const std::vector<CloudPuff>& puffs) {
-    Lighting light = v.lighting;
-    light.clouds = layer;
-    light.clouds.puffs = puffs;
-    return RenderView(r.city, v.camera, r.scene_from_enu, light);
+    return RenderUnder(r, v, [&](Lighting& light) {
+      light.clouds = layer;
+      light.clouds.puffs = puffs;
+    });
   };
   const RenderedView clear = render({}), hidden = render({{crossing(to_camera), kRadiusM}}),
                      shaded = render({{crossing(sun), kRadiusM}});
