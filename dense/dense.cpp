@@ -235,9 +235,8 @@ CellHeights SweepHeights(const Sweep& sweep, const ViewSlots& v, const HoleFillG
 // ground, the fill from the terrain model, and filled cells' sides decided
 // by the views (o.decide_filled_sides). Coarse heights count as filled: they
 // are not measured at the grid's own scale.
-void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<DenseView>& views,
-                   const Eigen::Vector3d& centre, const HoleFillGrid& fill, Progress& progress, HeightGrid* g,
-                   DenseCounts* counts) {
+void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const HoleFillGrid& fill, Progress& progress,
+                   HeightGrid* g, DenseCounts* counts) {
   const DenseOptions& o = sweep.o;
   const std::size_t cells = sweep.Cells();
   const GroundModel model = GroundModelOf(g->height_m, g->nx, g->ny, fill);
@@ -268,8 +267,7 @@ void FillGridHoles(const Sweep& sweep, const ViewSlots& v, const std::vector<Den
     for (std::size_t k = 0; k < cells; ++k) candidates[k] &= from_coarse[k] ? 0 : 1;
     const std::vector<float> before = g->height_m;
     const dense_detail::SidesDecided decided = dense_detail::DecideFilledSides(
-        sweep, v.to_cameras, dense_detail::NadirFirst(views, v.used, centre), measured_m, model.terrain_m,
-        candidates, fill.radius_cells, g->height_m, progress);
+        sweep, v.to_cameras, measured_m, model.terrain_m, candidates, fill.radius_cells, g->height_m, progress);
     counts->sides_changed = decided.changed;
     counts->roofs_over_unseen_ground = decided.over_unseen_ground;
     for (std::size_t k = 0; k < cells; ++k)
@@ -399,7 +397,7 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
   g.filled.assign(sweep.Cells(), 0);
   g.fill_rule.assign(sweep.Cells(), FillRule::kMatched);
   if (o.fill_holes) {
-    FillGridHoles(sweep, v, views, plan.centre, fill, progress, &g, &counts);
+    FillGridHoles(sweep, v, fill, progress, &g, &counts);
   } else {
     g.terrain_m = GroundModelOf(g.height_m, g.nx, g.ny, fill).terrain_m;  // the DTM, holes or not
   }

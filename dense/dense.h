@@ -65,14 +65,16 @@ struct DenseCoarseOptions {
 // texture fills most of a ground cell's window, and a band of ground about
 // a window radius wide takes the roof's height. Filled cells are decided
 // again (DenseStepOptions) with adaptive support weights (Yoon and
-// Kweon's): a window of `radius_cells` whose cells weigh by how like the
-// centre they look in the most nadir view that sees it (`grey_sigma`, on
-// grey scaled so its 99th percentile is 1) and by distance, so the centre's
-// own surface decides, not the wall's other side. (Deciding measured cells
+// Kweon's): a window of `radius_cells` whose cells weigh, for each pair of
+// views, by how like the centre they look in both views (the mean of the
+// two grey differences over `grey_sigma`, on grey scaled so its 99th
+// percentile is 1) and by distance, so the centre's own surface decides,
+// not the wall's other side. (Weights from the most nadir view alone left a
+// stereo pair's filled ground leaning: decision D-159.) (Deciding measured cells
 // beside steps the same way was tried and not adopted: decision D-063.)
 struct DenseSupportOptions {
   int radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
-  double grey_sigma = 0.05; // grey difference at which a cell's weight falls to 1/e
+  double grey_sigma = 0.05; // mean grey difference of the pair's two views at which a cell's weight falls to 1/e
 };
 
 // After filling, each filled cell (not from the coarse sweep) is scored at
@@ -228,8 +230,8 @@ template <class IO> void Visit(IO& io, DenseOptions& o) {
   io("support_radius_cells", o.support.radius_cells,
      "Radius of the adaptive support-weight window", range::AtLeast(1));
   io("support_grey_sigma", o.support.grey_sigma,
-     "Grey difference at which a cell's support weight falls to 1/e (on grey scaled so that its 99th percentile is "
-     "1)", range::Above(0));
+     "Grey difference from the window's centre, the mean of a pair's two views, at which a cell's support weight "
+     "falls to 1/e (on grey scaled so that its 99th percentile is 1)", range::Above(0));
   io("step_cost_margin", o.steps.cost_margin,
      "A cell changes side only when the other side's cost is lower by this much (and at most max_cost)",
      range::AtLeast(0));

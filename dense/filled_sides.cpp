@@ -15,7 +15,7 @@ namespace {
 
 // Scratch buffers of SupportWeightedCost, one per thread.
 struct SupportScratch {
-  std::vector<float> samples, weights, weighted, mean, inv_std;
+  std::vector<float> samples, distance;
   std::vector<std::uint8_t> usable;
 };
 
@@ -44,88 +44,68 @@ bool SampleSupportWindow(const Sweep& s, std::size_t v, int i, int j, double hei
   return true;
 }
 
-// The window's support weights from the reference view's samples `ref`
-// (see above) into t.weights; returns their sum.
-float SupportWeights(const Sweep& s, const float* ref, SupportScratch& t) {
-  const int r = s.o.support.radius_cells, w = 2 * r + 1, n = w * w;
-  const float centre = ref[r * w + r];
-  const float inv_sigma = static_cast<float>(1.0 / s.o.support.grey_sigma);
-  for (int b = -r; b <= r; ++b)
-    for (int a = -r; a <= r; ++a) {
-      const int q = (b + r) * w + (a + r);
-      const float distance = std::sqrt(static_cast<float>(a * a + b * b)) / static_cast<float>(r);
-      t.weights[q] = std::exp(-std::abs(ref[q] - centre) * inv_sigma - distance);
-    }
-  float weight_sum = 0;
-  for (int q = 0; q < n; ++q) weight_sum += t.weights[q];
-  return weight_sum;
-}
-
-// Per usable view: its weighted samples (w x) and weighted mean and
-// inverse standard deviation (0 where too plain to correlate), so that per
-// pair only the weighted product remains.
-void WeightedViewStatistics(const Sweep& s, int n, float inv_weight, SupportScratch& t) {
-  const std::size_t views = s.grey.size();
-  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
-  t.weighted.resize(views * n);
-  t.mean.assign(views, 0.0f);
-  t.inv_std.assign(views, 0.0f);
-  for (std::size_t v = 0; v < views; ++v) {
-    if (!t.usable[v]) continue;
-    const float* x = t.samples.data() + v * n;
-    float* wx = t.weighted.data() + v * n;
-    float sx = 0, sxx = 0;
-    for (int q = 0; q < n; ++q) {
-      wx[q] = t.weights[q] * x[q];
-      sx += wx[q];
-      sxx += wx[q] * x[q];
-    }
-    const float mean = sx * inv_weight, var = sxx * inv_weight - mean * mean;
-    t.mean[v] = mean;
-    if (var > min_var) t.inv_std[v] = 1.0f / std::sqrt(var);
+// One pair's cost on the window: 1 - NCC with each window cell weighted by
+// exp(-(|a - a_centre| + |b - b_centre|) / (2 sigma) - distance / R), the
+// mean of its grey differences from the centre in the two views (Yoon and
+// Kweon's weights from both images), truncated at `trunc`, also where a
+// view's weighted window is too plain to correlate.
+float PairSupportCost(const Sweep& s, const float* a, const float* b, const float* distance, float trunc) {
+  const int r = s.o.support.radius_cells, n = (2 * r + 1) * (2 * r + 1);
+  const float a_centre = a[n / 2], b_centre = b[n / 2];
+  const float inv_two_sigma = static_cast<float>(0.5 / s.o.support.grey_sigma);
+  float sw = 0, sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  for (int q = 0; q < n; ++q) {
+    const float w = std::exp(-(std::abs(a[q] - a_centre) + std::abs(b[q] - b_centre)) * inv_two_sigma - distance[q]);
+    const float wa = w * a[q], wb = w * b[q];
+    sw += w;
+    sa += wa;
+    sb += wb;
+    saa += wa * a[q];
+    sbb += wb * b[q];
+    sab += wa * b[q];
   }
+  const float inv_w = 1.0f / sw;
+  const float mean_a = sa * inv_w, mean_b = sb * inv_w;
+  const float var_a = saa * inv_w - mean_a * mean_a, var_b = sbb * inv_w - mean_b * mean_b;
+  const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  if (!(var_a > min_var) || !(var_b > min_var)) return trunc;
+  const float covariance = sab * inv_w - mean_a * mean_b;
+  return std::min(trunc, 1.0f - covariance / std::sqrt(var_a * var_b));
 }
 
 // One candidate height of one cell scored with adaptive support weights:
 // every view that sees the point (all views without `seen_above`) is
-// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each window
-// cell weighs exp(-|grey - centre grey| / sigma - distance / R) in the first
-// view of `nadir_first` that sees it with the whole window inside the
-// image; each pair scores 1 - weighted NCC (truncated, the truncation where
-// a window is too plain), averaged as the masked sweep does. NaN when no
-// view can serve as the reference.
-float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above,
-                          const std::vector<int>& nadir_first, int i, int j, double height_m, SupportScratch& t) {
+// sampled on the (2R+1)^2 window of cells lifted to `height_m`; each pair
+// of views that both see it scores PairSupportCost, averaged as the masked
+// sweep does. NaN when no view sees the point.
+float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>* seen_above, int i, int j,
+                          double height_m, SupportScratch& t) {
   const int r = s.o.support.radius_cells, w = 2 * r + 1, n = w * w;
   const std::size_t views = s.grey.size();
   const std::size_t centre_cell = s.grid.Index(i, j);
   t.samples.resize(views * n);
-  t.weights.resize(n);
   t.usable.assign(views, 0);
+  bool any_usable = false;
   for (std::size_t v = 0; v < views; ++v) {
     if (seen_above && height_m < (*seen_above)[v][centre_cell]) continue;
     t.usable[v] = SampleSupportWindow(s, v, i, j, height_m, t.samples.data() + v * n) ? 1 : 0;
+    any_usable = any_usable || t.usable[v];
   }
-  const auto reference = std::find_if(nadir_first.begin(), nadir_first.end(), [&](int v) { return t.usable[v]; });
-  if (reference == nadir_first.end()) return kNan;
-  const float inv_weight = 1.0f / SupportWeights(s, t.samples.data() + static_cast<std::size_t>(*reference) * n, t);
-  WeightedViewStatistics(s, n, inv_weight, t);
+  if (!any_usable) return kNan;
+  if (t.distance.size() != static_cast<std::size_t>(n)) {
+    t.distance.resize(n);
+    for (int b = -r; b <= r; ++b)
+      for (int a = -r; a <= r; ++a)
+        t.distance[(b + r) * w + (a + r)] = std::sqrt(static_cast<float>(a * a + b * b)) / static_cast<float>(r);
+  }
   const float trunc = static_cast<float>(s.o.cost_truncation);
   float sum = 0, count = 0;
   for (const DensePair& p : s.pairs) {
     const int va = s.slot[p.a], vb = s.slot[p.b];
     if (!t.usable[va] || !t.usable[vb]) continue;
     count += 1;
-    if (t.inv_std[va] == 0 || t.inv_std[vb] == 0) {
-      sum += trunc;
-      continue;
-    }
-    const float* wx = t.weighted.data() + static_cast<std::size_t>(va) * n;
-    const float* y = t.samples.data() + static_cast<std::size_t>(vb) * n;
-    float sxy = 0;
-    for (int q = 0; q < n; ++q) sxy += wx[q] * y[q];
-    const float covariance = sxy * inv_weight - t.mean[va] * t.mean[vb];
-    sum += std::min(trunc, 1.0f - covariance * t.inv_std[va] * t.inv_std[vb]);
+    sum += PairSupportCost(s, t.samples.data() + static_cast<std::size_t>(va) * n,
+                           t.samples.data() + static_cast<std::size_t>(vb) * n, t.distance.data(), trunc);
   }
   // The visibility pass's prior, as if prior_pairs more of the other pairs
   // had added the truncation cost, here at most the other pairs there are:
@@ -138,17 +118,6 @@ float SupportWeightedCost(const Sweep& s, const std::vector<std::vector<float>>*
 }
 
 }  // namespace
-
-// The view slots ordered most nadir first: the reference view of
-// SupportWeightedCost's weights.
-std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
-                            const Eigen::Vector3d& centre) {
-  std::vector<int> order(used_views.size());
-  std::iota(order.begin(), order.end(), 0);
-  auto up = [&](int k) { return (views[used_views[k]].camera.Centre() - centre).normalized().z(); };
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return up(a) > up(b); });
-  return order;
-}
 
 // DenseOptions::decide_filled_sides: each filled cell (`candidates`) is
 // scored (SupportWeightedCost) at the ground (`terrain_m`) and at a raised
@@ -167,7 +136,7 @@ std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vect
 // visibility pass. Returns how many cells changed side, and how many of
 // them took the roof over ground no view sees.
 SidesDecided DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
-                               const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                               const std::vector<float>& measured_m,
                                const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
                                int reach_cells, std::vector<float>& height_m, Progress& progress) {
   const HeightGrid& g = s.grid;
@@ -206,8 +175,8 @@ SidesDecided DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d
       const float ground = terrain_m[k];
       const float roof = filled_raised ? before[k] : std::isfinite(raised_near[k]) ? raised_near[k] : raised_far[k];
       if (!std::isfinite(roof)) continue;
-      const float cost_ground = SupportWeightedCost(s, &seen_above, nadir_first, i, j, ground, t);
-      const float cost_roof = SupportWeightedCost(s, &seen_above, nadir_first, i, j, roof, t);
+      const float cost_ground = SupportWeightedCost(s, &seen_above, i, j, ground, t);
+      const float cost_roof = SupportWeightedCost(s, &seen_above, i, j, roof, t);
       if (!std::isfinite(cost_roof)) continue;
       if (!std::isfinite(cost_ground)) {
         // No view sees the ground here: a roof that matches well is the

@@ -85,16 +85,13 @@ std::vector<std::vector<float>> SeenAbove(const HeightGrid& g, const std::vector
                                           const std::vector<Eigen::Vector3d>& to_cameras, double floor_m,
                                           double tolerance_m, int near_cells);
 
-// The view slots most nadir first, and the decision of filled cells'
-// sides (filled_sides.cpp).
-std::vector<int> NadirFirst(const std::vector<DenseView>& views, const std::vector<int>& used_views,
-                            const Eigen::Vector3d& centre);
+// The decision of filled cells' sides (filled_sides.cpp).
 struct SidesDecided {
   std::size_t changed = 0;          // filled cells that took the other side
   std::size_t over_unseen_ground = 0;  // of them, roofs taken where no view sees the ground
 };
 SidesDecided DecideFilledSides(const Sweep& s, const std::vector<Eigen::Vector3d>& to_cameras,
-                               const std::vector<int>& nadir_first, const std::vector<float>& measured_m,
+                               const std::vector<float>& measured_m,
                                const std::vector<float>& terrain_m, const std::vector<std::uint8_t>& candidates,
                                int reach_cells, std::vector<float>& height_m, Progress& progress);
 
