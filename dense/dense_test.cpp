@@ -678,6 +678,22 @@ TEST(Dense, AStereoPairDecidesTheSidesOfItsFilledCellsToo) {
   EXPECT_GE(decided.ground_right, rules.ground_right - rules.ground / 100);
 }
 
+// TwoBuildingsView's scene seen by two cameras as the only pair, with tie
+// points at the ground's corners and one on the east building's roof.
+struct PairScene {
+  std::vector<DenseView> views;
+  std::vector<DensePair> pairs;
+  std::vector<Eigen::Vector3d> points;
+};
+PairScene TwoBuildingsPair(const PinholeCamera& a, const PinholeCamera& b, double street_half_m, double roof_m) {
+  PairScene scene;
+  scene.views = {testing::TwoBuildingsView("a", a, street_half_m, roof_m),
+                 testing::TwoBuildingsView("b", b, street_half_m, roof_m)};
+  scene.pairs = {{0, 1, 100}};
+  scene.points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {street_half_m + 2, 0, roof_m}};
+  return scene;
+}
+
 // A pair whose two views both look from the east (north-east and
 // south-east, as many a real pair does): the ground beside each building's
 // west wall is hidden from both, and the roof cells along that rim that the
@@ -687,11 +703,7 @@ TEST(Dense, AStereoPairDecidesTheSidesOfItsFilledCellsToo) {
 TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
   NullProgress progress;
   constexpr double kRoofM = 20.0, kStreetHalfM = 6.0;
-  const std::vector<DenseView> views = {
-      testing::TwoBuildingsView("north-east", LookingDown(20, 30, 128), kStreetHalfM, kRoofM),
-      testing::TwoBuildingsView("south-east", LookingDown(15, 150, 128), kStreetHalfM, kRoofM)};
-  const std::vector<DensePair> pairs = {{0, 1, 100}};
-  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {8, 0, kRoofM}};
+  const PairScene scene = TwoBuildingsPair(LookingDown(20, 30, 128), LookingDown(15, 150, 128), kStreetHalfM, kRoofM);
   struct Counts {
     int rim = 0, rim_right = 0, ground = 0, ground_right = 0;
     double over_unseen_ground = 0;
@@ -699,7 +711,7 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
   auto run = [&](double unseen_roof_cost) {
     DenseOptions o;
     o.steps.unseen_ground_roof_cost = unseen_roof_cost;
-    const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
+    const DenseResult r = RunDenseHeights(o, scene.views, scene.pairs, scene.points, progress);
     EXPECT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
     Counts c;
     c.over_unseen_ground = r.report.metrics.at("filled_roof_over_unseen_ground_fraction");
@@ -745,13 +757,8 @@ TEST(Dense, RoofRimsBesideGroundNoViewSeesTakeTheRoofWhereItMatches) {
 TEST(Dense, APairWeighsEachWindowCellByBothViews) {
   NullProgress progress;
   constexpr double kRoofM = 20.0, kStreetHalfM = 6.0;
-  const std::vector<DenseView> views = {
-      testing::TwoBuildingsView("nadir", LookingDown(0, 0, 128), kStreetHalfM, kRoofM),
-      testing::TwoBuildingsView("east", LookingDown(25, 90, 128), kStreetHalfM, kRoofM)};
-  const std::vector<DensePair> pairs = {{0, 1, 100}};
-  const std::vector<Eigen::Vector3d> points = {{-25, -25, 0}, {25, -25, 0}, {-25, 25, 0}, {25, 25, 0}, {8, 0, kRoofM}};
-  DenseOptions o;
-  const DenseResult r = RunDenseHeights(o, views, pairs, points, progress);
+  const PairScene scene = TwoBuildingsPair(LookingDown(0, 0, 128), LookingDown(25, 90, 128), kStreetHalfM, kRoofM);
+  const DenseResult r = RunDenseHeights(DenseOptions{}, scene.views, scene.pairs, scene.points, progress);
   ASSERT_EQ(r.report.status, StageStatus::kOk) << r.report.message;
   int ground = 0, ground_right = 0, roof = 0, roof_right = 0;
   ForEachCell(r.grid, [&](double x, double y, float h) {
