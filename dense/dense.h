@@ -69,9 +69,10 @@ struct DenseCoarseOptions {
 // views, by how like the centre they look in both views (the mean of the
 // two grey differences over `grey_sigma`, on grey scaled so its 99th
 // percentile is 1) and by distance, so the centre's own surface decides,
-// not the wall's other side. (Weights from the most nadir view alone left a
-// stereo pair's filled ground leaning: decision D-159.) (Deciding measured cells
-// beside steps the same way was tried and not adopted: decision D-063.)
+// not the wall's other side. Weights from the most nadir view alone left a
+// stereo pair's filled ground leaning toward its walls (decision D-159).
+// Deciding measured cells beside steps the same way was tried and not
+// adopted (decision D-063).
 struct DenseSupportOptions {
   int radius_cells = 4;     // [cells] the weighted window's radius (9 x 9 cells)
   double grey_sigma = 0.05; // mean grey difference of the pair's two views at which a cell's weight falls to 1/e
