@@ -6,21 +6,14 @@
 
 #include "core/error.h"
 #include "core/format.h"
+#include "testcity/hash.h"
 
 namespace skyfall::synth {
 namespace {
 
-std::uint64_t SplitMix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
 float LatticeValue(std::int64_t i, std::int64_t j, std::uint64_t seed) {
-  const std::uint64_t h = SplitMix(seed ^ SplitMix(static_cast<std::uint64_t>(i) * 0x1F1F1F1Full ^
-                                                   SplitMix(static_cast<std::uint64_t>(j))));
-  return static_cast<float>((h >> 40) * (1.0 / 16777216.0));
+  return Unit01(SplitMix64(seed ^ SplitMix64(static_cast<std::uint64_t>(i) * 0x1F1F1F1Full ^
+                                             SplitMix64(static_cast<std::uint64_t>(j)))));
 }
 
 const Eigen::Vector3f kRoofPalette[] = {

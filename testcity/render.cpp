@@ -8,6 +8,8 @@
 #include <cmath>
 #include <limits>
 
+#include "testcity/hash.h"
+
 namespace skyfall::synth {
 namespace {
 
@@ -281,24 +283,11 @@ bool InShadow(const City& city, const Eigen::Vector3d& p, const Eigen::Vector3d&
   return false;
 }
 
-// SplitMix64's finalizer: every input bit reaches every output bit, so
-// keys that differ by one (neighbouring views, pixels) give independent
-// draws.
-std::uint64_t SplitMix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
-// The top 24 bits of `x` as a float in [0, 1).
-float Unit01(std::uint64_t x) { return static_cast<float>((x >> 40) * (1.0 / 16777216.0)); }
-
 float Hash01(std::uint64_t a, std::uint64_t b) {
   std::uint64_t x = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull);
   x = (x ^ (x >> 31)) * 0xBF58476D1CE4E5B9ull;
   x ^= x >> 29;
-  return static_cast<float>((x >> 40) * (1.0 / 16777216.0));
+  return Unit01(x);
 }
 
 const Eigen::Vector3f kCarPalette[8] = {{0.85f, 0.85f, 0.85f}, {0.1f, 0.1f, 0.1f},
