@@ -347,6 +347,12 @@ void ReportMetrics(const DenseOptions& o, const SweepPlan& plan, const ViewSlots
   if (plan.probe_top_m) r->metrics["probe_top_m"] = *plan.probe_top_m;
   r->metrics["pairs"] = static_cast<double>(pairs);
   r->metrics["views"] = static_cast<double>(v.used.size());
+  // The noisiest view's sensor noise, as a fraction of its 99th percentile
+  // grey level, and the share of its variance the windows discount.
+  float noise_std = 0;
+  for (const dense_detail::GreyImage& grey : v.grey) noise_std = std::max(noise_std, grey.noise_std);
+  r->metrics["view_noise_std_max"] = noise_std;
+  r->metrics["noise_compensation"] = o.noise_compensation;
   r->metrics["valid_fraction"] = static_cast<double>(n.measured) / all;
   r->metrics["filled_fraction"] = static_cast<double>(n.valid - n.measured) / all;
   r->metrics["rejected_cost_fraction"] = 1.0 - static_cast<double>(picked.low_cost) / all;

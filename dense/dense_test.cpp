@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/simd.h"
 #include "dense/dense_test_scene.h"
+#include "dense/sweep.h"
 
 namespace skyfall {
 namespace {
@@ -813,6 +814,94 @@ TEST(Dense, TheFattenedBandBesideAStepDoesNotHideItsOwnGround) {
   EXPECT_EQ(BrightRoofBand(window_does_not, scene.roof_m, -2.0, -0.25).wrong,
             BrightRoofBand(every_cell_hides, scene.roof_m, -2.0, -0.25).wrong);
   EXPECT_EQ(BrightRoofBand(window_does_not, scene.roof_m, 4.0, 100.0).wrong, 0);
+}
+
+// `v` with white Gaussian noise of `sigma` grey levels added (seeded).
+DenseView WithNoise(DenseView v, float sigma, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, sigma);
+  for (float& p : v.pixels) p += noise(rng);
+  return v;
+}
+
+TEST(Dense, TheNoiseEstimateFindsSensorNoiseUnderTexture) {
+  constexpr float kSigmaGrey = 4.0f;
+  // The noise in ToGrey's units (the 99th percentile scaled to 1).
+  auto in_grey_units = [](const DenseView& v, float sigma_grey) {
+    std::vector<float> sorted = v.pixels;
+    std::sort(sorted.begin(), sorted.end());
+    return sigma_grey / sorted[static_cast<std::size_t>(0.99 * (sorted.size() - 1))];
+  };
+  // The 10th percentile of 225 blocks' rms over 256 pixels each: a block's
+  // estimate spreads by about 1 / sqrt(2 * 256) = 4.4%, so the percentile
+  // sits about 6% under the noise. Within -15% and +10%.
+  constexpr float kBelow = 0.85f, kAbove = 1.10f;
+  // Texture smooth at the pixel's scale (the 1 m lattice seen at 0.125 m):
+  // the estimate is the noise's, and the texture alone reads as almost none.
+  const DenseView smooth = TexturedView("v", LookingDown(0, 0, 256, 0.125), 0.0, 0.0);
+  const float sigma = in_grey_units(smooth, kSigmaGrey);
+  const float smooth_noisy = dense_detail::ToGrey(WithNoise(smooth, kSigmaGrey, 7)).noise_std;
+  EXPECT_GT(smooth_noisy, kBelow * sigma);
+  EXPECT_LT(smooth_noisy, kAbove * sigma);
+  EXPECT_LT(dense_detail::ToGrey(smooth).noise_std, 0.1f * sigma);
+  // Texture rough at the pixel's scale (the lattice at 0.5 m: a kink every
+  // other pixel) reads as noise too, and real noise adds to it in quadrature.
+  const DenseView rough = TexturedView("v", LookingDown(0, 0, 256, 0.5), 0.0, 0.0);
+  const float rough_sigma = in_grey_units(rough, kSigmaGrey);
+  const float texture = dense_detail::ToGrey(rough).noise_std;
+  const float rough_noisy = dense_detail::ToGrey(WithNoise(rough, kSigmaGrey, 7)).noise_std;
+  const float expected = std::hypot(rough_sigma, texture);
+  EXPECT_GT(rough_noisy, kBelow * expected);
+  EXPECT_LT(rough_noisy, kAbove * expected);
+  // No whole block: nothing to estimate from.
+  dense_detail::GreyImage tiny;
+  tiny.width = tiny.height = 8;
+  tiny.values.assign(64, 0.5f);
+  EXPECT_EQ(dense_detail::EstimateNoiseStd(tiny), 0.0f);
+}
+
+TEST(Dense, NoiseCompensationMatchesNoisyViewsThatPlainNccRejects) {
+  // A plateau on textured ground seen by four views with strong sensor
+  // noise: plain NCC of a true match falls under 1 - max_cost on much of
+  // the ground, and the noise's share of each window's variance taken out
+  // brings those cells back at the right height.
+  NullProgress progress;
+  constexpr float kSigmaGrey = 24.0f;  // against a texture of 30-40 grey levels rms
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 15, 20, 25}, azimuth_deg[] = {0, 90, 200, 320};
+  for (int v = 0; v < 4; ++v)
+    views.push_back(WithNoise(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v]), 6.0, 8.0),
+                              kSigmaGrey, 11 + v));
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {0, 3, 100}, {1, 2, 100}, {2, 3, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-20, -20, 0}, {20, -20, 0}, {-20, 20, 0}, {20, 20, 6}, {0, 0, 6}};
+  DenseOptions plain;
+  plain.noise_compensation = 0.0;
+  plain.fill_holes = false;
+  DenseOptions compensated = plain;
+  compensated.noise_compensation = DenseOptions{}.noise_compensation;
+  const DenseResult a = RunDenseHeights(plain, views, pairs, points, progress);
+  const DenseResult b = RunDenseHeights(compensated, views, pairs, points, progress);
+  ASSERT_EQ(a.report.status, StageStatus::kOk) << a.report.message;
+  ASSERT_EQ(b.report.status, StageStatus::kOk) << b.report.message;
+  EXPECT_GT(b.report.metrics.at("view_noise_std_max"), 0.0);
+  // Right: within 0.5 m (two sweep steps) of the plateau or the ground.
+  auto count = [](const HeightGrid& g, std::size_t* right) {
+    std::size_t measured = 0;
+    *right = 0;
+    ForEachCell(g, [&](double x, double y, float h) {
+      if (!std::isfinite(h)) return;
+      ++measured;
+      const bool plateau = std::abs(x) <= 7.5 && std::abs(y) <= 7.5, ground = std::abs(x) >= 8.5 || std::abs(y) >= 8.5;
+      if ((plateau && std::abs(h - 6.0f) <= 0.5f) || (ground && std::abs(h) <= 0.5f)) ++*right;
+    });
+    return measured;
+  };
+  std::size_t right_a = 0, right_b = 0;
+  const std::size_t measured_a = count(a.grid, &right_a), measured_b = count(b.grid, &right_b);
+  // Measured: 4,596 -> 5,426 cells right, 71 -> 324 wrong.
+  EXPECT_GT(right_b, right_a + right_a / 10);  // at least a tenth more cells right,
+  const std::size_t wrong_a = measured_a - right_a, wrong_b = measured_b - right_b;
+  EXPECT_LT(wrong_b, wrong_a + (right_b - right_a) / 2);  // and at least two right for each wrong one added
 }
 
 TEST(Dense, EverySimdPathGivesTheBaselineHeights) {

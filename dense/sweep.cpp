@@ -227,7 +227,34 @@ GreyImage ToGrey(const DenseView& v) {
   const float p99 = Quantile(std::move(finite), 0.99);
   const float scale = p99 > 0 ? 1.0f / p99 : 1.0f;
   for (float& x : g.values) x *= scale;
+  g.noise_std = EstimateNoiseStd(g);
   return g;
+}
+
+float EstimateNoiseStd(const GreyImage& g) {
+  constexpr int kBlock = 16;
+  constexpr double kMaskGain = 6.0;  // sqrt of the sum of the mask's squared weights (1 4 1 4 16 4 1 4 1)
+  constexpr double kPercentile = 0.10;
+  const int w = g.width;
+  auto at = [&](int x, int y) { return g.values[static_cast<std::size_t>(y) * w + x]; };
+  std::vector<float> block_std;
+  for (int by = 1; by + kBlock < g.height; by += kBlock)
+    for (int bx = 1; bx + kBlock < w; bx += kBlock) {
+      double squares = 0;
+      bool finite = true;
+      for (int y = by; y < by + kBlock && finite; ++y)
+        for (int x = bx; x < bx + kBlock; ++x) {
+          const float l = at(x - 1, y - 1) - 2 * at(x, y - 1) + at(x + 1, y - 1) - 2 * at(x - 1, y) + 4 * at(x, y) -
+                          2 * at(x + 1, y) + at(x - 1, y + 1) - 2 * at(x, y + 1) + at(x + 1, y + 1);
+          if (!std::isfinite(l)) {
+            finite = false;
+            break;
+          }
+          squares += static_cast<double>(l) * l;
+        }
+      if (finite) block_std.push_back(static_cast<float>(std::sqrt(squares / (kBlock * kBlock)) / kMaskGain));
+    }
+  return block_std.empty() ? 0.0f : static_cast<float>(Quantile(std::move(block_std), kPercentile));
 }
 
 Projection ProjectionOf(const PinholeCamera& c) {
@@ -251,6 +278,7 @@ void StripCosts(const Sweep& s, const std::vector<std::vector<float>>* seen_abov
   const int r = s.o.window_cells / 2;
   const float trunc = static_cast<float>(s.o.cost_truncation);
   const float min_var = static_cast<float>(s.o.min_std * s.o.min_std);
+  const float noise_share = static_cast<float>(s.o.noise_compensation);
   const int j1 = std::min(g.ny, j0 + kStripRows);
   const int s0 = std::max(0, j0 - r), s1 = std::min(g.ny, j1 + r);
   const int rows = s1 - s0;
@@ -258,7 +286,9 @@ void StripCosts(const Sweep& s, const std::vector<std::vector<float>>* seen_abov
   const std::size_t n = static_cast<std::size_t>(rows) * g.nx;
   for (std::size_t v = 0; v < views; ++v) {
     WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, s0, s1, t.warped.data(), t.warp_scratch);
-    kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, t.stats[v].values.data(), t.stats[v].mean.data(),
+    const float noise_var = noise_share * s.grey[v].noise_std * s.grey[v].noise_std;
+    kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, noise_var, t.stats[v].values.data(),
+                         t.stats[v].mean.data(),
                          t.stats[v].inv_std.data(), t.scratch.data());
   }
   std::fill(t.sum.begin(), t.sum.begin() + n, 0.0f);

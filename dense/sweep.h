@@ -24,9 +24,18 @@ constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
 struct GreyImage {
   int width = 0, height = 0;
   std::vector<float> values;
+  float noise_std = 0;  // the sensor noise's standard deviation, in the same units (EstimateNoiseStd)
 };
 
 GreyImage ToGrey(const DenseView& v);
+
+// The standard deviation of white sensor noise in `g`, from the flattest
+// tenth of the image: Immerkaer's Laplacian mask (its response to noise
+// has 6 times the noise's deviation and to a linear ramp none), its rms
+// per block of 16 x 16 pixels, and the 10th percentile of the blocks.
+// Texture raises the estimate; blocks holding a NaN are skipped; 0 for an
+// image with no whole block.
+float EstimateNoiseStd(const GreyImage& g);
 
 using Projection = Eigen::Matrix<double, 3, 4>;
 Projection ProjectionOf(const PinholeCamera& c);
