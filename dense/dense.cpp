@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <utility>
 
 #include "core/error.h"
 #include "core/format.h"
@@ -152,7 +153,7 @@ struct ViewSlots {
 };
 
 ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, const std::vector<DensePair>& pairs,
-                    const Eigen::Vector3d& centre) {
+                    const Eigen::Vector3d& centre, double finest_gsd_m) {
   ViewSlots v;
   for (const DensePair& p : pairs) {
     v.used.push_back(p.a);
@@ -163,7 +164,15 @@ ViewSlots SlotViews(const DenseOptions& o, const std::vector<DenseView>& views, 
   v.slot.assign(views.size(), -1);
   for (int k : v.used) {
     v.slot[k] = static_cast<int>(v.grey.size());
-    v.grey.push_back(dense_detail::ToGrey(views[k]));
+    dense_detail::GreyImage grey = dense_detail::ToGrey(views[k]);
+    // Cells finer than the sensor's pixels sample each pixel's noise several
+    // times, so a window holds fewer independent noise values and less of
+    // the noise's variance: the noise as the grid sees it scales with cell
+    // over pixel (decision D-161: a 2.1 m sensor on 1 m cells, compensated
+    // for the whole of it, lost 14% of its DSM). Sub-metre sensors' 0.5 m
+    // cells are no finer than their pixels.
+    if (finest_gsd_m > o.cell_m) grey.noise_std *= static_cast<float>(o.cell_m / finest_gsd_m);
+    v.grey.push_back(std::move(grey));
     v.projection.push_back(dense_detail::ProjectionOf(views[k].camera));
     v.to_cameras.push_back(views[k].camera.Centre() - centre);
   }
@@ -347,8 +356,9 @@ void ReportMetrics(const DenseOptions& o, const SweepPlan& plan, const ViewSlots
   if (plan.probe_top_m) r->metrics["probe_top_m"] = *plan.probe_top_m;
   r->metrics["pairs"] = static_cast<double>(pairs);
   r->metrics["views"] = static_cast<double>(v.used.size());
-  // The noisiest view's sensor noise, as a fraction of its 99th percentile
-  // grey level, and the share of its variance the windows discount.
+  // The noisiest view's sensor noise as the grid's cells sample it, as a
+  // fraction of its 99th percentile grey level, and the share of its
+  // variance the windows discount.
   float noise_std = 0;
   for (const dense_detail::GreyImage& grey : v.grey) noise_std = std::max(noise_std, grey.noise_std);
   r->metrics["view_noise_std_max"] = noise_std;
@@ -390,7 +400,7 @@ DenseResult RunDenseHeights(const DenseOptions& given, const std::vector<DenseVi
                       ": fewer than 3, no extent or height range to sweep");
   result.pairs_used = SelectDensePairs(o, views, pairs, plan.centre);
   if (result.pairs_used.empty()) return degenerate("no image pair has enough tie points at a usable intersection angle");
-  const ViewSlots v = SlotViews(o, views, result.pairs_used, plan.centre);
+  const ViewSlots v = SlotViews(o, views, result.pairs_used, plan.centre, plan.finest_gsd_m);
   const HoleFillGrid fill = o.fill.OnGrid(o.cell_m);
   RaiseRangeToProbe(o, g, v, result.pairs_used, progress, &plan);
   result.report.message = plan.note;
