@@ -904,6 +904,37 @@ TEST(Dense, NoiseCompensationMatchesNoisyViewsThatPlainNccRejects) {
   EXPECT_LT(wrong_b, wrong_a + (right_b - right_a) / 2);  // and at least two right for each wrong one added
 }
 
+TEST(Dense, CellsFinerThanThePixelsDiscountLessNoise) {
+  // A 1 m sensor swept on its own 1 m cells and on 0.5 m cells: the finer
+  // grid samples each pixel's noise twice per side, and the noise it
+  // discounts is scaled by cell over pixel (D-161: a 2.1 m sensor on 1 m
+  // cells lost 14% with the whole estimate discounted).
+  NullProgress progress;
+  std::vector<DenseView> views;
+  const double zenith_deg[] = {0, 15, 20}, azimuth_deg[] = {0, 90, 200};
+  for (int v = 0; v < 3; ++v)
+    views.push_back(WithNoise(TexturedView("v" + std::to_string(v), LookingDown(zenith_deg[v], azimuth_deg[v], 128, 1.0),
+                                           6.0, 8.0),
+                              8.0f, 21 + v));
+  const std::vector<DensePair> pairs = {{0, 1, 100}, {0, 2, 100}, {1, 2, 100}};
+  const std::vector<Eigen::Vector3d> points = {{-40, -40, 0}, {40, -40, 0}, {-40, 40, 0}, {40, 40, 6}, {0, 0, 6}};
+  DenseOptions own, finer;
+  own.cell_m = 1.0;
+  finer.cell_m = 0.5;
+  const DenseResult a = RunDenseHeights(own, views, pairs, points, progress);
+  const DenseResult b = RunDenseHeights(finer, views, pairs, points, progress);
+  ASSERT_EQ(a.report.status, StageStatus::kOk) << a.report.message;
+  ASSERT_EQ(b.report.status, StageStatus::kOk) << b.report.message;
+  const double pixel_m = a.report.metrics.at("finest_gsd_m");
+  ASSERT_NEAR(pixel_m, 1.0, 0.01);
+  EXPECT_GT(a.report.metrics.at("view_noise_std_max"), 0.0);
+  // Cells no finer than the pixel keep the estimate; finer ones scale it by
+  // cell / pixel. The pixel is 1 m to within 1%, on either side of the
+  // 1 m cell: the ratio of the two is 0.5 / min(pixel, 1 m).
+  const double ratio = b.report.metrics.at("view_noise_std_max") / a.report.metrics.at("view_noise_std_max");
+  EXPECT_NEAR(ratio, 0.5 / std::min(pixel_m, 1.0), 1e-5);
+}
+
 TEST(Dense, EverySimdPathGivesTheBaselineHeights) {
   // The sweep's kernels run the same float operations per cell at every
   // width and reorder no sum (window sums run in the same order; the only
