@@ -288,8 +288,7 @@ void StripCosts(const Sweep& s, const std::vector<std::vector<float>>* seen_abov
     WarpToGrid(kernels, s.grey[v], s.projection[v], g, height, s0, s1, t.warped.data(), t.warp_scratch);
     const float noise_var = noise_share * s.grey[v].noise_std * s.grey[v].noise_std;
     kernels.window_stats(t.warped.data(), g.nx, rows, r, min_var, noise_var, t.stats[v].values.data(),
-                         t.stats[v].mean.data(),
-                         t.stats[v].inv_std.data(), t.scratch.data());
+                         t.stats[v].mean.data(), t.stats[v].inv_std.data(), t.scratch.data());
   }
   std::fill(t.sum.begin(), t.sum.begin() + n, 0.0f);
   if (seen_above) {

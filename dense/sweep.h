@@ -24,7 +24,10 @@ constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
 struct GreyImage {
   int width = 0, height = 0;
   std::vector<float> values;
-  float noise_std = 0;  // the sensor noise's standard deviation, in the same units (EstimateNoiseStd)
+  // The sensor noise's standard deviation in the same units: ToGrey's
+  // estimate (EstimateNoiseStd), which the dense stage scales to what its
+  // cells sample where they are finer than the pixels (dense.cpp, SlotViews).
+  float noise_std = 0;
 };
 
 GreyImage ToGrey(const DenseView& v);
